@@ -1,0 +1,74 @@
+//! What the engine asks of a simulator, and no more (MimicGen's environment interface).
+
+use std::collections::BTreeMap;
+
+use rand::RngCore;
+
+use crate::pose::Pose;
+
+/// Why an environment call failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum EnvError {
+    /// The simulation became unusable for this attempt (NaN state, solver warning, blow-up); the
+    /// attempt fails with this reason and the run goes on.
+    #[error("simulation unstable: {reason}")]
+    Unstable {
+        /// What the simulator reported.
+        reason: String,
+    },
+    /// A problem no further attempt can escape (bad model, missing name); the run stops.
+    #[error("{reason}")]
+    Fatal {
+        /// What went wrong, naming the file or field.
+        reason: String,
+    },
+}
+
+/// A simulated scene the engine can reset, observe and drive with delta-pose actions.
+///
+/// Implementations own their simulator state; run several attempts in parallel by giving each
+/// worker its own environment.
+pub trait Environment {
+    /// Samples a new scene from the task's reset distribution using `rng`, and resets to it.
+    ///
+    /// # Errors
+    /// [`EnvError`] if the scene cannot be built.
+    fn reset(&mut self, rng: &mut dyn RngCore) -> Result<(), EnvError>;
+
+    /// Current end-effector pose `world_from_eef`.
+    fn eef_pose(&self) -> Pose;
+
+    /// Current `world_from_object` of every object the task names.
+    fn object_poses(&self) -> BTreeMap<String, Pose>;
+
+    /// Current value of every subtask-end signal (nonzero = on).
+    fn subtask_term_signals(&self) -> BTreeMap<String, i64>;
+
+    /// Whether the task is currently achieved.
+    fn is_success(&self) -> bool;
+
+    /// Pose part of the action that moves the controller towards `world_from_target`.
+    fn target_pose_to_action(&self, world_from_target: &Pose) -> [f64; 6];
+
+    /// Controller target pose implied by the pose part of `action` in the current state.
+    fn action_to_target_pose(&self, action: &[f64]) -> Pose;
+
+    /// Total action width (six pose dimensions plus the gripper).
+    fn action_dim(&self) -> usize;
+
+    /// Applies one action (one control step).
+    ///
+    /// # Errors
+    /// [`EnvError::Unstable`] if the physics blew up.
+    fn step(&mut self, action: &[f64]) -> Result<(), EnvError>;
+
+    /// The flattened simulator state.
+    fn state(&self) -> Vec<f64>;
+
+    /// Restores a state returned by [`Environment::state`].
+    ///
+    /// # Errors
+    /// [`EnvError`] if the state has the wrong size or is rejected.
+    fn set_state(&mut self, state: &[f64]) -> Result<(), EnvError>;
+}

@@ -1,0 +1,563 @@
+//! The generation loop: attempts, their records, and a run over several workers.
+//!
+//! Attempt `k` of a run draws every random number (scene, segment offsets, source choice, action
+//! noise) from ChaCha8 stream `k` of the run seed, so an attempt is the same whichever worker runs
+//! it and whenever. [`run`] hands attempts to the caller strictly in index order and stops at the
+//! same index whatever the number of workers, so the same seed gives the same dataset.
+
+use std::collections::BTreeMap;
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use serde::{Deserialize, Serialize};
+
+use crate::EngineError;
+use crate::action::POSE_ACTION_DIM;
+use crate::demo::{Rows, SimPayload, SourceDataset, SourceDemo};
+use crate::env::{EnvError, Environment};
+use crate::pose::Pose;
+use crate::segment::{Segmentation, Span};
+use crate::select::{SceneContext, select_source};
+use crate::spec::TaskSpec;
+use crate::transform::{Waypoint, WaypointKind, subtask_waypoints, transform_segment};
+
+/// The random stream of attempt `index` in a run seeded with `seed`.
+#[must_use]
+pub fn attempt_rng(seed: u64, index: u64) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(index);
+    rng
+}
+
+/// Why an attempt failed.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum FailureReason {
+    /// The subtask ran to its end but its end signal never turned on (e.g. the grasp missed).
+    SignalNeverOn {
+        /// The signal that stayed off.
+        signal: String,
+    },
+    /// Every subtask ran but the task was never achieved.
+    TaskNotAchieved,
+    /// The simulation became unstable.
+    Unstable {
+        /// What the simulator reported.
+        reason: String,
+    },
+}
+
+impl std::fmt::Display for FailureReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::SignalNeverOn { signal } => write!(f, "signal {signal:?} never turned on"),
+            Self::TaskNotAchieved => write!(f, "task not achieved"),
+            Self::Unstable { reason } => write!(f, "simulation unstable: {reason}"),
+        }
+    }
+}
+
+/// Where and why an attempt failed.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Failure {
+    /// Index of the first subtask that went wrong.
+    pub subtask: usize,
+    /// What went wrong there.
+    pub reason: FailureReason,
+}
+
+/// How one subtask of an attempt was planned: the pieces the paper's Fig. 2 draws.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SubtaskPlan {
+    /// The source demo the segment came from.
+    pub src_demo: usize,
+    /// The segment's steps in that demo, after this attempt's offsets.
+    pub src_span: Span,
+    /// The source segment's poses before the transform (first eef pose, then targets).
+    pub source_poses: Vec<Pose>,
+    /// The reference object's pose in the source demo at the segment start.
+    pub world_from_obj_src: Option<Pose>,
+    /// The reference object's pose in the new scene at the subtask start.
+    pub world_from_obj_new: Option<Pose>,
+    /// The segment re-expressed in the new scene.
+    pub transformed_poses: Vec<Pose>,
+    /// The waypoints actually executed (interpolation, then transformed).
+    pub waypoints: Vec<(Pose, WaypointKind)>,
+    /// First executed step of this subtask in the attempt.
+    pub first_step: usize,
+}
+
+/// Everything recorded per executed step, step-aligned like a source demo.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Trajectory {
+    /// Simulator state before each action.
+    pub states: Rows,
+    /// The actions executed (noise included, clipped).
+    pub actions: Rows,
+    /// `world_from_eef` before each action.
+    pub eef_poses: Vec<Pose>,
+    /// Controller target implied by each executed action.
+    pub target_poses: Vec<Pose>,
+    /// Gripper part of each action.
+    pub gripper_actions: Rows,
+    /// `world_from_object` before each action.
+    pub object_poses: BTreeMap<String, Vec<Pose>>,
+    /// Signals before each action.
+    pub subtask_term_signals: BTreeMap<String, Vec<i64>>,
+    /// Source demo each step came from.
+    pub src_demo_labels: Vec<usize>,
+    /// Subtask each step belongs to.
+    pub subtask_labels: Vec<usize>,
+    /// Whether each step was interpolation or transformed segment.
+    pub kinds: Vec<WaypointKind>,
+}
+
+impl Trajectory {
+    /// An empty trajectory for states of `state_dim` and actions of `action_dim` values.
+    #[must_use]
+    pub fn new(state_dim: usize, action_dim: usize) -> Self {
+        Self {
+            states: Rows::new(state_dim),
+            actions: Rows::new(action_dim),
+            gripper_actions: Rows::new(action_dim.saturating_sub(POSE_ACTION_DIM)),
+            ..Self::default()
+        }
+    }
+
+    /// The trajectory as a source demo (for re-use as a source, or for writing out).
+    #[must_use]
+    pub fn to_source_demo(&self, name: &str) -> SourceDemo {
+        SourceDemo {
+            name: name.to_owned(),
+            eef_poses: self.eef_poses.clone(),
+            target_poses: self.target_poses.clone(),
+            gripper_actions: self.gripper_actions.clone(),
+            object_poses: self.object_poses.clone(),
+            subtask_term_signals: self.subtask_term_signals.clone(),
+            manual_subtask_ends: None,
+            sim: SimPayload { actions: self.actions.clone(), states: self.states.clone(), model_xml: None },
+        }
+    }
+
+    /// Number of executed steps.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.eef_poses.len()
+    }
+
+    /// True when nothing was executed.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.eef_poses.is_empty()
+    }
+}
+
+/// The record of one attempt, kept whether it succeeded or not.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Attempt {
+    /// Index in the run (its random stream).
+    pub index: u64,
+    /// The run seed.
+    pub seed: u64,
+    /// Whether the task was achieved at any step.
+    pub success: bool,
+    /// Where and why it failed, if it did.
+    pub failure: Option<Failure>,
+    /// Source demo chosen for each subtask.
+    pub src_demo_per_subtask: Vec<usize>,
+    /// Object poses of the sampled scene before the first action.
+    pub initial_object_poses: BTreeMap<String, Pose>,
+    /// The simulator state of the sampled scene.
+    pub initial_state: Vec<f64>,
+    /// Per-subtask plans.
+    pub plans: Vec<SubtaskPlan>,
+    /// Per-step records.
+    pub trajectory: Trajectory,
+}
+
+/// A task spec bound to a parsed source dataset, ready to run attempts.
+#[derive(Debug, Clone)]
+pub struct Generator {
+    spec: TaskSpec,
+    dataset: SourceDataset,
+    segmentation: Segmentation,
+}
+
+impl Generator {
+    /// Validates the dataset, checks the spec's names against it and parses the segments.
+    ///
+    /// # Errors
+    /// Any validation, naming or segmentation error, naming the demo and field.
+    pub fn new(spec: TaskSpec, dataset: SourceDataset) -> Result<Self, EngineError> {
+        spec.check("task spec")?;
+        dataset.validate()?;
+        spec.check_names(&dataset.object_names(), &dataset.signal_names())?;
+        let segmentation = Segmentation::new(&dataset.demos, &spec)?;
+        Ok(Self { spec, dataset, segmentation })
+    }
+
+    /// The task spec.
+    #[must_use]
+    pub fn spec(&self) -> &TaskSpec {
+        &self.spec
+    }
+
+    /// The source dataset.
+    #[must_use]
+    pub fn dataset(&self) -> &SourceDataset {
+        &self.dataset
+    }
+
+    /// The nominal segmentation.
+    #[must_use]
+    pub fn segmentation(&self) -> &Segmentation {
+        &self.segmentation
+    }
+
+    /// Runs attempt `index`: samples a scene, then for every subtask selects, transforms,
+    /// interpolates and executes a source segment.
+    ///
+    /// # Errors
+    /// Only [`EnvError::Fatal`] problems; a failed attempt is an `Ok` record with `success == false`.
+    pub fn attempt<E: Environment + ?Sized>(&self, env: &mut E, index: u64) -> Result<Attempt, EngineError> {
+        let settings = &self.spec.generation;
+        let mut rng = attempt_rng(settings.seed, index);
+        let fatal = |e: EnvError| EngineError::Env { attempt: index, source: e };
+        let unstable = |e: EnvError, subtask: usize| match e {
+            EnvError::Unstable { reason } => Ok(Failure { subtask, reason: FailureReason::Unstable { reason } }),
+            other => Err(fatal(other)),
+        };
+        let mut attempt = Attempt {
+            index,
+            seed: settings.seed,
+            success: false,
+            failure: None,
+            src_demo_per_subtask: Vec::new(),
+            initial_object_poses: BTreeMap::new(),
+            initial_state: Vec::new(),
+            plans: Vec::new(),
+            trajectory: Trajectory::new(0, env.action_dim()),
+        };
+        if let Err(e) = env.reset(&mut rng) {
+            attempt.failure = Some(unstable(e, 0)?);
+            return Ok(attempt);
+        }
+        attempt.initial_object_poses = env.object_poses();
+        attempt.initial_state = env.state();
+        attempt.trajectory = Trajectory::new(attempt.initial_state.len(), env.action_dim());
+        let spans = self.segmentation.draw_spans(&mut rng);
+        let demos = &self.dataset.demos;
+        let mut selected: Option<usize> = None;
+        let mut last_target: Option<Pose> = None;
+        for (subtask_index, subtask) in self.spec.subtasks.iter().enumerate() {
+            let is_first = subtask_index == 0;
+            let world_from_eef = env.eef_pose();
+            let objects = env.object_poses();
+            let world_from_obj_new = match &subtask.object_ref {
+                Some(name) => Some(*objects.get(name).ok_or_else(|| {
+                    fatal(EnvError::Fatal {
+                        reason: format!(
+                            "environment reports no pose for object {name:?} (subtask {subtask_index}); it has {:?}",
+                            objects.keys().collect::<Vec<_>>()
+                        ),
+                    })
+                })?),
+                None => None,
+            };
+            let demo_index = match selected {
+                Some(d) if !settings.select_src_per_subtask => d,
+                _ => {
+                    let scene = SceneContext { world_from_eef: &world_from_eef, world_from_obj: world_from_obj_new.as_ref() };
+                    select_source(&subtask.selection, demos, &spans, subtask_index, subtask.object_ref.as_deref(), scene, &mut rng)
+                }
+            };
+            selected = Some(demo_index);
+            attempt.src_demo_per_subtask.push(demo_index);
+            let demo = &demos[demo_index];
+            let (start, end) = spans[demo_index][subtask_index];
+            let mut source_poses = Vec::with_capacity(end - start + 1);
+            let mut gripper: Vec<Vec<f64>> = Vec::with_capacity(end - start + 1);
+            if is_first || settings.transform_first_robot_pose {
+                source_poses.push(demo.eef_poses[start]);
+                gripper.push(demo.gripper_actions.row(start).to_vec());
+            }
+            source_poses.extend_from_slice(&demo.target_poses[start..end]);
+            gripper.extend((start..end).map(|t| demo.gripper_actions.row(t).to_vec()));
+            let world_from_obj_src = subtask.object_ref.as_ref().map(|name| demo.object_poses[name][start]);
+            let transformed = match (&world_from_obj_new, &world_from_obj_src) {
+                (Some(new), Some(src)) => transform_segment(new, src, &source_poses),
+                _ => source_poses.clone(),
+            };
+            let interp_start = match last_target {
+                Some(pose) if settings.interpolate_from_last_target_pose && !is_first => pose,
+                _ => world_from_eef,
+            };
+            let interp_noise = if subtask.apply_noise_during_interpolation { subtask.action_noise } else { 0.0 };
+            let waypoints = subtask_waypoints(
+                &interp_start,
+                &transformed,
+                &gripper,
+                subtask.num_interpolation_steps,
+                subtask.num_fixed_steps,
+                subtask.action_noise,
+                interp_noise,
+            );
+            last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);
+            attempt.plans.push(SubtaskPlan {
+                src_demo: demo_index,
+                src_span: (start, end),
+                source_poses,
+                world_from_obj_src,
+                world_from_obj_new,
+                transformed_poses: transformed,
+                waypoints: waypoints.iter().map(|(w, k)| (w.pose, *k)).collect(),
+                first_step: attempt.trajectory.len(),
+            });
+            let mut signal_seen = false;
+            let signal = if subtask_index + 1 < self.spec.subtasks.len() { subtask.term_signal.as_deref() } else { None };
+            for (waypoint, kind) in &waypoints {
+                let labels = StepLabels { src_demo: demo_index, subtask: subtask_index, kind: *kind };
+                let signals = match execute_step(env, waypoint, labels, &mut attempt.trajectory, &mut rng) {
+                    Ok(signals) => signals,
+                    Err(e) => {
+                        attempt.failure = Some(unstable(e, subtask_index)?);
+                        return Ok(attempt);
+                    }
+                };
+                signal_seen |= signal.is_some_and(|s| signals.get(s).is_some_and(|&v| v != 0));
+                attempt.success |= env.is_success();
+            }
+            if let Some(name) = signal {
+                signal_seen |= env.subtask_term_signals().get(name).is_some_and(|&v| v != 0);
+                if !signal_seen && attempt.failure.is_none() {
+                    attempt.failure =
+                        Some(Failure { subtask: subtask_index, reason: FailureReason::SignalNeverOn { signal: name.to_owned() } });
+                }
+            }
+        }
+        if attempt.success {
+            attempt.failure = None;
+        } else if attempt.failure.is_none() {
+            attempt.failure = Some(Failure { subtask: self.spec.subtasks.len() - 1, reason: FailureReason::TaskNotAchieved });
+        }
+        Ok(attempt)
+    }
+}
+
+/// Labels attached to every recorded step.
+#[derive(Debug, Clone, Copy)]
+pub struct StepLabels {
+    /// Source demo the step came from.
+    pub src_demo: usize,
+    /// Subtask the step belongs to.
+    pub subtask: usize,
+    /// Interpolation or transformed segment.
+    pub kind: WaypointKind,
+}
+
+/// Converts a waypoint to an action (with the waypoint's noise, clipped to `[-1, 1]`), records the
+/// step in `traj` as MimicGen records `datagen_info`, and applies it. Returns the signals recorded
+/// before the action.
+///
+/// # Errors
+/// The environment's error from stepping, or [`EnvError::Fatal`] if the gripper widths disagree.
+pub fn execute_step<E: Environment + ?Sized, R: Rng + ?Sized>(
+    env: &mut E,
+    waypoint: &Waypoint,
+    labels: StepLabels,
+    traj: &mut Trajectory,
+    rng: &mut R,
+) -> Result<BTreeMap<String, i64>, EnvError> {
+    let mut pose_action = env.target_pose_to_action(&waypoint.pose);
+    if waypoint.noise > 0.0 {
+        for a in &mut pose_action {
+            let z: f64 = rng.sample(StandardNormal);
+            *a = (*a + waypoint.noise * z).clamp(-1.0, 1.0);
+        }
+    }
+    let mut action = Vec::with_capacity(POSE_ACTION_DIM + waypoint.gripper.len());
+    action.extend_from_slice(&pose_action);
+    action.extend_from_slice(&waypoint.gripper);
+    if action.len() != env.action_dim() {
+        return Err(EnvError::Fatal {
+            reason: format!(
+                "source gripper actions have {} values but the environment's actions have {} gripper values",
+                waypoint.gripper.len(),
+                env.action_dim() - POSE_ACTION_DIM.min(env.action_dim())
+            ),
+        });
+    }
+    let state = env.state();
+    let shape = |e: EngineError| EnvError::Fatal { reason: e.to_string() };
+    traj.states.push(&state).map_err(shape)?;
+    traj.actions.push(&action).map_err(shape)?;
+    traj.gripper_actions.push(&waypoint.gripper).map_err(shape)?;
+    traj.eef_poses.push(env.eef_pose());
+    traj.target_poses.push(env.action_to_target_pose(&action));
+    for (name, pose) in env.object_poses() {
+        traj.object_poses.entry(name).or_default().push(pose);
+    }
+    let signals = env.subtask_term_signals();
+    for (name, value) in &signals {
+        traj.subtask_term_signals.entry(name.clone()).or_default().push(*value);
+    }
+    traj.src_demo_labels.push(labels.src_demo);
+    traj.subtask_labels.push(labels.subtask);
+    traj.kinds.push(labels.kind);
+    env.step(&action)?;
+    Ok(signals)
+}
+
+/// Attempts and successes that used one source demo.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct DemoUse {
+    /// Attempts in which this demo supplied at least one segment.
+    pub attempts: usize,
+    /// Of those, how many succeeded.
+    pub successes: usize,
+}
+
+/// How many attempts failed in one subtask for one reason.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FailureCount {
+    /// The subtask.
+    pub subtask: usize,
+    /// The reason.
+    pub reason: FailureReason,
+    /// The count.
+    pub count: usize,
+}
+
+/// Running statistics of a generation run.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct RunStats {
+    /// Attempts accepted so far.
+    pub attempts: usize,
+    /// Successful attempts so far.
+    pub successes: usize,
+    /// Per source demo, by dataset index.
+    pub per_source_demo: Vec<DemoUse>,
+    /// Failures by subtask and reason, sorted.
+    pub failures: Vec<FailureCount>,
+}
+
+impl RunStats {
+    /// Statistics for a dataset of `num_demos` source demos.
+    #[must_use]
+    pub fn new(num_demos: usize) -> Self {
+        Self { per_source_demo: vec![DemoUse::default(); num_demos], ..Self::default() }
+    }
+
+    /// The data generation rate: successes / attempts (0 before any attempt).
+    #[must_use]
+    pub fn rate(&self) -> f64 {
+        #[allow(clippy::cast_precision_loss)] // counts are far below 2^52
+        if self.attempts == 0 { 0.0 } else { self.successes as f64 / self.attempts as f64 }
+    }
+
+    /// Counts one attempt.
+    pub fn record(&mut self, attempt: &Attempt) {
+        self.attempts += 1;
+        self.successes += usize::from(attempt.success);
+        let mut used: Vec<usize> = attempt.src_demo_per_subtask.clone();
+        used.sort_unstable();
+        used.dedup();
+        for d in used {
+            if d >= self.per_source_demo.len() {
+                self.per_source_demo.resize(d + 1, DemoUse::default());
+            }
+            self.per_source_demo[d].attempts += 1;
+            self.per_source_demo[d].successes += usize::from(attempt.success);
+        }
+        if let Some(failure) = &attempt.failure {
+            match self.failures.iter_mut().find(|f| f.subtask == failure.subtask && f.reason == failure.reason) {
+                Some(f) => f.count += 1,
+                None => {
+                    self.failures.push(FailureCount { subtask: failure.subtask, reason: failure.reason.clone(), count: 1 });
+                    self.failures.sort_by(|a, b| (a.subtask, &a.reason).cmp(&(b.subtask, &b.reason)));
+                }
+            }
+        }
+    }
+}
+
+/// Runs attempts on every environment in `envs` in parallel (one worker thread each) and passes
+/// them to `on_attempt` in index order, until the spec's stopping rule is met or `on_attempt`
+/// breaks. The attempts seen, and so the dataset, do not depend on `envs.len()`.
+///
+/// # Errors
+/// The first fatal environment error, or the error `on_attempt` breaks with.
+pub fn run<E, F>(generator: &Generator, envs: &mut [E], mut on_attempt: F) -> Result<RunStats, EngineError>
+where
+    E: Environment + Send,
+    F: FnMut(Attempt, &RunStats) -> ControlFlow<Result<(), EngineError>>,
+{
+    let settings = &generator.spec.generation;
+    let cap = settings.attempt_cap();
+    let mut stats = RunStats::new(generator.dataset.demos.len());
+    if envs.is_empty() {
+        return Err(EngineError::Config {
+            file: String::new(),
+            field: "workers".to_owned(),
+            reason: "at least one environment is needed".to_owned(),
+        });
+    }
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let (sender, receiver) = mpsc::sync_channel::<(usize, Result<Attempt, EngineError>)>(envs.len() * 2);
+    std::thread::scope(|scope| {
+        for (worker, env) in envs.iter_mut().enumerate() {
+            let sender = sender.clone();
+            let (next, stop) = (&next, &stop);
+            let spawned = std::thread::Builder::new().name(format!("mimicgen-worker-{worker}")).spawn_scoped(scope, move || {
+                loop {
+                    let index = next.fetch_add(1, Ordering::Relaxed);
+                    if index >= cap || stop.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    let result = generator.attempt(env, index as u64);
+                    if sender.send((index, result)).is_err() {
+                        break;
+                    }
+                }
+            });
+            if let Err(e) = spawned {
+                stop.store(true, Ordering::Relaxed);
+                return Err(EngineError::Io { path: "worker thread".to_owned(), reason: e.to_string() });
+            }
+        }
+        drop(sender);
+        let mut pending: BTreeMap<usize, Result<Attempt, EngineError>> = BTreeMap::new();
+        let mut expected = 0usize;
+        let outcome = 'receive: loop {
+            if expected >= cap || (settings.guarantee && stats.successes >= settings.num_trials) {
+                break Ok(());
+            }
+            let Ok((index, result)) = receiver.recv() else { break Ok(()) };
+            pending.insert(index, result);
+            while let Some(result) = pending.remove(&expected) {
+                expected += 1;
+                let attempt = match result {
+                    Ok(a) => a,
+                    Err(e) => break 'receive Err(e),
+                };
+                stats.record(&attempt);
+                if let ControlFlow::Break(result) = on_attempt(attempt, &stats) {
+                    break 'receive result;
+                }
+                if settings.guarantee && stats.successes >= settings.num_trials {
+                    break 'receive Ok(());
+                }
+            }
+        };
+        stop.store(true, Ordering::Relaxed);
+        // Drain so blocked workers can see `stop` and exit.
+        while receiver.recv().is_ok() {}
+        outcome
+    })?;
+    Ok(stats)
+}

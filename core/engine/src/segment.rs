@@ -1,0 +1,221 @@
+//! Splitting source demos into object-centric subtask segments (paper Sec. 3.1).
+//!
+//! A subtask ends at the first 0 -> 1 transition of its signal after the previous boundary
+//! (or at a hand-annotated step, which overrides the signal); the last subtask ends with the demo.
+//! Each attempt then shifts every boundary but the last by an offset drawn from the subtask's
+//! `term_offset_range`, so segments vary a little from attempt to attempt, as MimicGen does.
+
+use rand::Rng;
+
+use crate::EngineError;
+use crate::demo::SourceDemo;
+use crate::spec::TaskSpec;
+
+/// Half-open step range `[start, end)` of one subtask in one demo.
+pub type Span = (usize, usize);
+
+/// First step `t > after` where `signal[t-1] == 0` and `signal[t] != 0`.
+#[must_use]
+pub fn first_rising_edge(signal: &[i64], after: usize) -> Option<usize> {
+    ((after + 1)..signal.len()).find(|&t| signal[t - 1] == 0 && signal[t] != 0)
+}
+
+/// Nominal subtask boundaries of every demo, before per-attempt offsets.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segmentation {
+    /// `ends[d][i]`: nominal end step of subtask `i` in demo `d` (the last equals the demo length).
+    ends: Vec<Vec<usize>>,
+    offsets: Vec<(i64, i64)>,
+}
+
+impl Segmentation {
+    /// Parses every demo with the spec's signals (or the demo's manual boundaries), and checks that
+    /// even the most extreme offsets leave every segment non-empty.
+    ///
+    /// # Errors
+    /// [`EngineError::Segmentation`] naming the demo and subtask.
+    pub fn new(demos: &[SourceDemo], spec: &TaskSpec) -> Result<Self, EngineError> {
+        let num = spec.subtasks.len();
+        let offsets: Vec<(i64, i64)> = spec
+            .subtasks
+            .iter()
+            .enumerate()
+            .map(|(i, s)| if i + 1 == num { (0, 0) } else { s.term_offset_range.unwrap_or((0, 0)) })
+            .collect();
+        let mut ends = Vec::with_capacity(demos.len());
+        for demo in demos {
+            let fail = |subtask: usize, reason: String| EngineError::Segmentation { demo: demo.name.clone(), subtask, reason };
+            let mut demo_ends = Vec::with_capacity(num);
+            if let Some(manual) = &demo.manual_subtask_ends {
+                if manual.len() + 1 != num {
+                    return Err(fail(0, format!("{} manual boundaries given, the task needs {}", manual.len(), num - 1)));
+                }
+                demo_ends.extend_from_slice(manual);
+            } else {
+                let mut prev = 0;
+                for (i, s) in spec.subtasks.iter().enumerate().take(num - 1) {
+                    let name = s
+                        .term_signal
+                        .as_deref()
+                        .ok_or_else(|| fail(i, "has no term_signal and the demo has no manual boundaries".to_owned()))?;
+                    let signal = demo.subtask_term_signals.get(name).ok_or_else(|| fail(i, format!("demo has no signal {name:?}")))?;
+                    let end = first_rising_edge(signal, prev)
+                        .ok_or_else(|| fail(i, format!("signal {name:?} never turns on after step {prev}")))?;
+                    demo_ends.push(end);
+                    prev = end;
+                }
+            }
+            demo_ends.push(demo.len());
+            let mut start_latest = 0i64;
+            for (i, &end) in demo_ends.iter().enumerate() {
+                let end = i64::try_from(end).unwrap_or(i64::MAX);
+                let end_earliest = end + offsets[i].0;
+                if end_earliest <= start_latest {
+                    return Err(fail(
+                        i,
+                        format!("segment can be empty: it starts as late as step {start_latest} and may end at step {end_earliest}"),
+                    ));
+                }
+                let end_latest = end + offsets[i].1;
+                if end_latest > i64::try_from(demo.len()).unwrap_or(i64::MAX) {
+                    return Err(fail(i, format!("boundary {end} plus offset {} runs past the demo's {} steps", offsets[i].1, demo.len())));
+                }
+                start_latest = end_latest;
+            }
+            ends.push(demo_ends);
+        }
+        Ok(Self { ends, offsets })
+    }
+
+    /// Number of demos.
+    #[must_use]
+    pub fn num_demos(&self) -> usize {
+        self.ends.len()
+    }
+
+    /// Nominal spans of demo `d`, one per subtask.
+    #[must_use]
+    pub fn nominal_spans(&self, d: usize) -> Vec<Span> {
+        spans_from_ends(&self.ends[d])
+    }
+
+    /// Spans of every demo with freshly drawn boundary offsets (one draw per demo per subtask).
+    pub fn draw_spans<R: Rng + ?Sized>(&self, rng: &mut R) -> Vec<Vec<Span>> {
+        self.ends
+            .iter()
+            .map(|ends| {
+                let shifted: Vec<usize> = ends
+                    .iter()
+                    .zip(&self.offsets)
+                    .map(|(&end, &(lo, hi))| {
+                        let offset = if lo == hi { lo } else { rng.random_range(lo..=hi) };
+                        // `new` checked that every shifted boundary stays inside the demo.
+                        usize::try_from(i64::try_from(end).unwrap_or(i64::MAX) + offset).unwrap_or(end)
+                    })
+                    .collect();
+                spans_from_ends(&shifted)
+            })
+            .collect()
+    }
+}
+
+fn spans_from_ends(ends: &[usize]) -> Vec<Span> {
+    let mut start = 0;
+    ends.iter()
+        .map(|&end| {
+            let span = (start, end);
+            start = end;
+            span
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+    use crate::spec::{SelectionStrategy, SubtaskSpec, TaskSpec};
+    use crate::testing::demo_with_object_at;
+
+    fn spec(offsets: Option<(i64, i64)>) -> TaskSpec {
+        let sub = |signal: Option<&str>, offsets| SubtaskSpec {
+            object_ref: Some("cube".into()),
+            term_signal: signal.map(str::to_owned),
+            term_offset_range: offsets,
+            selection: SelectionStrategy::Random,
+            action_noise: 0.0,
+            num_interpolation_steps: 0,
+            num_fixed_steps: 0,
+            apply_noise_during_interpolation: false,
+        };
+        TaskSpec {
+            name: "t".into(),
+            generation: Default::default(),
+            source: Default::default(),
+            subtasks: vec![sub(Some("on"), offsets), sub(None, None)],
+        }
+    }
+
+    #[test]
+    fn rising_edge_after_the_previous_boundary() {
+        let s = [1, 1, 0, 0, 1, 1, 0, 1];
+        assert_eq!(first_rising_edge(&s, 0), Some(4));
+        assert_eq!(first_rising_edge(&s, 4), Some(7));
+        assert_eq!(first_rising_edge(&s, 7), None);
+        assert_eq!(first_rising_edge(&[0, 0, 0], 0), None);
+    }
+
+    #[test]
+    fn signals_split_demos_and_the_last_subtask_runs_to_the_end() {
+        let demos = vec![demo_with_object_at("cube", 0.0)];
+        let seg = Segmentation::new(&demos, &spec(None)).unwrap();
+        assert_eq!(seg.nominal_spans(0), vec![(0, 4), (4, 10)]);
+    }
+
+    #[test]
+    fn manual_boundaries_override_signals() {
+        let mut demo = demo_with_object_at("cube", 0.0);
+        demo.manual_subtask_ends = Some(vec![7]);
+        let seg = Segmentation::new(&[demo], &spec(None)).unwrap();
+        assert_eq!(seg.nominal_spans(0), vec![(0, 7), (7, 10)]);
+    }
+
+    #[test]
+    fn offsets_are_drawn_within_range_and_keep_segments_contiguous() {
+        let demos = vec![demo_with_object_at("cube", 0.0), demo_with_object_at("cube", 1.0)];
+        let seg = Segmentation::new(&demos, &spec(Some((-2, 3)))).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let mut ends = std::collections::BTreeSet::new();
+        for _ in 0..200 {
+            for spans in seg.draw_spans(&mut rng) {
+                assert_eq!(spans[0].0, 0);
+                assert_eq!(spans[0].1, spans[1].0);
+                assert_eq!(spans[1].1, 10);
+                ends.insert(spans[0].1);
+            }
+        }
+        assert_eq!(ends.into_iter().collect::<Vec<_>>(), vec![2, 3, 4, 5, 6, 7]);
+    }
+
+    #[test]
+    fn errors_name_the_demo_and_subtask() {
+        let mut never = demo_with_object_at("cube", 0.0);
+        never.name = "demo_7".into();
+        never.subtask_term_signals.insert("on".into(), vec![0; 10]);
+        let err = Segmentation::new(&[never], &spec(None)).unwrap_err().to_string();
+        assert!(err.contains("demo_7") && err.contains("subtask 0") && err.contains("never turns on"), "{err}");
+
+        let demo = demo_with_object_at("cube", 0.0);
+        let err = Segmentation::new(std::slice::from_ref(&demo), &spec(Some((-4, 0)))).unwrap_err().to_string();
+        assert!(err.contains("can be empty"), "{err}");
+        let err = Segmentation::new(std::slice::from_ref(&demo), &spec(Some((0, 6)))).unwrap_err().to_string();
+        assert!(err.contains("can be empty") || err.contains("past the demo"), "{err}");
+
+        let mut manual = demo;
+        manual.manual_subtask_ends = Some(vec![10]);
+        let err = Segmentation::new(&[manual], &spec(None)).unwrap_err().to_string();
+        assert!(err.contains("subtask 1") && err.contains("can be empty"), "{err}");
+    }
+}

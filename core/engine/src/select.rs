@@ -1,0 +1,147 @@
+//! Choosing the source demo for a subtask (paper appendix "Reference Segment Selection").
+
+use rand::Rng;
+
+use crate::demo::SourceDemo;
+use crate::pose::{Pose, pose_distance};
+use crate::segment::Span;
+use crate::spec::SelectionStrategy;
+
+/// What the selection may look at in the new scene.
+#[derive(Debug, Clone, Copy)]
+pub struct SceneContext<'a> {
+    /// Current `world_from_eef`.
+    pub world_from_eef: &'a Pose,
+    /// Current `world_from_object` of the subtask's reference object, if it has one.
+    pub world_from_obj: Option<&'a Pose>,
+}
+
+/// Picks a demo index for `subtask`. `spans[d][subtask]` is demo `d`'s segment this attempt and
+/// `object` the subtask's reference object. Ties in distance keep dataset order, so the choice
+/// depends only on the inputs and `rng`.
+pub fn select_source<R: Rng + ?Sized>(
+    strategy: &SelectionStrategy,
+    demos: &[SourceDemo],
+    spans: &[Vec<Span>],
+    subtask: usize,
+    object: Option<&str>,
+    scene: SceneContext<'_>,
+    rng: &mut R,
+) -> usize {
+    let src_object_pose = |d: usize| object.and_then(|name| demos[d].object_poses.get(name)).map(|poses| poses[spans[d][subtask].0]);
+    let distances: Vec<f64> = match strategy {
+        SelectionStrategy::Random => return rng.random_range(0..demos.len()),
+        SelectionStrategy::NearestNeighborObject { .. } => {
+            let Some(world_from_obj) = scene.world_from_obj else { return rng.random_range(0..demos.len()) };
+            (0..demos.len())
+                .map(|d| src_object_pose(d).map_or(f64::INFINITY, |src| pose_distance(world_from_obj, &src, strategy.weights())))
+                .collect()
+        }
+        SelectionStrategy::NearestNeighborRobotDistance { .. } => (0..demos.len())
+            .map(|d| {
+                let world_from_eef_src = demos[d].eef_poses[spans[d][subtask].0];
+                let start = match (scene.world_from_obj, src_object_pose(d)) {
+                    (Some(world_from_obj_new), Some(world_from_obj_src)) => {
+                        world_from_obj_new * world_from_obj_src.inverse() * world_from_eef_src
+                    }
+                    _ => world_from_eef_src,
+                };
+                pose_distance(scene.world_from_eef, &start, strategy.weights())
+            })
+            .collect(),
+    };
+    nearest_k_pick(&distances, strategy_k(strategy), rng)
+}
+
+fn strategy_k(strategy: &SelectionStrategy) -> usize {
+    match strategy {
+        SelectionStrategy::Random => usize::MAX,
+        SelectionStrategy::NearestNeighborObject { nn_k, .. } | SelectionStrategy::NearestNeighborRobotDistance { nn_k, .. } => *nn_k,
+    }
+}
+
+/// Uniform pick among the `k` smallest distances (ties broken by index).
+fn nearest_k_pick<R: Rng + ?Sized>(distances: &[f64], k: usize, rng: &mut R) -> usize {
+    let mut order: Vec<usize> = (0..distances.len()).collect();
+    order.sort_by(|&a, &b| distances[a].total_cmp(&distances[b]).then(a.cmp(&b)));
+    let k = k.clamp(1, order.len());
+    order[rng.random_range(0..k)]
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+    use crate::pose::{Vec3, pose_from_parts};
+    use crate::testing::demo_with_object_at;
+
+    #[test]
+    fn nearest_neighbour_draws_only_from_the_k_closest() {
+        let xs = [0.5, 0.0, 0.31, 0.1, 0.9, 0.2];
+        let demos: Vec<SourceDemo> = xs.iter().map(|&x| demo_with_object_at("cube", x)).collect();
+        let spans: Vec<Vec<Span>> = demos.iter().map(|d| vec![(0, d.len())]).collect();
+        let strategy = SelectionStrategy::NearestNeighborObject { nn_k: 3, pos_weight: 1.0, rot_weight: 1.0 };
+        let here = pose_from_parts(Vec3::new(0.12, 0.0, 0.0), crate::pose::Rot::identity());
+        let eef = Pose::identity();
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut seen = std::collections::BTreeSet::new();
+        for _ in 0..300 {
+            let scene = SceneContext { world_from_eef: &eef, world_from_obj: Some(&here) };
+            seen.insert(select_source(&strategy, &demos, &spans, 0, Some("cube"), scene, &mut rng));
+        }
+        // Closest to 0.12: 0.1 (d3), 0.2 (d5), 0.0 (d1).
+        assert_eq!(seen.into_iter().collect::<Vec<_>>(), vec![1, 3, 5]);
+    }
+
+    #[test]
+    fn nn_k_larger_than_the_dataset_is_random() {
+        let demos: Vec<SourceDemo> = [0.0, 0.1].iter().map(|&x| demo_with_object_at("cube", x)).collect();
+        let spans: Vec<Vec<Span>> = demos.iter().map(|d| vec![(0, d.len())]).collect();
+        let strategy = SelectionStrategy::NearestNeighborObject { nn_k: 10, pos_weight: 1.0, rot_weight: 1.0 };
+        let eef = Pose::identity();
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let picks: Vec<usize> = (0..50)
+            .map(|_| {
+                select_source(
+                    &strategy,
+                    &demos,
+                    &spans,
+                    0,
+                    Some("cube"),
+                    SceneContext { world_from_eef: &eef, world_from_obj: Some(&eef) },
+                    &mut rng,
+                )
+            })
+            .collect();
+        assert!(picks.contains(&0) && picks.contains(&1));
+    }
+
+    #[test]
+    fn robot_distance_prefers_the_shortest_travel() {
+        // Each demo starts 0.1 m above its cube; in the new scene the cube is at the origin, so every
+        // transformed start is the same except for the demo whose eef started further away.
+        let mut demos: Vec<SourceDemo> = [0.0, 0.3, 0.6].iter().map(|&x| demo_with_object_at("cube", x)).collect();
+        for d in &mut demos {
+            let cube = d.object_poses["cube"][0];
+            d.eef_poses[0] = cube * pose_from_parts(Vec3::new(0.0, 0.0, 0.1), crate::pose::Rot::identity());
+        }
+        demos[1].eef_poses[0] = demos[1].object_poses["cube"][0] * pose_from_parts(Vec3::new(0.0, 0.0, 0.02), crate::pose::Rot::identity());
+        let spans: Vec<Vec<Span>> = demos.iter().map(|d| vec![(0, d.len())]).collect();
+        let strategy = SelectionStrategy::NearestNeighborRobotDistance { nn_k: 1, pos_weight: 1.0, rot_weight: 1.0 };
+        let eef = pose_from_parts(Vec3::new(0.0, 0.0, 0.0), crate::pose::Rot::identity());
+        let obj = Pose::identity();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let pick = select_source(
+            &strategy,
+            &demos,
+            &spans,
+            0,
+            Some("cube"),
+            SceneContext { world_from_eef: &eef, world_from_obj: Some(&obj) },
+            &mut rng,
+        );
+        assert_eq!(pick, 1);
+    }
+}

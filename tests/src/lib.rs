@@ -1,0 +1,7 @@
+//! Cross-crate integration tests live in `tests/`; this library holds their shared helpers.
+
+/// Path of a file in the repository, from this crate's directory.
+#[must_use]
+pub fn repo_path(relative: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(relative)
+}
