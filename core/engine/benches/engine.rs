@@ -68,5 +68,26 @@ fn selection(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, transform_and_interpolate, selection);
+/// A whole attempt on the physics-free environment against stepping that environment the same
+/// number of times with no engine around it: the engine's own cost per step.
+fn attempt_overhead(c: &mut Criterion) {
+    use mimicgen_engine::Environment as _;
+    use mimicgen_engine::kinematic::{self, PickPlace};
+    let generator = mimicgen_engine::Generator::new(kinematic::pick_place_spec(1, 1), kinematic::scripted_dataset(10, 1).unwrap_or_default())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let mut env = PickPlace::new(0.08);
+    let steps = generator.attempt(&mut env, 0).map(|a| a.trajectory.len()).unwrap_or(0);
+    c.bench_function(&format!("kinematic attempt ({steps} steps)"), |b| b.iter(|| generator.attempt(&mut env, black_box(0))));
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    c.bench_function(&format!("kinematic bare stepping ({steps} steps)"), |b| {
+        b.iter(|| {
+            let _ = env.reset(&mut rng);
+            for _ in 0..steps {
+                let _ = env.step(black_box(&[0.1, 0.0, -0.1, 0.0, 0.0, 0.05, -1.0]));
+            }
+        });
+    });
+}
+
+criterion_group!(benches, transform_and_interpolate, selection, attempt_overhead);
 criterion_main!(benches);
