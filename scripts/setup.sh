@@ -32,4 +32,28 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   "$venv/bin/pip" install -q --disable-pip-version-check -r "$here/requirements.txt"
   echo "$want" > "$stamp"
 fi
+# Pinned wheels from PyPI, checked by sha256; only the parts we use are unpacked.
+#   mujoco 3.17.0: libmujoco.so.3.17.0 (the version mujoco-rs 7.0.0+mj-3.17.0 wraps)
+#   robosuite 1.4.1 (MIT): robot, gripper, mount, arena, object and texture assets
+fetch_wheel() { # name version sha256 dest pip-args...
+  local name="$1" version="$2" sha="$3" dest="$4"; shift 4
+  if [ -f "$dest/.done" ]; then return; fi
+  local tmp; tmp="$(mktemp -d)"
+  echo "setup: fetching $name==$version from PyPI"
+  "$venv/bin/pip" download -q --disable-pip-version-check --no-deps --only-binary=:all: -d "$tmp" "$@" "$name==$version"
+  local whl; whl="$(ls "$tmp"/*.whl)"
+  echo "$sha  $whl" | sha256sum -c --quiet - || { echo "setup: sha256 mismatch for $whl" >&2; exit 1; }
+  mkdir -p "$dest"
+  "$venv/bin/python" "$here/unpack_wheel.py" "$whl" "$name" "$dest"
+  rm -rf "$tmp"
+  touch "$dest/.done"
+}
+mujoco_dir="$cache/mujoco-3.17.0"
+fetch_wheel mujoco 3.17.0 d66928d86a2d1b601bbaa4dc11db50214d17d5301bb8afd84721313b67ff0874 "$mujoco_dir" \
+  --python-version 3.11 --implementation cp --platform manylinux_2_28_x86_64
+fetch_wheel robosuite 1.4.1 62587cd5888d9d3d813f3ffcc7017f6f77efa618952527a0b9bb139ffd0a3741 "$cache/robosuite-1.4.1"
+
+# The build finds libmujoco through .mujoco/lib (see .cargo/config.toml); link it into this clone.
+root="$(cd "$here/.." && pwd)"
+ln -sfn "$mujoco_dir" "$root/.mujoco"
 echo "setup: ok (cache $cache)"

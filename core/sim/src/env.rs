@@ -1,0 +1,249 @@
+//! A MuJoCo environment that steps like robosuite (20 Hz OSC_POSE over 2 ms physics steps) and
+//! implements the engine's [`Environment`].
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use mimicgen_engine::action::DeltaPoseScale;
+use mimicgen_engine::pose::{Pose, quat_to_wxyz};
+use mimicgen_engine::{EnvError, Environment};
+use mujoco_rs::prelude::*;
+use rand::RngCore;
+use rand_distr::{Distribution, Normal};
+
+use crate::osc::{Osc, OscConfig, PANDA_INIT_QPOS};
+use crate::scene::{Scene, pose_from_xpos_xmat};
+use crate::task::Task;
+
+/// robosuite's Panda gripper: the command moves by this much per physics step towards -1 / +1.
+const GRIPPER_SPEED: f64 = 0.01;
+/// robosuite's Panda gripper finger positions at reset.
+const GRIPPER_INIT_QPOS: [f64; 2] = [0.020833, -0.020833];
+/// robosuite's default initialisation noise on the arm joints (Gaussian std, rad).
+const ARM_INIT_NOISE: f64 = 0.02;
+
+/// One robosuite-like environment: a scene, its MuJoCo data, the controller and the task.
+pub struct SimEnv {
+    scene: Arc<Scene>,
+    task: Arc<dyn Task>,
+    data: MjData<Arc<MjModel>>,
+    osc: Osc,
+    gripper_command: [f64; 2],
+    warnings_seen: i64,
+}
+
+impl std::fmt::Debug for SimEnv {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimEnv").field("scene", &self.scene.origin).field("task", &self.task.name()).finish_non_exhaustive()
+    }
+}
+
+impl SimEnv {
+    /// An environment on `scene` for `task` (each worker makes its own; the scene is shared).
+    #[must_use]
+    pub fn new(scene: Arc<Scene>, task: Arc<dyn Task>) -> Self {
+        let data = MjData::new(Arc::clone(&scene.model));
+        let nv = usize::try_from(scene.model.ffi().nv).unwrap_or_default();
+        let osc = Osc::new(OscConfig::default(), PANDA_INIT_QPOS.to_vec(), nv);
+        Self { scene, task, data, osc, gripper_command: [0.0; 2], warnings_seen: 0 }
+    }
+
+    /// The scene.
+    #[must_use]
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The MuJoCo data (read-only), e.g. for rendering or extra observations.
+    #[must_use]
+    pub fn data(&self) -> &MjData<Arc<MjModel>> {
+        &self.data
+    }
+
+    /// Restores a recorded robosuite state as robomimic's `reset_to` does with a model: the
+    /// gripper command and controller posture start from their reset values.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] on a state of the wrong length.
+    pub fn reset_to_state(&mut self, state: &[f64]) -> Result<(), EnvError> {
+        self.gripper_command = [0.0; 2];
+        self.osc.initial_joint = PANDA_INIT_QPOS.to_vec();
+        self.set_state(state)
+    }
+
+    /// Whether any geom of `a` touches any geom of `b`.
+    #[must_use]
+    pub fn in_contact(&self, a: &[usize], b: &[usize]) -> bool {
+        self.data.contact().iter().any(|c| {
+            let (g1, g2) = (usize::try_from(c.geom[0]).unwrap_or(usize::MAX), usize::try_from(c.geom[1]).unwrap_or(usize::MAX));
+            (a.contains(&g1) && b.contains(&g2)) || (a.contains(&g2) && b.contains(&g1))
+        })
+    }
+
+    /// robosuite's `_check_grasp`: both finger pads touch the object.
+    #[must_use]
+    pub fn is_grasping(&self, object: usize) -> bool {
+        let geoms = &self.scene.objects[object].geoms;
+        self.scene.robot.finger_pads.iter().all(|pad| self.in_contact(pad, geoms))
+    }
+
+    /// `world_from_object` of the scene's object `i`.
+    #[must_use]
+    pub fn object_pose(&self, i: usize) -> Pose {
+        let body = self.scene.objects[i].body;
+        let mat = self.data.xmat()[body];
+        pose_from_xpos_xmat(&self.data.xpos()[body], &mat)
+    }
+
+    /// Places object `i` (with a free joint) at `world_from_object`, at rest.
+    pub fn place_object(&mut self, i: usize, world_from_object: &Pose) {
+        let object = &self.scene.objects[i];
+        if let (Some(q), Some(v)) = (object.qpos_adr, object.dof_adr) {
+            let t = world_from_object.translation.vector;
+            let w = quat_to_wxyz(&world_from_object.rotation);
+            let qpos = self.data.qpos_mut();
+            qpos[q..q + 3].copy_from_slice(t.as_slice());
+            qpos[q + 3..q + 7].copy_from_slice(&w);
+            self.data.qvel_mut()[v..v + 6].fill(0.0);
+        }
+    }
+
+    fn warning_count(&self) -> i64 {
+        self.data.warning().iter().map(|w| i64::from(w.number)).sum()
+    }
+
+    fn physics_step(&mut self, gripper_action: f64) -> Result<(), EnvError> {
+        self.data.forward();
+        let torques = self.osc.torques(&self.data, &self.scene.robot);
+        let robot = &self.scene.robot;
+        let sign = if gripper_action > 0.0 {
+            1.0
+        } else if gripper_action < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        self.gripper_command[0] = (self.gripper_command[0] - GRIPPER_SPEED * sign).clamp(-1.0, 1.0);
+        self.gripper_command[1] = (self.gripper_command[1] + GRIPPER_SPEED * sign).clamp(-1.0, 1.0);
+        let ctrl = self.data.ctrl_mut();
+        for ((a, [lo, hi]), tau) in robot.arm_actuators.iter().zip(torques) {
+            ctrl[*a] = tau.clamp(*lo, *hi);
+        }
+        for ((a, [lo, hi]), command) in robot.finger_actuators.iter().zip(self.gripper_command) {
+            ctrl[*a] = 0.5 * (hi + lo) + 0.5 * (hi - lo) * command;
+        }
+        self.data.step();
+        let warnings = self.warning_count();
+        if warnings > self.warnings_seen {
+            self.warnings_seen = warnings;
+            let kinds: Vec<String> = self
+                .data
+                .warning()
+                .iter()
+                .enumerate()
+                .filter(|(_, w)| w.number > 0)
+                .map(|(i, w)| format!("warning #{i} (x{})", w.number))
+                .collect();
+            return Err(EnvError::Unstable { reason: format!("MuJoCo {} at t = {:.3} s", kinds.join(", "), self.data.time()) });
+        }
+        if self.data.qpos().iter().chain(self.data.qvel()).any(|v| !v.is_finite()) {
+            return Err(EnvError::Unstable { reason: format!("non-finite state at t = {:.3} s", self.data.time()) });
+        }
+        Ok(())
+    }
+}
+
+impl Environment for SimEnv {
+    fn reset(&mut self, rng: &mut dyn RngCore) -> Result<(), EnvError> {
+        self.data.reset();
+        self.warnings_seen = 0;
+        let noise = Normal::new(0.0, ARM_INIT_NOISE).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
+        let robot = self.scene.robot.clone();
+        let arm: Vec<f64> = PANDA_INIT_QPOS.iter().map(|q| q + noise.sample(rng)).collect();
+        {
+            let qpos = self.data.qpos_mut();
+            for (adr, q) in robot.arm_qpos.iter().zip(&arm) {
+                qpos[*adr] = *q;
+            }
+            for (adr, q) in robot.finger_qpos.iter().zip(GRIPPER_INIT_QPOS) {
+                qpos[*adr] = q;
+            }
+        }
+        let placements = self.task.sample_scene(rng)?;
+        for (i, pose) in placements.iter().enumerate() {
+            self.place_object(i, pose);
+        }
+        self.data.forward();
+        self.osc.initial_joint = arm;
+        self.gripper_command = [0.0; 2];
+        Ok(())
+    }
+
+    fn eef_pose(&self) -> Pose {
+        let site = self.scene.robot.eef_site;
+        pose_from_xpos_xmat(&self.data.site_xpos()[site], &self.data.site_xmat()[site])
+    }
+
+    fn object_poses(&self) -> BTreeMap<String, Pose> {
+        (0..self.scene.objects.len()).map(|i| (self.scene.objects[i].name.clone(), self.object_pose(i))).collect()
+    }
+
+    fn subtask_term_signals(&self) -> BTreeMap<String, i64> {
+        self.task.signals(self)
+    }
+
+    fn is_success(&self) -> bool {
+        self.task.is_success(self)
+    }
+
+    fn target_pose_to_action(&self, world_from_target: &Pose) -> [f64; 6] {
+        self.osc.scale().action_from_target(&self.eef_pose(), world_from_target)
+    }
+
+    fn action_to_target_pose(&self, action: &[f64]) -> Pose {
+        let mut a = [0.0; 6];
+        for (dst, src) in a.iter_mut().zip(action) {
+            *dst = *src;
+        }
+        DeltaPoseScale::target_from_action(&self.osc.scale(), &self.eef_pose(), &a)
+    }
+
+    fn action_dim(&self) -> usize {
+        7
+    }
+
+    fn step(&mut self, action: &[f64]) -> Result<(), EnvError> {
+        if action.len() != 7 || action.iter().any(|a| !a.is_finite()) {
+            return Err(EnvError::Unstable { reason: format!("action {action:?} is not 7 finite numbers") });
+        }
+        self.data.forward();
+        self.osc.set_goal(&self.data, &self.scene.robot, action);
+        for _ in 0..self.scene.substeps {
+            self.physics_step(action[6])?;
+        }
+        self.data.forward();
+        Ok(())
+    }
+
+    fn state(&self) -> Vec<f64> {
+        let mut s = Vec::with_capacity(self.scene.state_dim());
+        s.push(self.data.time());
+        s.extend_from_slice(self.data.qpos());
+        s.extend_from_slice(self.data.qvel());
+        s
+    }
+
+    fn set_state(&mut self, state: &[f64]) -> Result<(), EnvError> {
+        if state.len() != self.scene.state_dim() {
+            return Err(EnvError::Fatal {
+                reason: format!("state has {} values, the scene {} needs {}", state.len(), self.scene.origin, self.scene.state_dim()),
+            });
+        }
+        let nq = self.data.qpos().len();
+        self.data.set_time(state[0]);
+        self.data.qpos_mut().copy_from_slice(&state[1..=nq]);
+        self.data.qvel_mut().copy_from_slice(&state[1 + nq..]);
+        self.data.forward();
+        Ok(())
+    }
+}

@@ -1,0 +1,58 @@
+//! MuJoCo environments that behave like robosuite 1.4.1, for the MimicGen engine.
+//!
+//! What it does: loads robosuite scenes (a dataset's `model_file`, with asset paths re-pointed at
+//! the local robosuite assets), drives the Panda with robosuite's OSC_POSE controller at 20 Hz over
+//! 2 ms physics steps, and implements [`mimicgen_engine::Environment`] for tasks ([`task`]).
+//! What it does not do: file formats (see `mimicgen-io`), rendering.
+//!
+//! This is the only crate that links libmujoco (set up by `scripts/setup.sh`).
+
+pub mod assets;
+pub mod env;
+pub mod osc;
+pub mod scene;
+pub mod task;
+
+pub use env::SimEnv;
+pub use scene::Scene;
+pub use task::{Stack, Task};
+
+/// Everything that can go wrong building or running a simulation.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// robosuite's assets are not where they should be.
+    #[error("{path}: {reason}")]
+    Assets {
+        /// The directory looked at.
+        path: String,
+        /// What to do about it.
+        reason: String,
+    },
+    /// MuJoCo could not compile the scene.
+    #[error("MuJoCo cannot compile the scene from {file}: {reason}")]
+    Compile {
+        /// Where the XML came from.
+        file: String,
+        /// MuJoCo's message.
+        reason: String,
+    },
+    /// A name the task or robot needs is not in the model.
+    #[error("the scene from {file} has no {kind} named {name:?}")]
+    MissingName {
+        /// Where the XML came from.
+        file: String,
+        /// joint, actuator, site, body or geom.
+        kind: String,
+        /// The missing name.
+        name: String,
+    },
+}
+
+impl SimError {
+    /// True when the user's input (a scene file) is at fault rather than the installation.
+    #[must_use]
+    pub fn is_user_error(&self) -> bool {
+        !matches!(self, Self::Assets { .. })
+    }
+}

@@ -1,0 +1,163 @@
+//! A compiled robosuite-style scene: the MuJoCo model plus every name resolved to an index once.
+
+use std::sync::Arc;
+
+use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
+use mujoco_rs::prelude::*;
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
+
+use crate::SimError;
+
+/// A movable object of the task: its body and the collision geoms used for contact checks.
+#[derive(Debug, Clone)]
+pub struct SceneObject {
+    /// Name the task uses (`cubeA`).
+    pub name: String,
+    /// Body whose frame is the object's pose (`cubeA_main`).
+    pub body: usize,
+    /// Address of its free joint in `qpos` (7 values: xyz, wxyz), if it has one.
+    pub qpos_adr: Option<usize>,
+    /// Address of its free joint in `qvel` (6 values).
+    pub dof_adr: Option<usize>,
+    /// Its collision geoms.
+    pub geoms: Vec<usize>,
+}
+
+/// The Panda arm and gripper of a robosuite scene (prefixes `robot0_`, `gripper0_`).
+#[derive(Debug, Clone)]
+pub struct RobotIndices {
+    /// `qpos` addresses of the arm joints.
+    pub arm_qpos: Vec<usize>,
+    /// `qvel` addresses of the arm joints.
+    pub arm_dof: Vec<usize>,
+    /// Torque actuators of the arm, with their control ranges.
+    pub arm_actuators: Vec<(usize, [f64; 2])>,
+    /// `qpos` addresses of the finger joints.
+    pub finger_qpos: Vec<usize>,
+    /// Position actuators of the fingers, with their control ranges.
+    pub finger_actuators: Vec<(usize, [f64; 2])>,
+    /// The controlled end-effector site (`gripper0_grip_site`).
+    pub eef_site: usize,
+    /// Left and right finger pad collision geoms (robosuite's grasp check).
+    pub finger_pads: [Vec<usize>; 2],
+}
+
+/// A compiled scene with resolved names.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// The compiled model, shared by every worker's data.
+    pub model: Arc<MjModel>,
+    /// The robot's indices.
+    pub robot: RobotIndices,
+    /// The task's objects, in the order the task lists them.
+    pub objects: Vec<SceneObject>,
+    /// Physics steps per control step (robosuite: 0.05 s / 0.002 s = 25).
+    pub substeps: usize,
+    /// Where the scene came from, for error messages.
+    pub origin: String,
+}
+
+fn id(model: &MjModel, kind: MjtObjBase, name: &str, origin: &str) -> Result<usize, SimError> {
+    model.name_to_id(kind, name).ok_or_else(|| SimError::MissingName {
+        file: origin.to_owned(),
+        kind: format!("{kind:?}").trim_start_matches("mjOBJ_").to_lowercase(),
+        name: name.to_owned(),
+    })
+}
+
+impl Scene {
+    /// Compiles `xml` (asset paths already local) and resolves the Panda and the named objects
+    /// (`(task name, body name)` pairs, e.g. `("cubeA", "cubeA_main")`).
+    ///
+    /// # Errors
+    /// [`SimError::Compile`] if MuJoCo rejects the XML, [`SimError::MissingName`] for a missing
+    /// joint, actuator, site, body or geom.
+    pub fn compile(xml: &str, origin: &str, objects: &[(&str, &str)], control_freq_hz: f64) -> Result<Self, SimError> {
+        let model = MjModel::from_xml_string(xml).map_err(|e| SimError::Compile { file: origin.to_owned(), reason: format!("{e:?}") })?;
+        let joint = |name: &str| id(&model, MjtObjBase::mjOBJ_JOINT, name, origin);
+        let actuator = |name: &str| -> Result<(usize, [f64; 2]), SimError> {
+            let a = id(&model, MjtObjBase::mjOBJ_ACTUATOR, name, origin)?;
+            Ok((a, model.actuator_ctrlrange()[a]))
+        };
+        let mut robot = RobotIndices {
+            arm_qpos: Vec::new(),
+            arm_dof: Vec::new(),
+            arm_actuators: Vec::new(),
+            finger_qpos: Vec::new(),
+            finger_actuators: Vec::new(),
+            eef_site: id(&model, MjtObjBase::mjOBJ_SITE, "gripper0_grip_site", origin)?,
+            finger_pads: [
+                vec![id(&model, MjtObjBase::mjOBJ_GEOM, "gripper0_finger1_pad_collision", origin)?],
+                vec![id(&model, MjtObjBase::mjOBJ_GEOM, "gripper0_finger2_pad_collision", origin)?],
+            ],
+        };
+        for i in 1..=7 {
+            let j = joint(&format!("robot0_joint{i}"))?;
+            robot.arm_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
+            robot.arm_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
+            robot.arm_actuators.push(actuator(&format!("robot0_torq_j{i}"))?);
+        }
+        for i in 1..=2 {
+            let j = joint(&format!("gripper0_finger_joint{i}"))?;
+            robot.finger_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
+            robot.finger_actuators.push(actuator(&format!("gripper0_gripper_finger_joint{i}"))?);
+        }
+        let mut scene_objects = Vec::with_capacity(objects.len());
+        for (name, body_name) in objects {
+            let body = id(&model, MjtObjBase::mjOBJ_BODY, body_name, origin)?;
+            let body_i32 = i32::try_from(body).unwrap_or(-1);
+            let free =
+                (0..model.jnt_bodyid().len()).find(|&j| model.jnt_bodyid()[j] == body_i32 && model.jnt_type()[j] == MjtJoint::mjJNT_FREE);
+            let geoms: Vec<usize> = (0..model.geom_bodyid().len())
+                .filter(|&g| model.geom_bodyid()[g] == body_i32 && (model.geom_contype()[g] != 0 || model.geom_conaffinity()[g] != 0))
+                .collect();
+            if geoms.is_empty() {
+                return Err(SimError::MissingName {
+                    file: origin.to_owned(),
+                    kind: "collision geom of body".to_owned(),
+                    name: (*body_name).to_owned(),
+                });
+            }
+            scene_objects.push(SceneObject {
+                name: (*name).to_owned(),
+                body,
+                qpos_adr: free.map(|j| usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default()),
+                dof_adr: free.map(|j| usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default()),
+                geoms,
+            });
+        }
+        let timestep = model.opt().timestep;
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let substeps = ((1.0 / control_freq_hz) / timestep).round().max(1.0) as usize;
+        Ok(Self { model: Arc::new(model), robot, objects: scene_objects, substeps, origin: origin.to_owned() })
+    }
+
+    /// Loads a dataset's scene (robosuite's `model_file` XML): re-points its asset paths at the
+    /// local robosuite assets, compiles it, and resolves the Panda and `task`'s objects.
+    ///
+    /// # Errors
+    /// [`SimError::Assets`] without local assets, else as [`Scene::compile`].
+    pub fn from_model_file(xml: &str, origin: &str, task: &dyn crate::Task) -> Result<Self, SimError> {
+        let assets = crate::assets::robosuite_assets_dir()?;
+        Self::compile(&crate::assets::remap_asset_paths(xml, &assets), origin, &task.objects(), 20.0)
+    }
+
+    /// Length of robosuite's flattened state: `[time, qpos, qvel]`.
+    #[must_use]
+    pub fn state_dim(&self) -> usize {
+        1 + usize::try_from(self.model.ffi().nq).unwrap_or_default() + usize::try_from(self.model.ffi().nv).unwrap_or_default()
+    }
+}
+
+/// `world_from_frame` of a frame given by MuJoCo's position and row-major 3x3 rotation.
+#[must_use]
+pub fn pose_from_xpos_xmat(xpos: &[f64; 3], xmat: &[f64; 9]) -> Pose {
+    let r = Matrix3::from_row_slice(xmat);
+    pose_from_parts(Vec3::new(xpos[0], xpos[1], xpos[2]), UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)))
+}
+
+/// The rotation matrix of a pose, as MuJoCo/robosuite keep it.
+#[must_use]
+pub fn rotation_matrix(rotation: &Rot) -> Matrix3<f64> {
+    rotation.to_rotation_matrix().into_inner()
+}

@@ -1,0 +1,131 @@
+//! Tasks: which objects a scene has, how scenes are sampled, subtask-end signals and success.
+
+use std::collections::BTreeMap;
+use std::f64::consts::TAU;
+
+use mimicgen_engine::EnvError;
+use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
+use rand::{Rng, RngCore};
+
+use crate::env::SimEnv;
+
+/// What a task adds to a robosuite scene.
+pub trait Task: Send + Sync {
+    /// Task name (`stack`).
+    fn name(&self) -> &str;
+    /// `(object name, body name)` of every object, in order.
+    fn objects(&self) -> Vec<(&'static str, &'static str)>;
+    /// Initial `world_from_object` of every object, in order.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] if no valid placement is found.
+    fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError>;
+    /// Subtask-end signals in the current state.
+    fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64>;
+    /// Whether the task is achieved in the current state.
+    fn is_success(&self, env: &SimEnv) -> bool;
+}
+
+/// Height of robosuite's table top (m): `table_offset` z.
+pub const TABLE_TOP_Z: f64 = 0.8;
+
+/// A region of the table to place an object in, robosuite's `UniformRandomSampler` style.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlacementRegion {
+    /// x range (m, relative to the table centre).
+    pub x: (f64, f64),
+    /// y range.
+    pub y: (f64, f64),
+    /// yaw range (rad).
+    pub yaw: (f64, f64),
+}
+
+impl PlacementRegion {
+    /// A square of side `side_m` centred on the table, any yaw.
+    #[must_use]
+    pub fn square(side_m: f64) -> Self {
+        Self { x: (-side_m / 2.0, side_m / 2.0), y: (-side_m / 2.0, side_m / 2.0), yaw: (0.0, TAU) }
+    }
+}
+
+fn uniform(rng: &mut dyn RngCore, (lo, hi): (f64, f64)) -> f64 {
+    if hi > lo { rng.random_range(lo..hi) } else { lo }
+}
+
+/// Places boxes one by one in their regions, rejecting overlaps of their bounding circles, as
+/// robosuite's sampler does (10 000 tries each). `half_sizes` are the boxes' half extents.
+///
+/// # Errors
+/// [`EnvError::Fatal`] if a box cannot be placed.
+pub fn place_boxes(
+    rng: &mut dyn RngCore,
+    regions: &[PlacementRegion],
+    half_sizes: &[[f64; 3]],
+    z_offset: f64,
+) -> Result<Vec<Pose>, EnvError> {
+    let mut placed: Vec<(f64, f64, f64)> = Vec::new();
+    let mut poses = Vec::with_capacity(regions.len());
+    for (region, half) in regions.iter().zip(half_sizes) {
+        let radius = half[0].hypot(half[1]);
+        let mut found = None;
+        for _ in 0..10_000 {
+            let (x, y) = (uniform(rng, region.x), uniform(rng, region.y));
+            if placed.iter().all(|(px, py, pr)| (px - x).hypot(py - y) > pr + radius) {
+                found = Some((x, y));
+                break;
+            }
+        }
+        let (x, y) = found
+            .ok_or_else(|| EnvError::Fatal { reason: format!("cannot place object {} without overlap in {region:?}", poses.len()) })?;
+        let yaw = uniform(rng, region.yaw);
+        placed.push((x, y, radius));
+        poses.push(pose_from_parts(Vec3::new(x, y, TABLE_TOP_Z + z_offset + half[2]), Rot::from_axis_angle(&Vec3::z_axis(), yaw)));
+    }
+    Ok(poses)
+}
+
+/// robosuite's Stack: put the red cube (`cubeA`, 4 cm) on the green one (`cubeB`, 5 cm).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stack {
+    /// Where both cubes are sampled.
+    pub region: PlacementRegion,
+}
+
+impl Stack {
+    /// MimicGen's variants: D0 both cubes in a 0.16 m square, D1 in a 0.40 m square; random yaw.
+    ///
+    /// # Errors
+    /// A message listing the variants when `variant` is not one of them.
+    pub fn variant(variant: &str) -> Result<Self, String> {
+        match variant.to_ascii_uppercase().as_str() {
+            "D0" => Ok(Self { region: PlacementRegion::square(0.16) }),
+            "D1" => Ok(Self { region: PlacementRegion::square(0.40) }),
+            other => Err(format!("stack has variants D0 and D1, not {other:?}")),
+        }
+    }
+}
+
+impl Task for Stack {
+    fn name(&self) -> &str {
+        "stack"
+    }
+
+    fn objects(&self) -> Vec<(&'static str, &'static str)> {
+        vec![("cubeA", "cubeA_main"), ("cubeB", "cubeB_main")]
+    }
+
+    fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
+        place_boxes(rng, &[self.region, self.region], &[[0.02; 3], [0.025; 3]], 0.01)
+    }
+
+    fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64> {
+        BTreeMap::from([("grasp".to_owned(), i64::from(env.is_grasping(0)))])
+    }
+
+    fn is_success(&self, env: &SimEnv) -> bool {
+        // robosuite's Stack: cubeA lifted above the table, touching cubeB, and not held.
+        let lifted = env.object_pose(0).translation.z > TABLE_TOP_Z + 0.04;
+        let scene = env.scene();
+        lifted && env.in_contact(&scene.objects[0].geoms, &scene.objects[1].geoms) && !env.is_grasping(0)
+    }
+}
