@@ -1,1 +1,27 @@
-//! stub
+//! robomimic / MimicGen HDF5 datasets and MCAP export for the MimicGen engine.
+//!
+//! What it does: reads a MimicGen source dataset into the engine's [`SourceDataset`]
+//! ([`read_source_dataset`]), keeps every other group, dataset and attribute so a file can be
+//! written back bit for bit ([`RobomimicDataset`]), writes generated demos demo by demo in the
+//! layout robomimic's `SequenceDataset` loads ([`DatasetWriter`]), summarises a dataset
+//! ([`info::DatasetInfo`]) and exports its streams to MCAP for Foxglove ([`mcap_export`]).
+//!
+//! What it does not do: no simulation, no rendering, no image observations beyond plain arrays.
+//!
+//! ```no_run
+//! use mimicgen_engine::spec::SourceSelection;
+//! let sources = mimicgen_io::read_source_dataset("source_D0.hdf5", &SourceSelection::default())?;
+//! println!("{} demos, objects {:?}", sources.demos.len(), sources.object_names());
+//! # Ok::<(), mimicgen_io::IoError>(())
+//! ```
+//!
+//! [`SourceDataset`]: mimicgen_engine::SourceDataset
+
+pub mod dataset;
+mod error;
+pub mod tree;
+pub mod writer;
+
+pub use dataset::{DatasetReport, ReadOptions, RobomimicDataset, read_source_dataset, write_tree};
+pub use error::{IoError, Result};
+pub use writer::{DatagenInfo, DatasetWriter, DemoData, Observation, WriterOptions};

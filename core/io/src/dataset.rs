@@ -1,0 +1,460 @@
+//! Reading robomimic / MimicGen HDF5 datasets: the whole file losslessly ([`RobomimicDataset`]),
+//! and the part MimicGen needs as engine types ([`RobomimicDataset::to_source_dataset`]).
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::Path;
+
+use mimicgen_engine::demo::{Rows, SimPayload, SourceDataset, SourceDemo};
+use mimicgen_engine::pose::{Mat4, Pose, pose_from_matrix};
+use mimicgen_engine::spec::SourceSelection;
+use serde::Serialize;
+
+use crate::error::{IoError, Result};
+use crate::tree::{self, Array, Dataset, Group, Node};
+
+/// Root attribute the [`crate::DatasetWriter`] sets to 0 while writing and to 1 when finished.
+pub const COMPLETE_ATTR: &str = "mimicgen_complete";
+
+/// Fields a demo needs to serve as a MimicGen source demo (paths below `data/demo_N`).
+pub const REQUIRED_FIELDS: [&str; 6] = [
+    "actions",
+    "datagen_info/eef_pose",
+    "datagen_info/target_pose",
+    "datagen_info/gripper_action",
+    "datagen_info/object_poses",
+    "datagen_info/subtask_term_signals",
+];
+
+/// How to open a dataset.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Open a file an interrupted writer left behind, keeping only its completely written demos.
+    pub recover: bool,
+}
+
+/// What a dataset holds and which MimicGen fields it lacks.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct DatasetReport {
+    /// The file.
+    pub file: String,
+    /// Number of demos.
+    pub num_demos: usize,
+    /// Fields (paths below `data/demo_N`) found in at least one demo.
+    pub present: Vec<String>,
+    /// Each missing required field with the demos that lack it.
+    pub missing: BTreeMap<String, Vec<String>>,
+}
+
+impl DatasetReport {
+    /// True when every demo has every field MimicGen needs.
+    #[must_use]
+    pub fn is_mimicgen_source(&self) -> bool {
+        self.num_demos > 0 && self.missing.is_empty()
+    }
+}
+
+impl fmt::Display for DatasetReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.num_demos == 0 {
+            return write!(f, "group `data` holds no demos");
+        }
+        let gaps: Vec<String> = self
+            .missing
+            .iter()
+            .map(|(field, demos)| {
+                let shown: Vec<&str> = demos.iter().take(3).map(String::as_str).collect();
+                let more = if demos.len() > 3 { ", ..." } else { "" };
+                format!("`{field}` missing in {} of {} demos ({}{more})", demos.len(), self.num_demos, shown.join(", "))
+            })
+            .collect();
+        write!(f, "{}; present: {}", gaps.join("; "), self.present.join(", "))?;
+        if self.missing.keys().any(|k| k.starts_with("datagen_info")) {
+            write!(f, " (run MimicGen's prepare_src_dataset.py on it first to add datagen_info)")?;
+        }
+        Ok(())
+    }
+}
+
+/// A robomimic-layout HDF5 file held in memory with every group, dataset and attribute, so it can
+/// be inspected, converted, and written back bit for bit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobomimicDataset {
+    /// The file it was read from.
+    pub file: String,
+    /// The whole file.
+    pub root: Group,
+    demo_names: Vec<String>,
+}
+
+/// Demo order as robomimic uses it: `demo_N` by N numerically, other names after, by name.
+#[must_use]
+pub fn sort_demo_names(mut names: Vec<String>) -> Vec<String> {
+    names.sort_by_key(|n| (n.strip_prefix("demo_").and_then(|i| i.parse::<u64>().ok()).map_or((1, 0), |i| (0, i)), n.clone()));
+    names
+}
+
+impl RobomimicDataset {
+    /// Reads a whole dataset, refusing files an interrupted writer left incomplete.
+    ///
+    /// # Errors
+    /// [`IoError::Hdf5`] for an unreadable or truncated file, [`IoError::Missing`] without a `data`
+    /// group or a demo without `actions`, [`IoError::Shape`] when datasets of one demo disagree in
+    /// length, [`IoError::Incomplete`] for an unfinished file.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self> {
+        Self::open_with(path, ReadOptions::default())
+    }
+
+    /// [`Self::open`] with options (e.g. recovering an interrupted file).
+    ///
+    /// # Errors
+    /// As [`Self::open`].
+    pub fn open_with(path: impl AsRef<Path>, options: ReadOptions) -> Result<Self> {
+        let file = path.as_ref().display().to_string();
+        let h5 = hdf5::File::open(path.as_ref()).map_err(|e| IoError::hdf5(&file, "/", "", &e))?;
+        let mut root = tree::read_group(&file, &h5, "/")?;
+        let complete_flag = root.attrs.get(COMPLETE_ATTR).and_then(Array::as_i64);
+        let Some(Node::Group(data)) = root.members.get_mut("data") else {
+            return Err(IoError::Missing {
+                file,
+                group: "/".into(),
+                field: "data".into(),
+                hint: "robomimic datasets keep their demos under `data`".into(),
+            });
+        };
+        if complete_flag == Some(0) {
+            let complete = |g: &Node| matches!(g, Node::Group(g) if g.attrs.contains_key("num_samples"));
+            if !options.recover {
+                return Err(IoError::Incomplete {
+                    file,
+                    field: COMPLETE_ATTR.into(),
+                    complete_demos: data.members.values().filter(|g| complete(g)).count(),
+                });
+            }
+            data.members.retain(|_, g| complete(g));
+        }
+        let names: Vec<String> = data.members.iter().filter(|(_, n)| matches!(n, Node::Group(_))).map(|(k, _)| k.clone()).collect();
+        let demo_names = sort_demo_names(names);
+        for name in &demo_names {
+            if let Some(Node::Group(demo)) = data.members.get(name) {
+                check_demo(&file, name, demo)?;
+            }
+        }
+        Ok(Self { file, root, demo_names })
+    }
+
+    /// The `data` group.
+    #[must_use]
+    pub fn data(&self) -> &Group {
+        self.root.group("data").unwrap_or(&EMPTY)
+    }
+
+    /// Demo names in robomimic order.
+    #[must_use]
+    pub fn demo_names(&self) -> &[String] {
+        &self.demo_names
+    }
+
+    /// The demo group `name`.
+    #[must_use]
+    pub fn demo(&self, name: &str) -> Option<&Group> {
+        self.data().group(name)
+    }
+
+    /// Number of steps of demo `name` (its `actions` rows).
+    #[must_use]
+    pub fn demo_len(&self, name: &str) -> usize {
+        self.demo(name).and_then(|d| d.dataset("actions")).and_then(|a| a.array.shape.first().copied()).unwrap_or(0)
+    }
+
+    /// The `data` attribute `env_args` (robomimic's environment metadata JSON).
+    #[must_use]
+    pub fn env_args(&self) -> Option<&str> {
+        self.data().attrs.get("env_args").and_then(Array::as_str)
+    }
+
+    /// Filter keys under `mask/` with the demo names each selects.
+    ///
+    /// # Errors
+    /// [`IoError::Invalid`] when a mask is not an array of strings.
+    pub fn masks(&self) -> Result<BTreeMap<String, Vec<String>>> {
+        let Some(mask) = self.root.group("mask") else { return Ok(BTreeMap::new()) };
+        let mut out = BTreeMap::new();
+        for (key, node) in &mask.members {
+            let strings = match node {
+                Node::Dataset(d) => d.array.values.strings(),
+                Node::Group(_) => None,
+            };
+            let Some(strings) = strings else {
+                return Err(self.invalid("mask", key, "a filter key must be a 1-D array of demo names (byte strings)"));
+            };
+            out.insert(key.clone(), strings.to_vec());
+        }
+        Ok(out)
+    }
+
+    /// The demos a selection picks, in robomimic order: the filter key's demos (or all), sorted,
+    /// then `start` skipped and at most `n` kept.
+    ///
+    /// # Errors
+    /// [`IoError::Missing`] for an unknown filter key or a mask naming a demo that does not exist.
+    pub fn select(&self, selection: &SourceSelection) -> Result<Vec<String>> {
+        let mut names = match &selection.filter_key {
+            None => self.demo_names.clone(),
+            Some(key) => {
+                let masks = self.masks()?;
+                let Some(listed) = masks.get(key) else {
+                    return Err(IoError::Missing {
+                        file: self.file.clone(),
+                        group: "mask".into(),
+                        field: key.clone(),
+                        hint: format!("filter keys in the file: {:?}", masks.keys().collect::<Vec<_>>()),
+                    });
+                };
+                if let Some(bad) = listed.iter().find(|n| self.demo(n).is_none()) {
+                    return Err(IoError::Missing {
+                        file: self.file.clone(),
+                        group: "data".into(),
+                        field: bad.clone(),
+                        hint: format!("listed by mask/{key}"),
+                    });
+                }
+                sort_demo_names(listed.clone())
+            }
+        };
+        let start = selection.start.unwrap_or(0).min(names.len());
+        names.drain(..start);
+        if let Some(n) = selection.n {
+            names.truncate(n);
+        }
+        Ok(names)
+    }
+
+    /// What the file holds and which MimicGen fields its demos lack.
+    #[must_use]
+    pub fn report(&self) -> DatasetReport {
+        let mut present = std::collections::BTreeSet::new();
+        let mut missing: BTreeMap<String, Vec<String>> = BTreeMap::new();
+        for name in &self.demo_names {
+            let Some(demo) = self.demo(name) else { continue };
+            collect_paths(demo, "", &mut present);
+            for field in REQUIRED_FIELDS {
+                let found = match field.rsplit_once('/') {
+                    Some((dir, leaf)) => demo.group(dir).is_some_and(|g| g.members.contains_key(leaf)),
+                    None => demo.members.contains_key(field),
+                };
+                if !found {
+                    missing.entry(field.to_owned()).or_default().push(name.clone());
+                }
+            }
+        }
+        DatasetReport { file: self.file.clone(), num_demos: self.demo_names.len(), present: present.into_iter().collect(), missing }
+    }
+
+    /// The selected demos as an engine [`SourceDataset`], validated.
+    ///
+    /// # Errors
+    /// [`IoError::NotMimicGen`] listing every missing field of a plain robomimic dataset;
+    /// [`IoError::Invalid`] for a NaN or non-rigid pose (naming demo, field and step);
+    /// [`IoError::Shape`] for arrays of the wrong shape; [`IoError::Engine`] when the engine's
+    /// validation fails; the errors of [`Self::select`].
+    pub fn to_source_dataset(&self, selection: &SourceSelection) -> Result<SourceDataset> {
+        let names = self.select(selection)?;
+        let mut report = self.report();
+        report.missing.retain(|_, demos| {
+            demos.retain(|d| names.contains(d));
+            !demos.is_empty()
+        });
+        if names.is_empty() || !report.missing.is_empty() {
+            return Err(IoError::NotMimicGen { file: self.file.clone(), report: Box::new(report) });
+        }
+        let demos = names.iter().map(|n| self.source_demo(n)).collect::<Result<Vec<_>>>()?;
+        let dataset = SourceDataset { demos, env_args: self.env_args().map(str::to_owned) };
+        dataset.validate().map_err(|source| IoError::Engine { file: self.file.clone(), field: String::new(), source: Box::new(source) })?;
+        Ok(dataset)
+    }
+
+    fn source_demo(&self, name: &str) -> Result<SourceDemo> {
+        let group = format!("data/{name}");
+        let demo = self.demo(name).ok_or_else(|| IoError::Missing {
+            file: self.file.clone(),
+            group: "data".into(),
+            field: name.to_owned(),
+            hint: String::new(),
+        })?;
+        let steps = self.demo_len(name);
+        let dg_group = format!("{group}/datagen_info");
+        let info = demo.group("datagen_info").ok_or_else(|| self.missing(&group, "datagen_info"))?;
+        let poses = |field: &str, g: &Group, gpath: &str| -> Result<Vec<Pose>> {
+            let d = g.dataset(field).ok_or_else(|| self.missing(gpath, field))?;
+            self.poses(gpath, field, d, steps)
+        };
+        let mut object_poses = BTreeMap::new();
+        let objects_path = format!("{dg_group}/object_poses");
+        let objects = info.group("object_poses").ok_or_else(|| self.missing(&dg_group, "object_poses"))?;
+        for obj in objects.members.keys() {
+            object_poses.insert(obj.clone(), poses(obj, objects, &objects_path)?);
+        }
+        let mut subtask_term_signals = BTreeMap::new();
+        let signals_path = format!("{dg_group}/subtask_term_signals");
+        let signals = info.group("subtask_term_signals").ok_or_else(|| self.missing(&dg_group, "subtask_term_signals"))?;
+        for (sig, node) in &signals.members {
+            let Node::Dataset(d) = node else { return Err(self.invalid(&signals_path, sig, "expected a dataset, found a group")) };
+            let values =
+                d.array.values.to_i64().ok_or_else(|| {
+                    self.invalid(&signals_path, sig, &format!("expected integers, found {}", d.array.values.dtype_name()))
+                })?;
+            if values.len() != steps {
+                return Err(self.shape(&signals_path, sig, &format!("has {} values but the demo has {steps} steps", values.len())));
+            }
+            subtask_term_signals.insert(sig.clone(), values);
+        }
+        let actions = self.rows(&group, "actions", demo.dataset("actions"))?;
+        let states = self.rows(&group, "states", demo.dataset("states"))?;
+        Ok(SourceDemo {
+            name: name.to_owned(),
+            eef_poses: poses("eef_pose", info, &dg_group)?,
+            target_poses: poses("target_pose", info, &dg_group)?,
+            gripper_actions: self.rows(&dg_group, "gripper_action", info.dataset("gripper_action"))?,
+            object_poses,
+            subtask_term_signals,
+            manual_subtask_ends: None,
+            sim: SimPayload { actions, states, model_xml: demo.attrs.get("model_file").and_then(Array::as_str).map(str::to_owned) },
+        })
+    }
+
+    fn poses(&self, group: &str, field: &str, d: &Dataset, steps: usize) -> Result<Vec<Pose>> {
+        if d.array.shape.as_slice() != [steps, 4, 4] {
+            return Err(self.shape(group, field, &format!("expected ({steps}, 4, 4) (one 4x4 pose per step), found {:?}", d.array.shape)));
+        }
+        let values = self.floats(group, field, d)?;
+        values
+            .chunks_exact(16)
+            .enumerate()
+            .map(|(t, m)| {
+                pose_from_matrix(&Mat4::from_row_slice(m), &format!("step {t}")).map_err(|e| self.invalid(group, field, &e.to_string()))
+            })
+            .collect()
+    }
+
+    fn rows(&self, group: &str, field: &str, d: Option<&Dataset>) -> Result<Rows> {
+        let Some(d) = d else { return Ok(Rows::new(0)) };
+        let width = match d.array.shape.as_slice() {
+            [_, w] => *w,
+            [_] => 1,
+            other => return Err(self.shape(group, field, &format!("expected (T, D), found {other:?}"))),
+        };
+        Rows::from_vec(width, self.floats(group, field, d)?, field).map_err(|e| self.shape(group, field, &e.to_string()))
+    }
+
+    fn floats(&self, group: &str, field: &str, d: &Dataset) -> Result<Vec<f64>> {
+        d.array
+            .values
+            .to_f64()
+            .ok_or_else(|| self.invalid(group, field, &format!("expected numbers, found {}", d.array.values.dtype_name())))
+    }
+
+    fn missing(&self, group: &str, field: &str) -> IoError {
+        IoError::Missing { file: self.file.clone(), group: group.to_owned(), field: field.to_owned(), hint: String::new() }
+    }
+
+    fn invalid(&self, group: &str, field: &str, reason: &str) -> IoError {
+        IoError::Invalid { file: self.file.clone(), group: group.to_owned(), field: field.to_owned(), reason: reason.to_owned() }
+    }
+
+    fn shape(&self, group: &str, field: &str, reason: &str) -> IoError {
+        IoError::Shape { file: self.file.clone(), group: group.to_owned(), field: field.to_owned(), reason: reason.to_owned() }
+    }
+
+    /// Writes the whole file back out (an exact copy of what was read, plus any edits to `root`).
+    ///
+    /// # Errors
+    /// [`IoError::Hdf5`] when the file cannot be created or written.
+    pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
+        write_tree(path, &self.root)
+    }
+}
+
+static EMPTY: Group = Group { attrs: BTreeMap::new(), members: BTreeMap::new() };
+
+/// Writes a [`Group`] tree as a new HDF5 file.
+///
+/// # Errors
+/// [`IoError::Hdf5`] when the file cannot be created or written.
+pub fn write_tree(path: impl AsRef<Path>, root: &Group) -> Result<()> {
+    let file = path.as_ref().display().to_string();
+    let h5 = hdf5::File::create(path.as_ref()).map_err(|e| IoError::hdf5(&file, "/", "", &e))?;
+    tree::write_group(&file, &h5, "/", root)?;
+    h5.close().map_err(|e| IoError::hdf5(&file, "/", "", &e))
+}
+
+/// Reads the source demos a selection picks from a MimicGen source dataset.
+///
+/// # Errors
+/// See [`RobomimicDataset::open`] and [`RobomimicDataset::to_source_dataset`].
+pub fn read_source_dataset(path: impl AsRef<Path>, selection: &SourceSelection) -> Result<SourceDataset> {
+    RobomimicDataset::open(path)?.to_source_dataset(selection)
+}
+
+fn collect_paths(g: &Group, prefix: &str, out: &mut std::collections::BTreeSet<String>) {
+    for (name, node) in &g.members {
+        let path = tree::join(prefix, name);
+        match node {
+            Node::Dataset(_) => {
+                out.insert(path);
+            }
+            Node::Group(sub) => collect_paths(sub, &path, out),
+        }
+    }
+}
+
+/// Checks that every per-step dataset of a demo has as many rows as `actions`.
+fn check_demo(file: &str, name: &str, demo: &Group) -> Result<()> {
+    let group = format!("data/{name}");
+    let Some(actions) = demo.dataset("actions") else {
+        return Err(IoError::Missing {
+            file: file.to_owned(),
+            group,
+            field: "actions".into(),
+            hint: "every robomimic demo needs its actions".into(),
+        });
+    };
+    let Some(&steps) = actions.array.shape.first() else {
+        return Err(IoError::Shape {
+            file: file.to_owned(),
+            group,
+            field: "actions".into(),
+            reason: "is a scalar, expected (T, action_dim)".into(),
+        });
+    };
+    if let Some(n) = demo.attrs.get("num_samples").and_then(Array::as_i64)
+        && usize::try_from(n).ok() != Some(steps)
+    {
+        return Err(IoError::Shape {
+            file: file.to_owned(),
+            group,
+            field: "num_samples".into(),
+            reason: format!("attribute says {n} but `actions` has {steps} rows"),
+        });
+    }
+    let mut per_step = std::collections::BTreeSet::new();
+    collect_paths(demo, "", &mut per_step);
+    for path in per_step {
+        if path == "src_demo_inds" {
+            continue; // one entry per subtask, not per step
+        }
+        if let Some(d) = demo.dataset_at(&path)
+            && d.array.shape.first() != Some(&steps)
+        {
+            let (g, field) =
+                path.rsplit_once('/').map_or((group.clone(), path.clone()), |(dir, leaf)| (format!("{group}/{dir}"), leaf.to_owned()));
+            return Err(IoError::Shape {
+                file: file.to_owned(),
+                group: g,
+                field,
+                reason: format!("has shape {:?} but `actions` has {steps} rows", d.array.shape),
+            });
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,318 @@
+//! Streaming writer for generated datasets in robomimic layout.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use mimicgen_engine::demo::Rows;
+use mimicgen_engine::generate::Attempt;
+use mimicgen_engine::pose::{Pose, pose_to_matrix};
+
+use crate::dataset::COMPLETE_ATTR;
+use crate::error::{IoError, Result};
+use crate::tree::{self, Array, Dataset, Group, Node, Values};
+
+/// An observation stream: shape of one step's value, then all steps' values row-major.
+pub type Observation = (Vec<usize>, Vec<f64>);
+
+/// MimicGen's per-step annotations (`datagen_info`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DatagenInfo {
+    /// `world_from_eef` per step.
+    pub eef_poses: Vec<Pose>,
+    /// `world_from_target` per step.
+    pub target_poses: Vec<Pose>,
+    /// Gripper actions, `(T, gripper_dim)`.
+    pub gripper_actions: Rows,
+    /// `world_from_object` per object, per step.
+    pub object_poses: BTreeMap<String, Vec<Pose>>,
+    /// Subtask-end signals per name, per step.
+    pub subtask_term_signals: BTreeMap<String, Vec<i64>>,
+}
+
+/// Everything written for one demo.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DemoData {
+    /// Actions, `(T, action_dim)`.
+    pub actions: Rows,
+    /// Flattened simulator states, `(T, state_dim)` (may be empty).
+    pub states: Rows,
+    /// Reward per step, if known.
+    pub rewards: Option<Vec<f64>>,
+    /// Done flag per step, if known.
+    pub dones: Option<Vec<i64>>,
+    /// Observations by key (`robot0_eef_pos` -> per-step shape `[3]` and `T * 3` values).
+    pub obs: BTreeMap<String, Observation>,
+    /// MimicGen annotations, if any.
+    pub datagen_info: Option<DatagenInfo>,
+    /// Source demo index used for each subtask.
+    pub src_demo_inds: Vec<i64>,
+    /// Source demo index behind each step.
+    pub src_demo_labels: Vec<i64>,
+    /// The scene XML (`model_file` attribute).
+    pub model_xml: Option<String>,
+}
+
+impl DemoData {
+    /// A generation attempt as a demo: its trajectory, annotations and source labels, with
+    /// reward 1 and done 1 on the last step of a successful attempt.
+    #[must_use]
+    pub fn from_attempt(attempt: &Attempt, obs: BTreeMap<String, Observation>, model_xml: Option<String>) -> Self {
+        let t = &attempt.trajectory;
+        let n = t.len();
+        let last = |on: bool| (0..n).map(|i| i64::from(on && i + 1 == n)).collect::<Vec<i64>>();
+        let to_i64 = |v: &[usize]| v.iter().map(|&x| i64::try_from(x).unwrap_or(i64::MAX)).collect::<Vec<i64>>();
+        Self {
+            actions: t.actions.clone(),
+            states: t.states.clone(),
+            #[allow(clippy::cast_precision_loss)]
+            rewards: Some(last(attempt.success).iter().map(|&x| x as f64).collect()),
+            dones: Some(last(attempt.success)),
+            obs,
+            datagen_info: Some(DatagenInfo {
+                eef_poses: t.eef_poses.clone(),
+                target_poses: t.target_poses.clone(),
+                gripper_actions: t.gripper_actions.clone(),
+                object_poses: t.object_poses.clone(),
+                subtask_term_signals: t.subtask_term_signals.clone(),
+            }),
+            src_demo_inds: to_i64(&attempt.src_demo_per_subtask),
+            src_demo_labels: to_i64(&t.src_demo_labels),
+            model_xml,
+        }
+    }
+
+    /// The demo as a [`Group`] tree, checking that every per-step array has `actions.len()` rows.
+    fn to_group(&self, file: &str, group: &str, compress_obs: bool) -> Result<Group> {
+        let steps = self.actions.len();
+        let usage = |field: &str, reason: String| IoError::Usage {
+            file: file.to_owned(),
+            group: group.to_owned(),
+            field: field.to_owned(),
+            reason,
+        };
+        let check = |field: &str, len: usize| {
+            if len == steps { Ok(()) } else { Err(usage(field, format!("has {len} steps but `actions` has {steps}"))) }
+        };
+        let mut g = Group::default();
+        let put = |g: &mut Group, name: &str, array: Array| g.members.insert(name.to_owned(), Node::Dataset(Dataset::new(array)));
+        put(&mut g, "actions", rows_array(&self.actions));
+        if !self.states.is_empty() {
+            check("states", self.states.len())?;
+            put(&mut g, "states", rows_array(&self.states));
+        }
+        if let Some(r) = &self.rewards {
+            check("rewards", r.len())?;
+            put(&mut g, "rewards", Array::f64(vec![r.len()], r.clone()));
+        }
+        if let Some(d) = &self.dones {
+            check("dones", d.len())?;
+            put(&mut g, "dones", Array::i64(vec![d.len()], d.clone()));
+        }
+        if !self.obs.is_empty() {
+            let mut obs = Group::default();
+            for (key, (shape, values)) in &self.obs {
+                let per_step: usize = shape.iter().product();
+                if per_step * steps != values.len() {
+                    return Err(usage(
+                        &format!("obs/{key}"),
+                        format!("{} values do not make {steps} steps of shape {shape:?}", values.len()),
+                    ));
+                }
+                let mut full = vec![steps];
+                full.extend_from_slice(shape);
+                let mut d = Dataset::new(Array::f64(full.clone(), values.clone()));
+                if compress_obs && steps > 0 {
+                    d.chunks = Some(full);
+                    d.deflate = Some(4);
+                }
+                obs.members.insert(key.clone(), Node::Dataset(d));
+            }
+            g.members.insert("obs".into(), Node::Group(obs));
+        }
+        if let Some(info) = &self.datagen_info {
+            let mut dg = Group::default();
+            check("datagen_info/eef_pose", info.eef_poses.len())?;
+            check("datagen_info/target_pose", info.target_poses.len())?;
+            check("datagen_info/gripper_action", info.gripper_actions.len())?;
+            put(&mut dg, "eef_pose", poses_array(&info.eef_poses));
+            put(&mut dg, "target_pose", poses_array(&info.target_poses));
+            put(&mut dg, "gripper_action", rows_array(&info.gripper_actions));
+            let mut objects = Group::default();
+            for (name, poses) in &info.object_poses {
+                check(&format!("datagen_info/object_poses/{name}"), poses.len())?;
+                put(&mut objects, name, poses_array(poses));
+            }
+            let mut signals = Group::default();
+            for (name, values) in &info.subtask_term_signals {
+                check(&format!("datagen_info/subtask_term_signals/{name}"), values.len())?;
+                put(&mut signals, name, Array::i64(vec![values.len()], values.clone()));
+            }
+            dg.members.insert("object_poses".into(), Node::Group(objects));
+            dg.members.insert("subtask_term_signals".into(), Node::Group(signals));
+            g.members.insert("datagen_info".into(), Node::Group(dg));
+        }
+        if !self.src_demo_inds.is_empty() {
+            put(&mut g, "src_demo_inds", Array::i64(vec![self.src_demo_inds.len()], self.src_demo_inds.clone()));
+        }
+        if !self.src_demo_labels.is_empty() {
+            check("src_demo_labels", self.src_demo_labels.len())?;
+            put(&mut g, "src_demo_labels", Array::i64(vec![self.src_demo_labels.len(), 1], self.src_demo_labels.clone()));
+        }
+        if let Some(xml) = &self.model_xml {
+            g.attrs.insert("model_file".into(), Array::string(xml));
+        }
+        Ok(g)
+    }
+}
+
+fn rows_array(rows: &Rows) -> Array {
+    Array::f64(vec![rows.len(), rows.width()], rows.as_slice().to_vec())
+}
+
+fn poses_array(poses: &[Pose]) -> Array {
+    let mut data = Vec::with_capacity(poses.len() * 16);
+    for p in poses {
+        let m = pose_to_matrix(p);
+        for r in 0..4 {
+            for c in 0..4 {
+                data.push(m[(r, c)]);
+            }
+        }
+    }
+    Array::f64(vec![poses.len(), 4, 4], data)
+}
+
+/// How the writer lays out a dataset.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct WriterOptions {
+    /// robomimic's environment metadata JSON (the `data` attribute `env_args`).
+    pub env_args: Option<String>,
+    /// gzip observations in one chunk per demo, as MimicGen does.
+    pub compress_obs: bool,
+    /// Write `mask/train` and `mask/valid` with this fraction of demos in `valid`.
+    pub valid_fraction: Option<f64>,
+}
+
+/// Writes a robomimic-layout dataset one demo at a time; memory does not grow with the number of
+/// demos (only their names are kept, for the masks).
+///
+/// Crash safety: the file is written as `<out>.partial` with the root attribute
+/// `mimicgen_complete = 0`; each demo's `num_samples` attribute is written last and the file is
+/// flushed after every demo. [`Self::finish`] writes the totals and masks, sets the marker to 1
+/// and renames the file to `<out>`. Readers refuse a file whose marker is 0 unless asked to
+/// recover, which keeps only demos with `num_samples`.
+#[derive(Debug)]
+pub struct DatasetWriter {
+    h5: hdf5::File,
+    data: hdf5::Group,
+    label: String,
+    partial: PathBuf,
+    out: PathBuf,
+    options: WriterOptions,
+    names: Vec<String>,
+    total: i64,
+}
+
+impl DatasetWriter {
+    /// The temporary path a dataset is written under until [`Self::finish`].
+    #[must_use]
+    pub fn partial_path(out: &Path) -> PathBuf {
+        let mut s = out.as_os_str().to_owned();
+        s.push(".partial");
+        PathBuf::from(s)
+    }
+
+    /// Starts a dataset that will end up at `out`.
+    ///
+    /// # Errors
+    /// [`IoError::Hdf5`] when the file cannot be created.
+    pub fn create(out: impl AsRef<Path>, options: WriterOptions) -> Result<Self> {
+        let out = out.as_ref().to_path_buf();
+        let partial = Self::partial_path(&out);
+        let label = partial.display().to_string();
+        let err = |g: &str, f: &str, e: &hdf5::Error| IoError::hdf5(&label, g, f, e);
+        let h5 = hdf5::File::create(&partial).map_err(|e| err("/", "", &e))?;
+        tree::write_attr(&label, &h5, "/", COMPLETE_ATTR, &Array::int(0))?;
+        let data = h5.create_group("data").map_err(|e| err("/", "data", &e))?;
+        if let Some(env_args) = &options.env_args {
+            tree::write_attr(&label, &data, "data", "env_args", &Array::string(env_args))?;
+        }
+        h5.flush().map_err(|e| err("/", "", &e))?;
+        Ok(Self { h5, data, label, partial, out, options, names: Vec::new(), total: 0 })
+    }
+
+    /// Number of demos written so far.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// True before the first demo.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+
+    /// Appends one demo as `data/demo_<i>` and flushes; returns its name.
+    ///
+    /// # Errors
+    /// [`IoError::Usage`] when the demo's arrays disagree in length, [`IoError::Hdf5`] on write errors.
+    pub fn append(&mut self, demo: &DemoData) -> Result<String> {
+        let name = format!("demo_{}", self.names.len());
+        let group_path = format!("data/{name}");
+        let tree = demo.to_group(&self.label, &group_path, self.options.compress_obs)?;
+        let g = self.data.create_group(&name).map_err(|e| IoError::hdf5(&self.label, "data", &name, &e))?;
+        tree::write_group(&self.label, &g, &group_path, &tree)?;
+        let steps = i64::try_from(demo.actions.len()).unwrap_or(i64::MAX);
+        tree::write_attr(&self.label, &g, &group_path, "num_samples", &Array::int(steps))?;
+        self.h5.flush().map_err(|e| IoError::hdf5(&self.label, &group_path, "", &e))?;
+        self.total += steps;
+        self.names.push(name.clone());
+        Ok(name)
+    }
+
+    /// Appends a generation attempt (see [`DemoData::from_attempt`]).
+    ///
+    /// # Errors
+    /// As [`Self::append`].
+    pub fn append_attempt(&mut self, attempt: &Attempt, obs: BTreeMap<String, Observation>, model_xml: Option<String>) -> Result<String> {
+        self.append(&DemoData::from_attempt(attempt, obs, model_xml))
+    }
+
+    /// Writes totals and masks, marks the file complete and moves it to its final path.
+    ///
+    /// # Errors
+    /// [`IoError::Hdf5`] on write errors, [`IoError::Fs`] when the rename fails.
+    pub fn finish(self) -> Result<PathBuf> {
+        let label = self.label.clone();
+        tree::write_attr(&label, &self.data, "data", "total", &Array::int(self.total))?;
+        if let Some(fraction) = self.options.valid_fraction {
+            let (mut train, mut valid) = (Vec::new(), Vec::new());
+            for (i, name) in self.names.iter().enumerate() {
+                // Spread validation demos evenly: demo i is in `valid` when floor((i+1)f) > floor(i f).
+                #[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
+                let is_valid = ((i + 1) as f64 * fraction).floor() > (i as f64 * fraction).floor();
+                if is_valid { valid.push(name.clone()) } else { train.push(name.clone()) }
+            }
+            let mask = self.h5.create_group("mask").map_err(|e| IoError::hdf5(&label, "/", "mask", &e))?;
+            for (key, names) in [("train", train), ("valid", valid)] {
+                let len = names.iter().map(String::len).max().unwrap_or(1).max(1);
+                let d = Dataset::new(Array { shape: vec![names.len()], values: Values::Fixed { len, strings: names } });
+                tree::write_dataset(&label, &mask, "mask", key, &d)?;
+            }
+        }
+        tree::write_attr(&label, &self.h5, "/", COMPLETE_ATTR, &Array::int(1)).or_else(|_| {
+            // The attribute exists: overwrite its value in place.
+            let a = self.h5.attr(COMPLETE_ATTR).map_err(|e| IoError::hdf5(&label, "/", COMPLETE_ATTR, &e))?;
+            a.write_scalar(&1_i64).map_err(|e| IoError::hdf5(&label, "/", COMPLETE_ATTR, &e))
+        })?;
+        let Self { h5, data, partial, out, .. } = self;
+        drop(data);
+        h5.close().map_err(|e| IoError::hdf5(&label, "/", "", &e))?;
+        std::fs::rename(&partial, &out).map_err(|e| IoError::Fs {
+            file: out.display().to_string(),
+            reason: format!("renaming {} into place: {e}", partial.display()),
+        })?;
+        Ok(out)
+    }
+}
