@@ -73,8 +73,9 @@ fn selection(c: &mut Criterion) {
 fn attempt_overhead(c: &mut Criterion) {
     use mimicgen_engine::Environment as _;
     use mimicgen_engine::kinematic::{self, PickPlace};
-    let generator = mimicgen_engine::Generator::new(kinematic::pick_place_spec(1, 1), kinematic::scripted_dataset(10, 1).unwrap_or_default())
-        .unwrap_or_else(|e| panic!("{e}"));
+    let generator =
+        mimicgen_engine::Generator::new(kinematic::pick_place_spec(1, 1), kinematic::scripted_dataset(10, 1).unwrap_or_default())
+            .unwrap_or_else(|e| panic!("{e}"));
     let mut env = PickPlace::new(0.08);
     let steps = generator.attempt(&mut env, 0).map(|a| a.trajectory.len()).unwrap_or(0);
     c.bench_function(&format!("kinematic attempt ({steps} steps)"), |b| b.iter(|| generator.attempt(&mut env, black_box(0))));

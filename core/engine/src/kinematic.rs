@@ -15,11 +15,10 @@ use rand_chacha::ChaCha8Rng;
 use crate::EngineError;
 use crate::action::DeltaPoseScale;
 use crate::demo::SourceDataset;
+use crate::demonstrator::PickPlaceScript;
 use crate::env::{EnvError, Environment};
-use crate::generate::{StepLabels, Trajectory, execute_step};
 use crate::pose::{Pose, Rot, Vec3, pose_from_parts, quat_from_wxyz, quat_to_wxyz};
 use crate::spec::{GenerationSettings, SelectionStrategy, SubtaskSpec, TaskSpec};
-use crate::transform::{Waypoint, WaypointKind};
 
 /// Half the edge of both cubes (m).
 pub const CUBE_HALF_M: f64 = 0.02;
@@ -187,61 +186,18 @@ impl Environment for PickPlace {
     }
 }
 
-/// Target poses from `from` to `to` moving at most `speed_m` per step (and a matching share of the
-/// rotation), ending exactly at `to`.
-fn moves(from: &Pose, to: &Pose, speed_m: f64) -> Vec<Pose> {
-    let distance = (to.translation.vector - from.translation.vector).norm().max(from.rotation.angle_to(&to.rotation) * 0.05);
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-    let steps = (distance / speed_m).ceil().max(1.0) as usize;
-    crate::transform::interpolate_poses(from, to, steps - 1).into_iter().skip(1).collect()
-}
-
-/// Records one teleoperator-like demo in the current scene of `env` (call `reset` first): approach
-/// above `cubeA` with a random grasp yaw and offset, descend, close, lift, carry above `cubeB`,
-/// lower, open, retreat, with random speeds and pauses.
-///
-/// # Errors
-/// The environment's error if a step fails.
-pub fn scripted_demo<R: Rng + ?Sized>(env: &mut PickPlace, name: &str, rng: &mut R) -> Result<crate::SourceDemo, EnvError> {
-    let mut traj = Trajectory::new(STATE_DIM, 7);
-    let a = env.cube_a;
-    let b = env.cube_b;
-    // Grasp about one of the cube's four symmetric yaws, the one closest to the current heading.
-    let cube_yaw = crate::pose::yaw_of(&a);
-    let eef_yaw = crate::pose::yaw_of(&env.world_from_eef);
-    let quarter = std::f64::consts::FRAC_PI_2;
-    let grasp_yaw = cube_yaw + ((eef_yaw - cube_yaw) / quarter).round() * quarter + rng.random_range(-0.15..0.15);
-    let down = Rot::from_axis_angle(&Vec3::z_axis(), grasp_yaw) * Rot::from_axis_angle(&Vec3::x_axis(), std::f64::consts::PI);
-    let grasp_offset = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003));
-    let grasp = pose_from_parts(a.translation.vector + grasp_offset, down);
-    let above = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
-    let place_offset = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), 2.0 * CUBE_HALF_M + 0.002);
-    let place = pose_from_parts(b.translation.vector + place_offset + grasp_offset, down);
-    let fast = rng.random_range(0.015..0.03);
-    let slow = rng.random_range(0.006..0.012);
-    let plan: Vec<(Pose, f64, f64, usize)> = vec![
-        (above(&grasp, rng.random_range(0.06..0.12)), fast, -1.0, rng.random_range(0..4)),
-        (grasp, slow, -1.0, 0),
-        (grasp, slow, 1.0, rng.random_range(2..5)),
-        (above(&grasp, rng.random_range(0.08..0.14)), fast, 1.0, 0),
-        (above(&place, rng.random_range(0.03..0.08)), fast, 1.0, rng.random_range(0..3)),
-        (place, slow, 1.0, 0),
-        (place, slow, -1.0, rng.random_range(2..4)),
-        (above(&place, 0.08), fast, -1.0, 0),
-    ];
-    let mut current = env.world_from_eef;
-    for (goal, speed, gripper, pause) in plan {
-        let mut targets = moves(&current, &goal, speed);
-        targets.extend(std::iter::repeat_n(goal, pause));
-        for target in targets {
-            let jitter = Vec3::new(rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4));
-            let pose = pose_from_parts(target.translation.vector + jitter, target.rotation);
-            let waypoint = Waypoint { pose, gripper: vec![gripper], noise: 0.0 };
-            execute_step(env, &waypoint, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, &mut traj, rng)?;
-        }
-        current = goal;
+/// The scripted demonstrator's settings for this environment.
+#[must_use]
+pub fn pick_place_script() -> PickPlaceScript {
+    PickPlaceScript {
+        pick: "cubeA".to_owned(),
+        place_on: "cubeB".to_owned(),
+        grasp_height_m: 0.0,
+        release_height_m: 2.0 * CUBE_HALF_M + 0.002,
+        close_steps: (2, 4),
+        open_steps: (2, 3),
+        grasp_offset_m: 0.003,
     }
-    Ok(traj.to_source_demo(name))
 }
 
 /// `n` scripted demos in scenes drawn from a 0.16 m square (D0-like), keeping only successful ones.
@@ -252,13 +208,14 @@ pub fn scripted_dataset(n: usize, seed: u64) -> Result<SourceDataset, EngineErro
     let mut env = PickPlace::new(0.08);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut demos = Vec::with_capacity(n);
+    let script = pick_place_script();
     for attempt in 0..10 * n.max(1) {
         if demos.len() == n {
             break;
         }
         let fail = |source| EngineError::Env { attempt: attempt as u64, source };
         env.reset(&mut rng).map_err(fail)?;
-        let demo = scripted_demo(&mut env, &format!("demo_{}", demos.len()), &mut rng).map_err(fail)?;
+        let demo = script.record(&mut env, &format!("demo_{}", demos.len()), &mut rng).map_err(fail)?;
         if env.is_success() {
             demos.push(demo);
         }

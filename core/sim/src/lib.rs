@@ -8,6 +8,7 @@
 //! This is the only crate that links libmujoco (set up by `scripts/setup.sh`).
 
 pub mod assets;
+pub mod compose;
 pub mod env;
 pub mod osc;
 pub mod scene;

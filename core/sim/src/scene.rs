@@ -142,6 +142,16 @@ impl Scene {
         Self::compile(&crate::assets::remap_asset_paths(xml, &assets), origin, &task.objects(), 20.0)
     }
 
+    /// Composes `task`'s scene from our base scene and its object models, and compiles it.
+    ///
+    /// # Errors
+    /// [`SimError::Assets`] without local assets, else as [`Scene::compile`].
+    pub fn for_task(task: &dyn crate::Task) -> Result<Self, SimError> {
+        let assets = crate::assets::robosuite_assets_dir()?;
+        let xml = crate::compose::compose_scene(&assets, &task.object_models());
+        Self::compile(&xml, &format!("composed {} scene", task.name()), &task.objects(), 20.0)
+    }
+
     /// Length of robosuite's flattened state: `[time, qpos, qvel]`.
     #[must_use]
     pub fn state_dim(&self) -> usize {

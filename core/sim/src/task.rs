@@ -4,9 +4,11 @@ use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 
 use mimicgen_engine::EnvError;
+use mimicgen_engine::demonstrator::PickPlaceScript;
 use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
 use rand::{Rng, RngCore};
 
+use crate::compose::ObjectModel;
 use crate::env::SimEnv;
 
 /// What a task adds to a robosuite scene.
@@ -15,6 +17,8 @@ pub trait Task: Send + Sync {
     fn name(&self) -> &str;
     /// `(object name, body name)` of every object, in order.
     fn objects(&self) -> Vec<(&'static str, &'static str)>;
+    /// The object models our composed scene adds to the base scene, in the same order.
+    fn object_models(&self) -> Vec<ObjectModel>;
     /// Initial `world_from_object` of every object, in order.
     ///
     /// # Errors
@@ -105,6 +109,23 @@ impl Stack {
     }
 }
 
+impl Stack {
+    /// The scripted demonstrator's settings: grasp near the red cube's centre, release it 6 mm
+    /// above resting on the green one; the gripper takes about four control steps to close.
+    #[must_use]
+    pub fn script() -> PickPlaceScript {
+        PickPlaceScript {
+            pick: "cubeA".to_owned(),
+            place_on: "cubeB".to_owned(),
+            grasp_height_m: -0.002,
+            release_height_m: 0.02 + 0.025 + 0.006,
+            close_steps: (6, 9),
+            open_steps: (3, 5),
+            grasp_offset_m: 0.003,
+        }
+    }
+}
+
 impl Task for Stack {
     fn name(&self) -> &str {
         "stack"
@@ -112,6 +133,16 @@ impl Task for Stack {
 
     fn objects(&self) -> Vec<(&'static str, &'static str)> {
         vec![("cubeA", "cubeA_main"), ("cubeB", "cubeB_main")]
+    }
+
+    fn object_models(&self) -> Vec<ObjectModel> {
+        let cube = |name: &str, half: f64, tex: &str, file: &str| ObjectModel::Box {
+            name: name.to_owned(),
+            half_size: [half; 3],
+            rgba: [0.5, 0.0, 0.0, 1.0],
+            texture: (tex.to_owned(), format!("textures/{file}")),
+        };
+        vec![cube("cubeA", 0.02, "redwood", "red-wood.png"), cube("cubeB", 0.025, "greenwood", "green-wood.png")]
     }
 
     fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
