@@ -6,6 +6,11 @@ use std::process::ExitCode;
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 use mimicgen_engine::TaskSpec;
+use mimicgen_io::info::DatasetInfo;
+use mimicgen_io::{ReadOptions, RobomimicDataset};
+
+mod bench_io;
+mod generate;
 
 /// Turn a handful of robot demonstrations into large, diverse training datasets.
 ///
@@ -22,7 +27,9 @@ const EXAMPLES: &str = "\
 Examples:
   mimicgen spec check config_D0.json          validate a MimicGen experiment JSON or our TOML
   mimicgen spec convert config_D0.json        print the same task spec as TOML
-  mimicgen generate --task stack --variant D0 --num-demos 100 --out stack_d0.hdf5";
+  mimicgen generate --task stack --variant D0 --num-demos 100 --out stack_d0.hdf5
+  mimicgen info source_D0.hdf5                 demos, lengths, obs/action shapes, objects, signals
+  mimicgen export generated.hdf5 --mcap out.mcap   poses, actions, labels for Foxglove";
 
 #[derive(Subcommand)]
 enum Command {
@@ -31,23 +38,42 @@ enum Command {
         #[command(subcommand)]
         command: SpecCommand,
     },
-    /// Generate demonstrations in simulation.
-    Generate {
-        /// Task to generate (see `mimicgen tasks`).
-        #[arg(long, default_value = "stack")]
-        task: String,
-        /// Task variant (reset distribution), e.g. D0 or D1.
-        #[arg(long, default_value = "D0")]
-        variant: String,
-        /// Number of attempts (or successes with a guarantee config).
-        #[arg(long, default_value_t = 10)]
-        num_demos: usize,
-        /// Run seed: the same seed gives the same dataset.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Output dataset.
-        #[arg(long, default_value = "out/generated.hdf5")]
-        out: PathBuf,
+    /// Generate demonstrations in simulation (MuJoCo, robosuite-like Panda + OSC_POSE).
+    Generate(generate::GenerateArgs),
+    /// Record scripted source demos of a task (the bundled defaults are made this way).
+    Demos(generate::DemosArgs),
+    /// List the tasks and their variants.
+    Tasks,
+    /// Summarise a robomimic / MimicGen HDF5 dataset.
+    Info {
+        /// The dataset.
+        file: PathBuf,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+        /// Open a file an interrupted writer left behind (keeps its complete demos).
+        #[arg(long)]
+        recover: bool,
+    },
+    /// Export a dataset's streams (poses, actions, labels) to MCAP for Foxglove.
+    Export {
+        /// The dataset.
+        file: PathBuf,
+        /// Output MCAP file.
+        #[arg(long)]
+        mcap: PathBuf,
+    },
+    /// Measure HDF5 write and read of a synthetic dataset (seconds and peak memory).
+    BenchIo {
+        /// Number of demos.
+        #[arg(long, default_value_t = 1000)]
+        demos: usize,
+        /// Steps per demo.
+        #[arg(long, default_value_t = 150)]
+        steps: usize,
+        /// Directory for the temporary dataset (default: the system temp dir).
+        #[arg(long)]
+        dir: Option<PathBuf>,
     },
 }
 
@@ -109,13 +135,91 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             print!("{}", spec.to_toml_string()?);
             Ok(ExitCode::SUCCESS)
         }
-        Command::Generate { task, variant, .. } => {
-            eprintln!(
-                "mimicgen generate --task {task} --variant {variant}: the MuJoCo backend is not built yet.\n\
-                 Built so far: the engine (segmentation, selection, transforms, the generation loop) and task specs;\n\
-                 try `mimicgen spec check <config.json>`."
-            );
-            Ok(ExitCode::from(2))
+        Command::Info { file, json, recover } => {
+            let ds = RobomimicDataset::open_with(&file, ReadOptions { recover })?;
+            let info = DatasetInfo::of(&ds)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&info)?);
+            } else {
+                print_info(&info);
+            }
+            Ok(ExitCode::SUCCESS)
         }
+        Command::Export { file, mcap } => {
+            let ds = RobomimicDataset::open(&file)?;
+            let summary = mimicgen_io::mcap_export::export(&ds, &mcap)?;
+            println!("{}: {} demos, {} steps at 20 Hz", mcap.display(), summary.demos, summary.steps);
+            for (topic, n) in &summary.messages {
+                println!("  {topic:<24} {n} messages");
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::BenchIo { demos, steps, dir } => {
+            bench_io::run(demos, steps, dir)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Generate(args) => {
+            generate::generate(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Demos(args) => {
+            generate::demos(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Tasks => {
+            for t in mimicgen_sim::registry::TASKS {
+                println!("{:<12} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}
+
+fn fmt_list(v: &[f64]) -> String {
+    let parts: Vec<String> = v.iter().map(|x| format!("{x:.3}")).collect();
+    format!("[{}]", parts.join(", "))
+}
+
+fn print_info(info: &DatasetInfo) {
+    let l = &info.lengths;
+    println!("{}", info.file);
+    let total = info.total_attr.map_or_else(String::new, |t| format!(" (data/total says {t})"));
+    println!("  demos {}, samples {}{total}", info.num_demos, info.num_samples);
+    println!("  lengths: mean {:.1}, std {:.1}, min {}, max {}", l.mean, l.std, l.min, l.max);
+    println!(
+        "  env: {}, controller {}",
+        info.env_name.as_deref().unwrap_or("(no env_args)"),
+        info.controller_type.as_deref().unwrap_or("(unknown)")
+    );
+    println!("  actions: {} dims, min {}, max {}", info.action_dim, fmt_list(&info.action_min), fmt_list(&info.action_max));
+    if info.obs.is_empty() {
+        println!("  obs: (none)");
+    }
+    for (key, shape) in &info.obs {
+        println!("  obs/{key}: {shape:?}");
+    }
+    println!("  objects: {}", if info.objects.is_empty() { "(none)".to_owned() } else { info.objects.join(", ") });
+    for (name, s) in &info.signals {
+        let f = &s.first_on_step;
+        println!(
+            "  signal {name}: first 0->1 at step min {}, mean {:.1}, max {} ({} of {} demos){}",
+            f.min,
+            f.mean,
+            f.max,
+            f.count,
+            s.demos,
+            if s.never_on.is_empty() { String::new() } else { format!("; never on in {}", s.never_on.join(", ")) }
+        );
+    }
+    if info.filter_keys.is_empty() {
+        println!("  filter keys: (none)");
+    }
+    for (key, n) in &info.filter_keys {
+        println!("  filter key {key}: {n} demos");
+    }
+    if info.report.is_mimicgen_source() {
+        println!("  MimicGen source: yes (datagen_info complete)");
+    } else {
+        println!("  MimicGen source: no: {}", info.report);
     }
 }

@@ -8,7 +8,7 @@ use mimicgen_engine::EngineError;
 #[non_exhaustive]
 pub enum IoError {
     /// The HDF5 library failed (unreadable or truncated file, write error).
-    #[error("{file}: group `{group}` field `{field}`: HDF5 error: {reason}")]
+    #[error("{file}: group `{group}`{}: HDF5 error: {reason}", if field.is_empty() { String::new() } else { format!(" field `{field}`") })]
     Hdf5 {
         /// The file.
         file: String,

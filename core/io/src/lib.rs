@@ -19,6 +19,8 @@
 
 pub mod dataset;
 mod error;
+pub mod info;
+pub mod mcap_export;
 pub mod tree;
 pub mod writer;
 

@@ -359,3 +359,45 @@ mod malformed {
         assert_names(&err, &[SOURCE, "group `mask`", "`train`"]);
     }
 }
+
+#[test]
+fn mcap_export_reads_back_in_rust_and_python() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("g3.mcap");
+    let ds = RobomimicDataset::open(data("generated_D0_first3.hdf5")).unwrap();
+    let steps: usize = ds.demo_names().iter().map(|n| ds.demo_len(n)).sum();
+    let summary = mimicgen_io::mcap_export::export(&ds, &out).unwrap();
+    assert_eq!(summary.steps, steps as u64);
+    let bytes = std::fs::read(&out).unwrap();
+    let mut per_topic: BTreeMap<String, Vec<u64>> = BTreeMap::new();
+    let mut first_eef = None;
+    for msg in mcap::MessageStream::new(&bytes).unwrap() {
+        let msg = msg.unwrap();
+        let schema = msg.channel.schema.as_ref().unwrap();
+        assert_eq!(schema.encoding, "jsonschema");
+        let value: serde_json::Value = serde_json::from_slice(&msg.data).unwrap();
+        if msg.channel.topic == "/eef_pose" {
+            assert_eq!(schema.name, "foxglove.PoseInFrame");
+            first_eef.get_or_insert(value);
+        }
+        per_topic.entry(msg.channel.topic.clone()).or_default().push(msg.log_time);
+    }
+    assert_eq!(
+        per_topic.keys().collect::<Vec<_>>(),
+        ["/actions", "/eef_pose", "/gripper", "/objects/cubeA", "/objects/cubeB", "/source_demo", "/subtask", "/success", "/target_pose"]
+    );
+    let times = &per_topic["/eef_pose"];
+    assert_eq!(times.len(), steps);
+    assert!(times.windows(2).all(|w| w[1] - w[0] == mimicgen_io::mcap_export::STEP_NANOS));
+    // The first message carries demo_0's first eef pose.
+    let eef = &first_eef.unwrap()["pose"]["position"];
+    let m = match &ds.demo("demo_0").unwrap().dataset_at("datagen_info/eef_pose").unwrap().array.values {
+        Values::F64(v) => v[..16].to_vec(),
+        other => panic!("{other:?}"),
+    };
+    // serde_json's default float parser may be 1 ulp off; the writer prints shortest round-trip form.
+    for (key, want) in [("x", m[3]), ("y", m[7]), ("z", m[11])] {
+        assert!((eef[key].as_f64().unwrap() - want).abs() < 1e-15, "{key}");
+    }
+    run_python("check_mcap.py", &[&out]);
+}

@@ -108,6 +108,53 @@ impl SimEnv {
         }
     }
 
+    /// robosuite's low-dim observations in the current state, keyed as robomimic expects
+    /// (`robot0_eef_pos`, `robot0_eef_quat` in `xyzw`, `object`, ...).
+    #[must_use]
+    pub fn observation(&self) -> BTreeMap<String, Vec<f64>> {
+        let robot = &self.scene.robot;
+        let (qpos, qvel) = (self.data.qpos(), self.data.qvel());
+        let joint_pos: Vec<f64> = robot.arm_qpos.iter().map(|&i| qpos[i]).collect();
+        let site = robot.eef_site;
+        let (jacp, jacr) = self.data.jac_site(true, true, site);
+        let nv = qvel.len();
+        let twist = |jac: &[f64]| -> Vec<f64> { (0..3).map(|r| (0..nv).map(|c| jac[r * nv + c] * qvel[c]).sum()).collect() };
+        let hand = self.data.xquat()[robot.hand_body];
+        BTreeMap::from([
+            ("object".to_owned(), self.task.object_obs(self)),
+            ("robot0_eef_pos".to_owned(), self.data.site_xpos()[site].to_vec()),
+            ("robot0_eef_quat".to_owned(), vec![hand[1], hand[2], hand[3], hand[0]]),
+            ("robot0_eef_vel_ang".to_owned(), twist(&jacr)),
+            ("robot0_eef_vel_lin".to_owned(), twist(&jacp)),
+            ("robot0_gripper_qpos".to_owned(), robot.finger_qpos.iter().map(|&i| qpos[i]).collect()),
+            ("robot0_gripper_qvel".to_owned(), robot.finger_dof.iter().map(|&i| qvel[i]).collect()),
+            ("robot0_joint_pos_cos".to_owned(), joint_pos.iter().map(|q| q.cos()).collect()),
+            ("robot0_joint_pos_sin".to_owned(), joint_pos.iter().map(|q| q.sin()).collect()),
+            ("robot0_joint_vel".to_owned(), robot.arm_dof.iter().map(|&i| qvel[i]).collect()),
+            ("robot0_joint_pos".to_owned(), joint_pos),
+        ])
+    }
+
+    /// Observations for every recorded state, as `(per-step shape, values)` per key. Leaves the
+    /// environment in the last state.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] on a state of the wrong length.
+    pub fn observations_for_states(
+        &mut self,
+        states: &mimicgen_engine::Rows,
+    ) -> Result<BTreeMap<String, (Vec<usize>, Vec<f64>)>, EnvError> {
+        let mut out: BTreeMap<String, (Vec<usize>, Vec<f64>)> = BTreeMap::new();
+        for state in states.iter() {
+            self.set_state(state)?;
+            for (key, value) in self.observation() {
+                let entry = out.entry(key).or_insert_with(|| (vec![value.len()], Vec::with_capacity(value.len() * states.len())));
+                entry.1.extend(value);
+            }
+        }
+        Ok(out)
+    }
+
     fn warning_count(&self) -> i64 {
         self.data.warning().iter().map(|w| i64::from(w.number)).sum()
     }

@@ -11,6 +11,7 @@ pub mod assets;
 pub mod compose;
 pub mod env;
 pub mod osc;
+pub mod registry;
 pub mod scene;
 pub mod task;
 

@@ -34,6 +34,10 @@ pub struct RobotIndices {
     pub arm_actuators: Vec<(usize, [f64; 2])>,
     /// `qpos` addresses of the finger joints.
     pub finger_qpos: Vec<usize>,
+    /// `qvel` addresses of the finger joints.
+    pub finger_dof: Vec<usize>,
+    /// Body whose orientation robosuite reports as `robot0_eef_quat` (`robot0_right_hand`).
+    pub hand_body: usize,
     /// Position actuators of the fingers, with their control ranges.
     pub finger_actuators: Vec<(usize, [f64; 2])>,
     /// The controlled end-effector site (`gripper0_grip_site`).
@@ -84,6 +88,8 @@ impl Scene {
             arm_dof: Vec::new(),
             arm_actuators: Vec::new(),
             finger_qpos: Vec::new(),
+            finger_dof: Vec::new(),
+            hand_body: id(&model, MjtObjBase::mjOBJ_BODY, "robot0_right_hand", origin)?,
             finger_actuators: Vec::new(),
             eef_site: id(&model, MjtObjBase::mjOBJ_SITE, "gripper0_grip_site", origin)?,
             finger_pads: [
@@ -100,6 +106,7 @@ impl Scene {
         for i in 1..=2 {
             let j = joint(&format!("gripper0_finger_joint{i}"))?;
             robot.finger_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
+            robot.finger_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
             robot.finger_actuators.push(actuator(&format!("gripper0_gripper_finger_joint{i}"))?);
         }
         let mut scene_objects = Vec::with_capacity(objects.len());

@@ -28,6 +28,27 @@ pub trait Task: Send + Sync {
     fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64>;
     /// Whether the task is achieved in the current state.
     fn is_success(&self, env: &SimEnv) -> bool;
+    /// robosuite's `object` observation for this task in the current state.
+    fn object_obs(&self, env: &SimEnv) -> Vec<f64>;
+}
+
+/// robosuite's per-object observables: each object's position and `xyzw` quaternion, then
+/// `object - eef` for each object.
+fn pose_and_gripper_obs(env: &SimEnv) -> Vec<f64> {
+    use mimicgen_engine::Environment as _;
+    let eef = env.eef_pose().translation.vector;
+    let poses: Vec<Pose> = (0..env.scene().objects.len()).map(|i| env.object_pose(i)).collect();
+    let mut obs = Vec::with_capacity(poses.len() * 10);
+    for (i, p) in poses.iter().enumerate() {
+        obs.extend(p.translation.vector.iter());
+        // MuJoCo's own quaternion (not one rebuilt from the rotation), so the sign matches robosuite.
+        let [w, x, y, z] = env.data().xquat()[env.scene().objects[i].body];
+        obs.extend([x, y, z, w]);
+    }
+    for p in &poses {
+        obs.extend((p.translation.vector - eef).iter());
+    }
+    obs
 }
 
 /// Height of robosuite's table top (m): `table_offset` z.
@@ -151,6 +172,13 @@ impl Task for Stack {
 
     fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64> {
         BTreeMap::from([("grasp".to_owned(), i64::from(env.is_grasping(0)))])
+    }
+
+    fn object_obs(&self, env: &SimEnv) -> Vec<f64> {
+        let mut obs = pose_and_gripper_obs(env);
+        let (a, b) = (env.object_pose(0).translation.vector, env.object_pose(1).translation.vector);
+        obs.extend((b - a).iter());
+        obs
     }
 
     fn is_success(&self, env: &SimEnv) -> bool {

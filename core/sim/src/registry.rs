@@ -1,0 +1,90 @@
+//! The tasks this backend knows, their variants, and robosuite's `env_args` metadata for them.
+
+use std::sync::Arc;
+
+use crate::task::{Stack, Task};
+
+/// A task the backend can build.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TaskInfo {
+    /// Name on the command line.
+    pub name: &'static str,
+    /// Its variants (reset distributions).
+    pub variants: &'static [&'static str],
+    /// One line on what it is.
+    pub description: &'static str,
+    /// robosuite's environment name prefix (`Stack` -> `Stack_D0`).
+    pub env_name: &'static str,
+}
+
+/// Every task, in the order `mimicgen tasks` lists them.
+pub const TASKS: &[TaskInfo] = &[TaskInfo {
+    name: "stack",
+    variants: &["D0", "D1"],
+    description: "red cube onto green cube; D0 both in a 0.16 m square, D1 in 0.40 m; random yaw",
+    env_name: "Stack",
+}];
+
+/// The bundled task spec (our TOML, the paper's settings) for `name`.
+#[must_use]
+pub fn default_spec_toml(name: &str) -> Option<&'static str> {
+    match name {
+        "stack" => Some(include_str!("../tasks/stack.toml")),
+        _ => None,
+    }
+}
+
+/// Builds `name` / `variant`.
+///
+/// # Errors
+/// A message naming the known tasks or variants.
+pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
+    match name.to_ascii_lowercase().as_str() {
+        "stack" => Ok(Arc::new(Stack::variant(variant)?)),
+        other => Err(format!("unknown task {other:?}; known tasks: {}", TASKS.iter().map(|t| t.name).collect::<Vec<_>>().join(", "))),
+    }
+}
+
+/// robosuite/robomimic's `env_args` JSON for `name` / `variant`, as the reference writes it
+/// (OSC_POSE, kp 150, 20 Hz, Panda), so robomimic can rebuild the environment.
+#[must_use]
+pub fn env_args(name: &str, variant: &str) -> String {
+    let env_name = TASKS.iter().find(|t| t.name == name).map_or(name, |t| t.env_name);
+    serde_json::json!({
+        "env_name": format!("{env_name}_{}", variant.to_ascii_uppercase()),
+        "env_version": "1.4.1",
+        "type": 1,
+        "env_kwargs": {
+            "has_renderer": false,
+            "has_offscreen_renderer": false,
+            "ignore_done": true,
+            "use_object_obs": true,
+            "use_camera_obs": false,
+            "control_freq": 20,
+            "controller_configs": {
+                "type": "OSC_POSE",
+                "input_max": 1,
+                "input_min": -1,
+                "output_max": [0.05, 0.05, 0.05, 0.5, 0.5, 0.5],
+                "output_min": [-0.05, -0.05, -0.05, -0.5, -0.5, -0.5],
+                "kp": 150,
+                "damping_ratio": 1,
+                "impedance_mode": "fixed",
+                "kp_limits": [0, 300],
+                "damping_ratio_limits": [0, 10],
+                "position_limits": null,
+                "orientation_limits": null,
+                "uncouple_pos_ori": true,
+                "control_delta": true,
+                "interpolation": null,
+                "ramp_ratio": 0.2
+            },
+            "robots": ["Panda"],
+            "camera_depths": false,
+            "camera_heights": 84,
+            "camera_widths": 84,
+            "reward_shaping": false
+        }
+    })
+    .to_string()
+}
