@@ -22,6 +22,9 @@ const GRIPPER_INIT_QPOS: [f64; 2] = [0.020833, -0.020833];
 /// robosuite's default initialisation noise on the arm joints (Gaussian std, rad).
 const ARM_INIT_NOISE: f64 = 0.02;
 
+/// MuJoCo's warning kinds, in `mjtWarning` order.
+const WARNING_NAMES: [&str; 8] = ["INERTIA", "CONTACTFULL", "CNSTRFULL", "VGEOMFULL", "BADQPOS", "BADQVEL", "BADQACC", "BADCTRL"];
+
 /// One robosuite-like environment: a scene, its MuJoCo data, the controller and the task.
 pub struct SimEnv {
     scene: Arc<Scene>,

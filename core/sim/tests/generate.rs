@@ -71,3 +71,44 @@ fn scripted_demonstrator_stacks_in_mujoco() {
     }
     assert!(successes >= 8, "{successes} of 10");
 }
+
+#[test]
+fn same_seed_same_demos_with_one_or_two_workers_and_blowups_are_failures() {
+    use mimicgen_engine::{EnvError, Environment as _};
+    let task: Arc<dyn mimicgen_sim::Task> = Arc::new(Stack::variant("D1").unwrap());
+    let mut spec = TaskSpec::from_toml_str(mimicgen_sim::registry::default_spec_toml("stack").unwrap(), "stack.toml").unwrap();
+    spec.generation.num_trials = 4;
+    let sources = mimicgen_io::read_source_dataset(data("data/stack_D0_source.hdf5"), &spec.source).unwrap();
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let generator = Generator::new(spec, sources).unwrap();
+    let collect = |workers: usize| {
+        let mut envs: Vec<SimEnv> = (0..workers).map(|_| SimEnv::new(Arc::clone(&scene), Arc::clone(&task))).collect();
+        let mut attempts = Vec::new();
+        mimicgen_engine::run(&generator, &mut envs, |a, _| {
+            attempts.push(a);
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+        attempts
+    };
+    let one = collect(1);
+    let two = collect(2);
+    assert_eq!(one.len(), 4);
+    for (a, b) in one.iter().zip(&two) {
+        assert_eq!(a.trajectory.states, b.trajectory.states, "attempt {}", a.index);
+        assert_eq!(a.trajectory.actions, b.trajectory.actions);
+        assert_eq!(a.success, b.success);
+    }
+    // A non-finite action is reported as an unstable simulation, which fails only that attempt.
+    let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+    env.reset(&mut rng).unwrap();
+    assert!(matches!(env.step(&[f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]), Err(EnvError::Unstable { .. })));
+    // So is a real blow-up: absurd joint velocities make MuJoCo flag bad accelerations.
+    let mut state = env.state();
+    let n = state.len();
+    state[n - 21..].fill(1e30);
+    env.set_state(&state).unwrap();
+    let err = env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap_err();
+    assert!(matches!(&err, EnvError::Unstable { reason } if reason.contains("MuJoCo") || reason.contains("non-finite")), "{err}");
+}
