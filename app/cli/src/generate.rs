@@ -227,6 +227,7 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
         "wall_time_s": wall,
         "attempts_per_s": if wall > 0.0 { f64::from(u32::try_from(stats.attempts).unwrap_or(u32::MAX)) / wall } else { 0.0 },
         "per_source_demo": stats.per_source_demo.iter().enumerate().map(|(i, d)| json!({"demo": i, "attempts": d.attempts, "successes": d.successes})).collect::<Vec<_>>(),
+        "peak_rss_mib": crate::bench_sim::peak_rss_mib(),
         "failures": stats.failures.iter().map(|f| json!({"subtask": f.subtask, "reason": f.reason.to_string(), "count": f.count})).collect::<Vec<_>>(),
     });
     let text = serde_json::to_string_pretty(&report)?;

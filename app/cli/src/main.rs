@@ -7,9 +7,10 @@ use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 use mimicgen_engine::TaskSpec;
 use mimicgen_io::info::DatasetInfo;
-use mimicgen_io::{ReadOptions, RobomimicDataset};
+use mimicgen_io::{DemoReader, ReadOptions};
 
 mod bench_io;
+mod bench_sim;
 mod generate;
 
 /// Turn a handful of robot demonstrations into large, diverse training datasets.
@@ -44,6 +45,8 @@ enum Command {
     Demos(generate::DemosArgs),
     /// List the tasks and their variants.
     Tasks,
+    /// Measure generation against bare physics stepping and across worker counts.
+    BenchSim(bench_sim::BenchSimArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
     Info {
         /// The dataset.
@@ -136,7 +139,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Info { file, json, recover } => {
-            let ds = RobomimicDataset::open_with(&file, ReadOptions { recover })?;
+            let ds = DemoReader::open_with(&file, ReadOptions { recover })?;
             let info = DatasetInfo::of(&ds)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&info)?);
@@ -146,7 +149,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Export { file, mcap } => {
-            let ds = RobomimicDataset::open(&file)?;
+            let ds = DemoReader::open_with(&file, ReadOptions::default())?;
             let summary = mimicgen_io::mcap_export::export(&ds, &mcap)?;
             println!("{}: {} demos, {} steps at 20 Hz", mcap.display(), summary.demos, summary.steps);
             for (topic, n) in &summary.messages {
@@ -164,6 +167,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Demos(args) => {
             generate::demos(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::BenchSim(args) => {
+            bench_sim::run(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Tasks => {

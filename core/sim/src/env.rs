@@ -22,6 +22,9 @@ const GRIPPER_INIT_QPOS: [f64; 2] = [0.020833, -0.020833];
 /// robosuite's default initialisation noise on the arm joints (Gaussian std, rad).
 const ARM_INIT_NOISE: f64 = 0.02;
 
+/// One observation stream: per-step shape, then every step's values row-major.
+pub type Observation = (Vec<usize>, Vec<f64>);
+
 /// MuJoCo's warning kinds, in `mjtWarning` order.
 const WARNING_NAMES: [&str; 8] = ["INERTIA", "CONTACTFULL", "CNSTRFULL", "VGEOMFULL", "BADQPOS", "BADQVEL", "BADQACC", "BADCTRL"];
 
@@ -146,8 +149,8 @@ impl SimEnv {
     pub fn observations_for_states(
         &mut self,
         states: &mimicgen_engine::Rows,
-    ) -> Result<BTreeMap<String, (Vec<usize>, Vec<f64>)>, EnvError> {
-        let mut out: BTreeMap<String, (Vec<usize>, Vec<f64>)> = BTreeMap::new();
+    ) -> Result<BTreeMap<String, Observation>, EnvError> {
+        let mut out: BTreeMap<String, Observation> = BTreeMap::new();
         for state in states.iter() {
             self.set_state(state)?;
             for (key, value) in self.observation() {
@@ -158,12 +161,29 @@ impl SimEnv {
         Ok(out)
     }
 
+    /// Steps the bare physics `n` times holding the arm with its current gravity/Coriolis torques,
+    /// with no controller or recording: the baseline benchmarks compare generation against.
+    pub fn step_physics_bare(&mut self, n: usize) {
+        self.data.forward();
+        let robot = &self.scene.robot;
+        let hold: Vec<f64> = robot.arm_dof.iter().map(|&d| self.data.qfrc_bias()[d]).collect();
+        let ctrl = self.data.ctrl_mut();
+        for ((a, [lo, hi]), tau) in robot.arm_actuators.iter().zip(hold) {
+            ctrl[*a] = tau.clamp(*lo, *hi);
+        }
+        for _ in 0..n {
+            self.data.step();
+        }
+    }
+
     fn warning_count(&self) -> i64 {
         self.data.warning().iter().map(|w| i64::from(w.number)).sum()
     }
 
     fn physics_step(&mut self, gripper_action: f64) -> Result<(), EnvError> {
-        self.data.forward();
+        // robosuite runs mj_forward, sets controls, then mj_step. With the Euler integrator,
+        // mj_step1 + controls + mj_step2 computes the same thing without the second forward pass.
+        self.data.step1();
         let torques = self.osc.torques(&self.data, &self.scene.robot);
         let robot = &self.scene.robot;
         let sign = if gripper_action > 0.0 {
@@ -182,7 +202,7 @@ impl SimEnv {
         for ((a, [lo, hi]), command) in robot.finger_actuators.iter().zip(self.gripper_command) {
             ctrl[*a] = 0.5 * (hi + lo) + 0.5 * (hi - lo) * command;
         }
-        self.data.step();
+        self.data.step2();
         let warnings = self.warning_count();
         if warnings > self.warnings_seen {
             self.warnings_seen = warnings;
@@ -192,7 +212,7 @@ impl SimEnv {
                 .iter()
                 .enumerate()
                 .filter(|(_, w)| w.number > 0)
-                .map(|(i, w)| format!("warning #{i} (x{})", w.number))
+                .map(|(i, w)| format!("{} (x{})", WARNING_NAMES.get(i).unwrap_or(&"warning"), w.number))
                 .collect();
             return Err(EnvError::Unstable { reason: format!("MuJoCo {} at t = {:.3} s", kinds.join(", "), self.data.time()) });
         }

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use mimicgen_engine::action::DeltaPoseScale;
 use mimicgen_engine::pose::{Rot, Vec3, rot_from_axis_angle};
 use mujoco_rs::prelude::*;
-use nalgebra::{DMatrix, DVector, Matrix3};
+use nalgebra::{Matrix3, SMatrix, SVector};
 
 use crate::scene::RobotIndices;
 
@@ -29,6 +29,9 @@ impl Default for OscConfig {
         Self { kp: 150.0, damping_ratio: 1.0, kp_null: 10.0, scale: DeltaPoseScale::default() }
     }
 }
+
+/// Joints of the arm the controller drives (the Panda's seven).
+pub const ARM_DOF: usize = 7;
 
 /// Panda's home posture, robosuite's `init_qpos`; the null-space term pulls towards it.
 pub const PANDA_INIT_QPOS: [f64; 7] = [
@@ -97,62 +100,63 @@ impl Osc {
         self.goal_rot = delta.to_rotation_matrix().into_inner() * rot;
     }
 
-    /// Arm torques for the current state (before clipping to the actuators' ranges). `data` must be
-    /// forwarded.
-    pub fn torques(&mut self, data: &MjData<Arc<MjModel>>, robot: &RobotIndices) -> Vec<f64> {
+    /// Arm torques for the current state (before clipping to the actuators' ranges). `data` must
+    /// hold the current kinematics, mass matrix and bias forces (after `mj_forward` or `mj_step1`).
+    pub fn torques(&mut self, data: &MjData<Arc<MjModel>>, robot: &RobotIndices) -> [f64; ARM_DOF] {
         let model = data.model();
         let nv = usize::try_from(model.ffi().nv).unwrap_or_default();
-        let n = robot.arm_dof.len();
         let site = i32::try_from(robot.eef_site).unwrap_or_default();
         #[allow(unsafe_code)]
         // SAFETY: the buffers hold 3*nv and nv*nv values as mj_jacSite and mj_fullM write, and
-        // `data` was forwarded for `model`.
+        // `data` belongs to `model`.
         unsafe {
             mujoco_rs::mujoco_c::mj_jacSite(model.ffi(), data.ffi(), self.jacp.as_mut_ptr(), self.jacr.as_mut_ptr(), site);
             mujoco_rs::mujoco_c::mj_fullM(model.ffi(), data.ffi(), self.full_m.as_mut_ptr());
         }
-        let j =
-            DMatrix::from_fn(
-                6,
-                n,
-                |r, c| if r < 3 { self.jacp[r * nv + robot.arm_dof[c]] } else { self.jacr[(r - 3) * nv + robot.arm_dof[c]] },
-            );
-        let m = DMatrix::from_fn(n, n, |r, c| self.full_m[robot.arm_dof[r] * nv + robot.arm_dof[c]]);
-        let qvel = data.qvel();
-        let qpos = data.qpos();
-        let dq = DVector::from_fn(n, |i, _| qvel[robot.arm_dof[i]]);
-        let q = DVector::from_fn(n, |i, _| qpos[robot.arm_qpos[i]]);
-        let bias = DVector::from_fn(n, |i, _| data.qfrc_bias()[robot.arm_dof[i]]);
+        let dof = &robot.arm_dof;
+        let j_pos = SMatrix::<f64, 3, ARM_DOF>::from_fn(|r, c| self.jacp[r * nv + dof[c]]);
+        let j_ori = SMatrix::<f64, 3, ARM_DOF>::from_fn(|r, c| self.jacr[r * nv + dof[c]]);
+        let j = SMatrix::<f64, 6, ARM_DOF>::from_fn(|r, c| if r < 3 { j_pos[(r, c)] } else { j_ori[(r - 3, c)] });
+        let m = SMatrix::<f64, ARM_DOF, ARM_DOF>::from_fn(|r, c| self.full_m[dof[r] * nv + dof[c]]);
+        let (qpos, qvel, bias) = (data.qpos(), data.qvel(), data.qfrc_bias());
+        let dq = SVector::<f64, ARM_DOF>::from_fn(|i, _| qvel[dof[i]]);
+        let q = SVector::<f64, ARM_DOF>::from_fn(|i, _| qpos[robot.arm_qpos[i]]);
+        let bias = SVector::<f64, ARM_DOF>::from_fn(|i, _| bias[dof[i]]);
 
         let xpos = data.site_xpos()[robot.eef_site];
         let rot = Matrix3::from_row_slice(&data.site_xmat()[robot.eef_site]);
-        let twist = &j * &dq;
-        let kp = self.config.kp;
-        let kd = 2.0 * kp.sqrt() * self.config.damping_ratio;
-        let pos_err = self.goal_pos - Vec3::new(xpos[0], xpos[1], xpos[2]);
-        let ori_err = orientation_error(&self.goal_rot, &rot);
-        let force = pos_err * kp - Vec3::new(twist[0], twist[1], twist[2]) * kd;
-        let torque = ori_err * kp - Vec3::new(twist[3], twist[4], twist[5]) * kd;
+        let (kp, kd) = (self.config.kp, 2.0 * self.config.kp.sqrt() * self.config.damping_ratio);
+        let force = (self.goal_pos - Vec3::new(xpos[0], xpos[1], xpos[2])) * kp - (j_pos * dq) * kd;
+        let torque = orientation_error(&self.goal_rot, &rot) * kp - (j_ori * dq) * kd;
 
-        let m_inv = m.clone().try_inverse().unwrap_or_else(|| m.clone().pseudo_inverse(1e-12).unwrap_or_else(|_| DMatrix::identity(n, n)));
-        let pinv = |a: DMatrix<f64>| a.clone().pseudo_inverse(1e-15).unwrap_or_else(|_| DMatrix::zeros(a.nrows(), a.ncols()));
-        let j_pos = j.rows(0, 3).into_owned();
-        let j_ori = j.rows(3, 3).into_owned();
-        let lambda_full = pinv(&j * &m_inv * j.transpose());
-        let lambda_pos = pinv(&j_pos * &m_inv * j_pos.transpose());
-        let lambda_ori = pinv(&j_ori * &m_inv * j_ori.transpose());
-        let wrench_pos = &lambda_pos * DVector::from_column_slice(force.as_slice());
-        let wrench_ori = &lambda_ori * DVector::from_column_slice(torque.as_slice());
-        let wrench = DVector::from_iterator(6, wrench_pos.iter().chain(wrench_ori.iter()).copied());
-        let mut tau = j.transpose() * wrench + bias;
+        // robosuite inverts the arm's block of the mass matrix and takes pseudo-inverses of the
+        // operational-space inertias; these are symmetric positive definite away from
+        // singularities, where a Cholesky inverse equals the pseudo-inverse and costs far less.
+        let m_inv = spd_inverse(&m);
+        let lambda_full = spd_inverse(&(j * m_inv * j.transpose()));
+        let lambda_pos = spd_inverse(&(j_pos * m_inv * j_pos.transpose()));
+        let lambda_ori = spd_inverse(&(j_ori * m_inv * j_ori.transpose()));
+        let mut tau = j_pos.transpose() * (lambda_pos * force) + j_ori.transpose() * (lambda_ori * torque) + bias;
 
-        let j_bar = &m_inv * j.transpose() * &lambda_full;
-        let nullspace = DMatrix::identity(n, n) - j_bar * &j;
+        let j_bar = m_inv * j.transpose() * lambda_full;
+        let nullspace = SMatrix::<f64, ARM_DOF, ARM_DOF>::identity() - j_bar * j;
         let kv_null = self.config.kp_null.sqrt() * 2.0;
-        let q0 = DVector::from_column_slice(&self.initial_joint);
-        let posture = &m * ((q0 - q) * self.config.kp_null - dq * kv_null);
+        let q0 = SVector::<f64, ARM_DOF>::from_column_slice(&self.initial_joint);
+        let posture = m * ((q0 - q) * self.config.kp_null - dq * kv_null);
         tau += nullspace.transpose() * posture;
-        tau.iter().copied().collect()
+        tau.into()
+    }
+}
+
+/// Inverse of a symmetric positive definite matrix by Cholesky, falling back to the SVD
+/// pseudo-inverse (as robosuite's `np.linalg.pinv`) when it is singular.
+fn spd_inverse<const N: usize>(a: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    match a.cholesky() {
+        Some(c) => c.inverse(),
+        None => {
+            let dynamic = nalgebra::DMatrix::from_column_slice(N, N, a.as_slice());
+            dynamic.pseudo_inverse(1e-15).map_or_else(|_| SMatrix::zeros(), |p| SMatrix::from_column_slice(p.as_slice()))
+        }
     }
 }
 
