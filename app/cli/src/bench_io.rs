@@ -8,7 +8,7 @@ use anyhow::Context as _;
 use mimicgen_engine::Rows;
 use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
 use mimicgen_engine::spec::SourceSelection;
-use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, RobomimicDataset, WriterOptions};
+use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, DemoReader, DemoSource as _, ReadOptions, RobomimicDataset, WriterOptions};
 
 /// Peak resident memory (`VmHWM`) of this process in MiB, if Linux reports it.
 fn peak_rss_mib() -> Option<f64> {
@@ -80,19 +80,31 @@ pub fn run(demos: usize, steps: usize, dir: Option<PathBuf>) -> anyhow::Result<(
     let bytes = std::fs::metadata(&path).with_context(|| path.display().to_string())?.len();
     reset_peak_rss();
     let start = Instant::now();
+    let reader = DemoReader::open_with(&path, ReadOptions::default())?;
+    let mut streamed = 0;
+    for name in reader.demo_names() {
+        streamed += mimicgen_io::dataset::demo_steps(&*reader.load_demo(name)?);
+    }
+    let stream_secs = start.elapsed().as_secs_f64();
+    let stream_peak = peak_rss_mib().unwrap_or(f64::NAN);
+    reset_peak_rss();
+    let start = Instant::now();
     let file = RobomimicDataset::open(&path)?;
     let open_secs = start.elapsed().as_secs_f64();
     let sources = file.to_source_dataset(&SourceSelection::default())?;
     let read_secs = start.elapsed().as_secs_f64();
     let read_peak = peak_rss_mib().unwrap_or(f64::NAN);
+    let sources_len = sources.demos.len();
     println!("bench-io: {demos} demos x {steps} steps, file {:.1} MB ({})", bytes as f64 / 1e6, path.display());
     println!("  write (stream, gzip obs):       {write_secs:.2} s, peak RSS {write_peak:.0} MiB (process start {before:.0} MiB)");
+    println!("  read (streaming, demo by demo):   {stream_secs:.2} s, peak RSS {stream_peak:.0} MiB");
     println!(
         "  read (whole file) + to engine:  {open_secs:.2} s + {:.2} s, peak RSS {read_peak:.0} MiB{}",
         read_secs - open_secs,
         if resettable { "" } else { " (peak not resettable: includes the write phase)" }
     );
-    anyhow::ensure!(sources.demos.len() == demos, "read back {} demos, wrote {demos}", sources.demos.len());
+    anyhow::ensure!(streamed == demos * steps, "streamed {streamed} steps, wrote {}", demos * steps);
+    anyhow::ensure!(sources_len == demos, "read back {sources_len} demos, wrote {demos}");
     std::fs::remove_file(&path).with_context(|| path.display().to_string())?;
     Ok(())
 }

@@ -47,6 +47,23 @@ pub struct DatasetReport {
 }
 
 impl DatasetReport {
+    /// Adds one demo's fields to the report.
+    pub fn add_demo(&mut self, name: &str, demo: &Group) {
+        let mut present: std::collections::BTreeSet<String> = self.present.drain(..).collect();
+        collect_paths(demo, "", &mut present);
+        self.present = present.into_iter().collect();
+        for field in REQUIRED_FIELDS {
+            let found = match field.rsplit_once('/') {
+                Some((dir, leaf)) => demo.group(dir).is_some_and(|g| g.members.contains_key(leaf)),
+                None => demo.members.contains_key(field),
+            };
+            if !found {
+                self.missing.entry(field.to_owned()).or_default().push(name.to_owned());
+            }
+        }
+        self.num_demos += 1;
+    }
+
     /// True when every demo has every field MimicGen needs.
     #[must_use]
     pub fn is_mimicgen_source(&self) -> bool {
@@ -178,19 +195,7 @@ impl RobomimicDataset {
     /// # Errors
     /// [`IoError::Invalid`] when a mask is not an array of strings.
     pub fn masks(&self) -> Result<BTreeMap<String, Vec<String>>> {
-        let Some(mask) = self.root.group("mask") else { return Ok(BTreeMap::new()) };
-        let mut out = BTreeMap::new();
-        for (key, node) in &mask.members {
-            let strings = match node {
-                Node::Dataset(d) => d.array.values.strings(),
-                Node::Group(_) => None,
-            };
-            let Some(strings) = strings else {
-                return Err(self.invalid("mask", key, "a filter key must be a 1-D array of demo names (byte strings)"));
-            };
-            out.insert(key.clone(), strings.to_vec());
-        }
-        Ok(out)
+        parse_masks(&self.file, self.root.group("mask"))
     }
 
     /// The demos a selection picks, in robomimic order: the filter key's demos (or all), sorted,
@@ -233,22 +238,13 @@ impl RobomimicDataset {
     /// What the file holds and which MimicGen fields its demos lack.
     #[must_use]
     pub fn report(&self) -> DatasetReport {
-        let mut present = std::collections::BTreeSet::new();
-        let mut missing: BTreeMap<String, Vec<String>> = BTreeMap::new();
+        let mut report = DatasetReport { file: self.file.clone(), ..DatasetReport::default() };
         for name in &self.demo_names {
-            let Some(demo) = self.demo(name) else { continue };
-            collect_paths(demo, "", &mut present);
-            for field in REQUIRED_FIELDS {
-                let found = match field.rsplit_once('/') {
-                    Some((dir, leaf)) => demo.group(dir).is_some_and(|g| g.members.contains_key(leaf)),
-                    None => demo.members.contains_key(field),
-                };
-                if !found {
-                    missing.entry(field.to_owned()).or_default().push(name.clone());
-                }
+            if let Some(demo) = self.demo(name) {
+                report.add_demo(name, demo);
             }
         }
-        DatasetReport { file: self.file.clone(), num_demos: self.demo_names.len(), present: present.into_iter().collect(), missing }
+        report
     }
 
     /// The selected demos as an engine [`SourceDataset`], validated.
@@ -373,6 +369,164 @@ impl RobomimicDataset {
     pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
         write_tree(path, &self.root)
     }
+}
+
+/// Filter keys of a `mask` group with the demo names each lists.
+fn parse_masks(file: &str, mask: Option<&Group>) -> Result<BTreeMap<String, Vec<String>>> {
+    let Some(mask) = mask else { return Ok(BTreeMap::new()) };
+    let mut out = BTreeMap::new();
+    for (key, node) in &mask.members {
+        let strings = match node {
+            Node::Dataset(d) => d.array.values.strings(),
+            Node::Group(_) => None,
+        };
+        let Some(strings) = strings else {
+            return Err(IoError::Invalid {
+                file: file.to_owned(),
+                group: "mask".into(),
+                field: key.clone(),
+                reason: "a filter key must be a 1-D array of demo names (byte strings)".into(),
+            });
+        };
+        out.insert(key.clone(), strings.to_vec());
+    }
+    Ok(out)
+}
+
+/// Read access to a dataset's demos, whether held in memory ([`RobomimicDataset`]) or read one at
+/// a time from disk ([`DemoReader`]).
+pub trait DemoSource {
+    /// The file.
+    fn file(&self) -> &str;
+    /// Demo names in robomimic order.
+    fn demo_names(&self) -> &[String];
+    /// Demo `name` (borrowed when in memory, read from disk otherwise).
+    ///
+    /// # Errors
+    /// [`IoError::Missing`] for an unknown name; read and shape errors as [`RobomimicDataset::open`].
+    fn load_demo(&self, name: &str) -> Result<std::borrow::Cow<'_, Group>>;
+    /// Attributes of the `data` group.
+    fn data_attrs(&self) -> &BTreeMap<String, Array>;
+    /// Filter keys under `mask/` with their demo names.
+    ///
+    /// # Errors
+    /// [`IoError::Invalid`] when a mask is not an array of strings.
+    fn filter_keys(&self) -> Result<BTreeMap<String, Vec<String>>>;
+    /// The `data` attribute `env_args`.
+    fn env_args_json(&self) -> Option<&str> {
+        self.data_attrs().get("env_args").and_then(Array::as_str)
+    }
+}
+
+impl DemoSource for RobomimicDataset {
+    fn file(&self) -> &str {
+        &self.file
+    }
+
+    fn demo_names(&self) -> &[String] {
+        &self.demo_names
+    }
+
+    fn load_demo(&self, name: &str) -> Result<std::borrow::Cow<'_, Group>> {
+        self.demo(name).map(std::borrow::Cow::Borrowed).ok_or_else(|| self.missing("data", name))
+    }
+
+    fn data_attrs(&self) -> &BTreeMap<String, Array> {
+        &self.data().attrs
+    }
+
+    fn filter_keys(&self) -> Result<BTreeMap<String, Vec<String>>> {
+        self.masks()
+    }
+}
+
+/// A dataset opened for reading one demo at a time: memory stays at one demo however large the
+/// file (for `info` and `export` on big generated datasets).
+#[derive(Debug)]
+pub struct DemoReader {
+    file: String,
+    data: hdf5::Group,
+    data_attrs: BTreeMap<String, Array>,
+    mask: Option<Group>,
+    demo_names: Vec<String>,
+}
+
+impl DemoReader {
+    /// Opens a dataset, reading only its names, attributes and masks (same checks and options
+    /// as [`RobomimicDataset::open_with`], per demo when it is read).
+    ///
+    /// # Errors
+    /// As [`RobomimicDataset::open`].
+    pub fn open_with(path: impl AsRef<Path>, options: ReadOptions) -> Result<Self> {
+        let file = path.as_ref().display().to_string();
+        let h5 = hdf5::File::open(path.as_ref()).map_err(|e| IoError::hdf5(&file, "/", "", &e))?;
+        let complete_flag = match h5.attr(COMPLETE_ATTR) {
+            Ok(a) => tree::read_array(&file, "/", COMPLETE_ATTR, &a)?.as_i64(),
+            Err(_) => None,
+        };
+        let data = h5.group("data").map_err(|_| IoError::Missing {
+            file: file.clone(),
+            group: "/".into(),
+            field: "data".into(),
+            hint: "robomimic datasets keep their demos under `data`".into(),
+        })?;
+        let mut names = Vec::new();
+        let mut complete = 0;
+        for name in data.member_names().map_err(|e| IoError::hdf5(&file, "data", "", &e))? {
+            let Ok(g) = data.group(&name) else { continue };
+            let done = g.attr_names().is_ok_and(|a| a.iter().any(|n| n == "num_samples"));
+            complete += usize::from(done);
+            if done || complete_flag != Some(0) {
+                names.push(name);
+            }
+        }
+        if complete_flag == Some(0) && !options.recover {
+            return Err(IoError::Incomplete { file, field: COMPLETE_ATTR.into(), complete_demos: complete });
+        }
+        let data_attrs = tree::read_group_attrs(&file, &data, "data")?;
+        let mask = match h5.group("mask") {
+            Ok(g) => Some(tree::read_group(&file, &g, "mask")?),
+            Err(_) => None,
+        };
+        Ok(Self { file, data, data_attrs, mask, demo_names: sort_demo_names(names) })
+    }
+}
+
+impl DemoSource for DemoReader {
+    fn file(&self) -> &str {
+        &self.file
+    }
+
+    fn demo_names(&self) -> &[String] {
+        &self.demo_names
+    }
+
+    fn load_demo(&self, name: &str) -> Result<std::borrow::Cow<'_, Group>> {
+        let group = format!("data/{name}");
+        let g = self.data.group(name).map_err(|_| IoError::Missing {
+            file: self.file.clone(),
+            group: "data".into(),
+            field: name.to_owned(),
+            hint: String::new(),
+        })?;
+        let demo = tree::read_group(&self.file, &g, &group)?;
+        check_demo(&self.file, name, &demo)?;
+        Ok(std::borrow::Cow::Owned(demo))
+    }
+
+    fn data_attrs(&self) -> &BTreeMap<String, Array> {
+        &self.data_attrs
+    }
+
+    fn filter_keys(&self) -> Result<BTreeMap<String, Vec<String>>> {
+        parse_masks(&self.file, self.mask.as_ref())
+    }
+}
+
+/// Number of steps of a demo group (its `actions` rows).
+#[must_use]
+pub fn demo_steps(demo: &Group) -> usize {
+    demo.dataset("actions").and_then(|a| a.array.shape.first().copied()).unwrap_or(0)
 }
 
 static EMPTY: Group = Group { attrs: BTreeMap::new(), members: BTreeMap::new() };

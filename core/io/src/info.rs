@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use crate::dataset::{DatasetReport, RobomimicDataset};
+use crate::dataset::{DatasetReport, DemoSource, demo_steps};
 use crate::error::Result;
 use crate::tree::{Array, Node};
 
@@ -95,17 +95,20 @@ impl DatasetInfo {
     /// Summarises a dataset.
     ///
     /// # Errors
-    /// [`crate::IoError::Invalid`] when a mask is malformed.
+    /// [`crate::IoError::Invalid`] when a mask is malformed; read errors of [`DemoSource::load_demo`].
     #[allow(clippy::cast_precision_loss)] // step counts far below 2^53
-    pub fn of(ds: &RobomimicDataset) -> Result<Self> {
+    pub fn of(ds: &impl DemoSource) -> Result<Self> {
         let mut lengths = Vec::new();
         let mut obs = BTreeMap::new();
         let (mut action_min, mut action_max): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
         let mut objects = std::collections::BTreeSet::new();
         let mut first_on: BTreeMap<String, (usize, Vec<String>, Vec<f64>)> = BTreeMap::new();
+        let mut report = DatasetReport { file: ds.file().to_owned(), ..DatasetReport::default() };
         for name in ds.demo_names() {
-            let Some(demo) = ds.demo(name) else { continue };
-            lengths.push(ds.demo_len(name) as f64);
+            let demo = ds.load_demo(name)?;
+            let demo: &crate::tree::Group = &demo;
+            report.add_demo(name, demo);
+            lengths.push(demo_steps(demo) as f64);
             if let Some(o) = demo.group("obs") {
                 for (key, node) in &o.members {
                     if let Node::Dataset(d) = node {
@@ -144,18 +147,18 @@ impl DatasetInfo {
                 }
             }
         }
-        let env: Option<serde_json::Value> = ds.env_args().and_then(|s| serde_json::from_str(s).ok());
+        let env: Option<serde_json::Value> = ds.env_args_json().and_then(|s| serde_json::from_str(s).ok());
         let env_name = env.as_ref().and_then(|e| e.get("env_name")).and_then(|v| v.as_str()).map(str::to_owned);
         let controller_type = env
             .as_ref()
             .and_then(|e| e.pointer("/env_kwargs/controller_configs"))
             .and_then(|c| c.get("type").or_else(|| c.pointer("/body_parts/right/type")).and_then(|v| v.as_str()).map(str::to_owned));
         Ok(Self {
-            file: ds.file.clone(),
+            file: ds.file().to_owned(),
             num_demos: ds.demo_names().len(),
             #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
             num_samples: lengths.iter().sum::<f64>() as usize,
-            total_attr: ds.data().attrs.get("total").and_then(Array::as_i64),
+            total_attr: ds.data_attrs().get("total").and_then(Array::as_i64),
             lengths: Summary::of(&lengths),
             obs,
             action_dim: action_min.len(),
@@ -168,8 +171,8 @@ impl DatasetInfo {
                 .into_iter()
                 .map(|(k, (demos, never_on, steps))| (k, SignalInfo { demos, never_on, first_on_step: Summary::of(&steps) }))
                 .collect(),
-            filter_keys: ds.masks()?.into_iter().map(|(k, v)| (k, v.len())).collect(),
-            report: ds.report(),
+            filter_keys: ds.filter_keys()?.into_iter().map(|(k, v)| (k, v.len())).collect(),
+            report,
         })
     }
 }

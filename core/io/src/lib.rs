@@ -24,6 +24,6 @@ pub mod mcap_export;
 pub mod tree;
 pub mod writer;
 
-pub use dataset::{DatasetReport, ReadOptions, RobomimicDataset, read_source_dataset, write_tree};
+pub use dataset::{DatasetReport, DemoReader, DemoSource, ReadOptions, RobomimicDataset, read_source_dataset, write_tree};
 pub use error::{IoError, Result};
 pub use writer::{DatagenInfo, DatasetWriter, DemoData, Observation, WriterOptions};

@@ -11,7 +11,7 @@ use mcap::records::MessageHeader;
 use serde::Serialize;
 use serde_json::{Value, json};
 
-use crate::dataset::RobomimicDataset;
+use crate::dataset::{DemoSource, demo_steps};
 use crate::error::{IoError, Result};
 use crate::info::first_transition;
 use crate::tree::{Dataset, Group, Node};
@@ -141,8 +141,9 @@ fn floats(d: Option<&Dataset>) -> Option<(Vec<f64>, usize)> {
 /// Writes every demo's streams to `out`.
 ///
 /// # Errors
-/// [`IoError::Fs`] when `out` cannot be created, [`IoError::Mcap`] on write errors.
-pub fn export(ds: &RobomimicDataset, out: impl AsRef<Path>) -> Result<ExportSummary> {
+/// [`IoError::Fs`] when `out` cannot be created, [`IoError::Mcap`] on write errors, read errors
+/// of [`DemoSource::load_demo`].
+pub fn export(ds: &impl DemoSource, out: impl AsRef<Path>) -> Result<ExportSummary> {
     let file = out.as_ref().display().to_string();
     let f = File::create(out.as_ref()).map_err(|e| IoError::Fs { file: file.clone(), reason: e.to_string() })?;
     let writer = mcap::Writer::new(BufWriter::new(f)).map_err(|e| IoError::Mcap {
@@ -157,8 +158,9 @@ pub fn export(ds: &RobomimicDataset, out: impl AsRef<Path>) -> Result<ExportSumm
     let success = record_schema("mimicgen.Success", &json!({"type": ["boolean", "null"]}));
     let mut step0 = 0_u64;
     for name in ds.demo_names() {
-        let Some(demo) = ds.demo(name) else { continue };
-        let steps = ds.demo_len(name);
+        let demo = ds.load_demo(name)?;
+        let demo: &Group = &demo;
+        let steps = demo_steps(demo);
         let info = demo.group("datagen_info");
         let mut pose_streams: Vec<(String, Vec<f64>)> = Vec::new();
         if let Some(info) = info {

@@ -280,6 +280,11 @@ pub(crate) fn join(group: &str, name: &str) -> String {
     if group.is_empty() || group == "/" { name.to_owned() } else { format!("{group}/{name}") }
 }
 
+/// Reads only the attributes of a group.
+pub(crate) fn read_group_attrs(file: &str, group: &hdf5::Group, group_path: &str) -> Result<BTreeMap<String, Array>> {
+    read_attrs(file, group, group_path)
+}
+
 fn read_attrs(file: &str, loc: &hdf5::Location, loc_path: &str) -> Result<BTreeMap<String, Array>> {
     let mut attrs = BTreeMap::new();
     for name in loc.attr_names().map_err(|e| IoError::hdf5(file, loc_path, "", &e))? {

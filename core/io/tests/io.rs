@@ -11,6 +11,18 @@ use mimicgen_engine::{Generator, TaskSpec, kinematic};
 use mimicgen_io::tree::{Dataset, Group, Node, Values};
 use mimicgen_io::{DatasetWriter, IoError, ReadOptions, RobomimicDataset, WriterOptions, read_source_dataset, write_tree};
 
+/// HDF5 opens files without close-on-exec and locks them: a Python child spawned while another
+/// test holds a file would keep that file locked. Tests that spawn take this lock exclusively.
+static SPAWN_LOCK: std::sync::RwLock<()> = std::sync::RwLock::new(());
+
+fn shared() -> std::sync::RwLockReadGuard<'static, ()> {
+    SPAWN_LOCK.read().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+fn exclusive() -> std::sync::RwLockWriteGuard<'static, ()> {
+    SPAWN_LOCK.write().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)
 }
@@ -67,6 +79,7 @@ fn edited_source(dir: &Path, name: &str, edit: impl FnOnce(&mut Group)) -> PathB
 
 #[test]
 fn source_fixture_reads_into_engine_types_in_robomimic_order() {
+    let _hdf5 = shared();
     let ds = read_source_dataset(data(SOURCE), &SourceSelection::default()).unwrap();
     assert_eq!(ds.demos.len(), 10);
     let names: Vec<&str> = ds.demos.iter().map(|d| d.name.as_str()).collect();
@@ -84,6 +97,7 @@ fn source_fixture_reads_into_engine_types_in_robomimic_order() {
 
 #[test]
 fn selection_applies_start_and_n_after_numeric_sorting() {
+    let _hdf5 = shared();
     let sel = SourceSelection { start: Some(8), n: Some(5), ..SourceSelection::default() };
     let ds = read_source_dataset(data(SOURCE), &sel).unwrap();
     assert_eq!(ds.demos.iter().map(|d| d.name.clone()).collect::<Vec<_>>(), ["demo_8", "demo_9"]);
@@ -93,6 +107,7 @@ fn selection_applies_start_and_n_after_numeric_sorting() {
 
 #[test]
 fn source_fixture_round_trips_bit_for_bit() {
+    let _hdf5 = exclusive();
     let dir = tempfile::tempdir().unwrap();
     for name in [SOURCE, "generated_D0_first3.hdf5"] {
         let original = RobomimicDataset::open(data(name)).unwrap();
@@ -106,6 +121,7 @@ fn source_fixture_round_trips_bit_for_bit() {
 
 #[test]
 fn full_generated_fixture_reads_when_present() {
+    let _hdf5 = shared();
     if !Path::new(FULL_GENERATED).exists() {
         println!("note: {FULL_GENERATED} not present; skipping the full-file check");
         return;
@@ -148,6 +164,7 @@ fn write_generated(path: &Path, attempts: usize, valid_fraction: Option<f64>) ->
 
 #[test]
 fn written_dataset_reads_back_as_the_attempts_and_loads_like_robomimic() {
+    let _hdf5 = exclusive();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("generated.hdf5");
     let attempts = write_generated(&path, 6, Some(0.34));
@@ -172,6 +189,7 @@ fn written_dataset_reads_back_as_the_attempts_and_loads_like_robomimic() {
 
 #[test]
 fn an_unfinished_file_is_refused_unless_recovering() {
+    let _hdf5 = shared();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.hdf5");
     let generator = Generator::new(kinematic::pick_place_spec(2, 3), kinematic::scripted_dataset(2, 1).unwrap()).unwrap();
@@ -192,6 +210,7 @@ fn an_unfinished_file_is_refused_unless_recovering() {
 
 #[test]
 fn a_demo_without_num_samples_is_dropped_on_recovery() {
+    let _hdf5 = shared();
     // What a crash between a demo's datasets and its closing `num_samples` attribute leaves.
     let dir = tempfile::tempdir().unwrap();
     let path = edited_source(dir.path(), "crashed.hdf5", |root| {
@@ -210,6 +229,7 @@ fn a_demo_without_num_samples_is_dropped_on_recovery() {
 
 #[test]
 fn plain_robomimic_dataset_reports_what_mimicgen_needs() {
+    let _hdf5 = shared();
     let dir = tempfile::tempdir().unwrap();
     let path = edited_source(dir.path(), "plain.hdf5", |root| {
         if let Some(Node::Group(data)) = root.members.get_mut("data") {
@@ -254,6 +274,7 @@ mod malformed {
 
     #[test]
     fn truncated_file() {
+        let _hdf5 = shared();
         let dir = tempfile::tempdir().unwrap();
         let bytes = std::fs::read(data(SOURCE)).unwrap();
         let path = dir.path().join("truncated.hdf5");
@@ -265,6 +286,7 @@ mod malformed {
 
     #[test]
     fn missing_data_group() {
+        let _hdf5 = shared();
         let dir = tempfile::tempdir().unwrap();
         let path = edited_source(dir.path(), "nodata.hdf5", |root| {
             let data = root.members.remove("data").unwrap();
@@ -277,6 +299,7 @@ mod malformed {
 
     #[test]
     fn demo_without_actions() {
+        let _hdf5 = shared();
         let dir = tempfile::tempdir().unwrap();
         let path = edited_source(dir.path(), "noactions.hdf5", |root| {
             if let Some(Node::Group(data)) = root.members.get_mut("data")
@@ -290,6 +313,7 @@ mod malformed {
 
     #[test]
     fn shape_mismatch_within_a_demo() {
+        let _hdf5 = shared();
         let dir = tempfile::tempdir().unwrap();
         let path = edited_source(dir.path(), "shape.hdf5", |root| {
             let d = dataset_mut(root, "data/demo_2/states");
@@ -305,6 +329,7 @@ mod malformed {
 
     #[test]
     fn nan_pose() {
+        let _hdf5 = shared();
         let dir = tempfile::tempdir().unwrap();
         let path = edited_source(dir.path(), "nan.hdf5", |root| {
             f64s(dataset_mut(root, "data/demo_1/datagen_info/eef_pose"))[5 * 16 + 3] = f64::NAN;
@@ -316,6 +341,7 @@ mod malformed {
 
     #[test]
     fn non_rigid_matrix() {
+        let _hdf5 = shared();
         let dir = tempfile::tempdir().unwrap();
         let path = edited_source(dir.path(), "scaled.hdf5", |root| {
             let v = f64s(dataset_mut(root, "data/demo_0/datagen_info/object_poses/cubeB"));
@@ -328,6 +354,7 @@ mod malformed {
 
     #[test]
     fn signal_that_never_turns_on() {
+        let _hdf5 = shared();
         let dir = tempfile::tempdir().unwrap();
         let path = edited_source(dir.path(), "nosignal.hdf5", |root| {
             match &mut dataset_mut(root, "data/demo_4/datagen_info/subtask_term_signals/grasp").array.values {
@@ -343,6 +370,7 @@ mod malformed {
 
     #[test]
     fn unknown_object_in_task_spec() {
+        let _hdf5 = shared();
         let sources = read_source_dataset(data(SOURCE), &SourceSelection::default()).unwrap();
         let mut spec = stack_spec();
         spec.subtasks[0].object_ref = Some("cubeZ".into());
@@ -352,6 +380,7 @@ mod malformed {
 
     #[test]
     fn unknown_filter_key() {
+        let _hdf5 = shared();
         let err = RobomimicDataset::open(data(SOURCE))
             .unwrap()
             .to_source_dataset(&SourceSelection { filter_key: Some("train".into()), ..SourceSelection::default() })
@@ -362,6 +391,7 @@ mod malformed {
 
 #[test]
 fn mcap_export_reads_back_in_rust_and_python() {
+    let _hdf5 = exclusive();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("g3.mcap");
     let ds = RobomimicDataset::open(data("generated_D0_first3.hdf5")).unwrap();
@@ -402,49 +432,28 @@ fn mcap_export_reads_back_in_rust_and_python() {
     run_python("check_mcap.py", &[&out]);
 }
 
-/// Child half of `a_killed_writer_leaves_a_recoverable_file`: writes demos until killed.
 #[test]
-#[ignore = "run by a_killed_writer_leaves_a_recoverable_file as a child process"]
-fn crash_child_writer() {
-    let Some(out) = std::env::var_os("MIMICGEN_CRASH_CHILD_OUT") else { return };
-    let generator = Generator::new(kinematic::pick_place_spec(1, 3), kinematic::scripted_dataset(2, 1).unwrap()).unwrap();
-    let mut env = kinematic::PickPlace::new(0.1);
-    let attempt = generator.attempt(&mut env, 0).unwrap();
-    let n = attempt.trajectory.len();
-    let obs = BTreeMap::from([("object".to_owned(), (vec![64], vec![0.25; n * 64]))]);
-    let mut writer = DatasetWriter::create(PathBuf::from(out), WriterOptions::default()).unwrap();
-    for i in 0.. {
-        writer.append_attempt(&attempt, obs.clone(), None).unwrap();
-        println!("appended {i}");
-    }
-}
-
-#[test]
-fn a_killed_writer_leaves_a_recoverable_file() {
-    use std::io::BufRead as _;
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("killed.hdf5");
-    for kill_after in [3, 17, 40] {
-        let _ = std::fs::remove_file(DatasetWriter::partial_path(&out));
-        let mut child = Command::new(std::env::current_exe().unwrap())
-            .args(["--exact", "crash_child_writer", "--ignored", "--nocapture", "--test-threads=1"])
-            .env("MIMICGEN_CRASH_CHILD_OUT", &out)
-            .stdout(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        let stdout = std::io::BufReader::new(child.stdout.take().unwrap());
-        for line in stdout.lines() {
-            if line.unwrap() == format!("appended {kill_after}") {
-                break;
-            }
+fn demo_reader_streams_the_same_dataset() {
+    let _hdf5 = shared();
+    use mimicgen_io::DemoSource as _;
+    for name in [SOURCE, "generated_D0_first3.hdf5"] {
+        let whole = RobomimicDataset::open(data(name)).unwrap();
+        let reader = mimicgen_io::DemoReader::open_with(data(name), ReadOptions::default()).unwrap();
+        assert_eq!(reader.demo_names(), whole.demo_names());
+        for demo in whole.demo_names() {
+            assert_eq!(&*reader.load_demo(demo).unwrap(), whole.demo(demo).unwrap());
         }
-        child.kill().unwrap(); // SIGKILL, mid-way through a later demo
-        child.wait().unwrap();
-        let partial = DatasetWriter::partial_path(&out);
-        let err = RobomimicDataset::open(&partial).unwrap_err();
-        assert!(matches!(err, IoError::Incomplete { .. }), "{err}");
-        let recovered = RobomimicDataset::open_with(&partial, ReadOptions { recover: true }).unwrap();
-        assert!(recovered.demo_names().len() > kill_after, "{} demos after kill at {kill_after}", recovered.demo_names().len());
-        recovered.to_source_dataset(&SourceSelection::default()).unwrap();
+        assert_eq!(mimicgen_io::info::DatasetInfo::of(&reader).unwrap(), mimicgen_io::info::DatasetInfo::of(&whole).unwrap());
     }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.hdf5");
+    let mut writer = DatasetWriter::create(&out, WriterOptions::default()).unwrap();
+    let generator = Generator::new(kinematic::pick_place_spec(1, 3), kinematic::scripted_dataset(2, 1).unwrap()).unwrap();
+    writer.append_attempt(&generator.attempt(&mut kinematic::PickPlace::new(0.1), 0).unwrap(), BTreeMap::new(), None).unwrap();
+    drop(writer);
+    let partial = DatasetWriter::partial_path(&out);
+    let err = mimicgen_io::DemoReader::open_with(&partial, ReadOptions::default()).unwrap_err();
+    assert!(matches!(err, IoError::Incomplete { complete_demos: 1, .. }), "{err}");
+    let reader = mimicgen_io::DemoReader::open_with(&partial, ReadOptions { recover: true }).unwrap();
+    assert_eq!(reader.demo_names(), ["demo_0"]);
 }
