@@ -10,6 +10,7 @@ use mimicgen_io::info::DatasetInfo;
 use mimicgen_io::{DemoReader, ReadOptions};
 
 mod bench_io;
+mod bench_sim;
 mod generate;
 
 /// Turn a handful of robot demonstrations into large, diverse training datasets.
@@ -44,6 +45,8 @@ enum Command {
     Demos(generate::DemosArgs),
     /// List the tasks and their variants.
     Tasks,
+    /// Measure generation against bare physics stepping and across worker counts.
+    BenchSim(bench_sim::BenchSimArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
     Info {
         /// The dataset.
@@ -164,6 +167,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Demos(args) => {
             generate::demos(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::BenchSim(args) => {
+            bench_sim::run(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Tasks => {
