@@ -3,8 +3,16 @@
 //! What it does: reads a MimicGen source dataset into the engine's [`SourceDataset`]
 //! ([`read_source_dataset`]), keeps every other group, dataset and attribute so a file can be
 //! written back bit for bit ([`RobomimicDataset`]), writes generated demos demo by demo in the
-//! layout robomimic's `SequenceDataset` loads ([`DatasetWriter`]), summarises a dataset
-//! ([`info::DatasetInfo`]) and exports its streams to MCAP for Foxglove ([`mcap_export`]).
+//! layout robomimic's `SequenceDataset` loads ([`DatasetWriter`]), reads large files one demo at
+//! a time ([`DemoReader`]), summarises a dataset ([`info::DatasetInfo`]) and exports its streams to
+//! MCAP for Foxglove ([`mcap_export`]).
+//!
+//! Crash safety: [`DatasetWriter`] writes `<out>.partial` marked incomplete, flushes after every
+//! demo and renames on [`DatasetWriter::finish`]; readers refuse an incomplete file unless
+//! [`ReadOptions::recover`] is set, which keeps the completely written demos.
+//!
+//! Beware: libhdf5 opens files without close-on-exec and `flock`s them, so a child process
+//! spawned while a file is open keeps it locked until the child exits.
 //!
 //! What it does not do: no simulation, no rendering, no image observations beyond plain arrays.
 //!

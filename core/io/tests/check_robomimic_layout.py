@@ -41,6 +41,7 @@ with h5py.File(path, "r") as f:
             if key in demo:
                 assert demo[key].shape == (n,), f"{ep}/{key}: {demo[key].shape}"
         # get_shape_metadata_from_dataset reads demo_0's obs; load_dataset_in_memory reads every key of every demo
+        assert "obs" in demo, f"{ep}: no obs group (robomimic's SequenceDataset needs observations)"
         shapes = {k: demo["obs/{}".format(k)].shape[1:] for k in demo["obs"]}
         for k in demo["obs"]:
             v = demo["obs/{}".format(k)][()]

@@ -457,3 +457,32 @@ fn demo_reader_streams_the_same_dataset() {
     let reader = mimicgen_io::DemoReader::open_with(&partial, ReadOptions { recover: true }).unwrap();
     assert_eq!(reader.demo_names(), ["demo_0"]);
 }
+
+#[test]
+fn h5py_masks_select_demos_and_round_trip() {
+    let _hdf5 = exclusive();
+    let dir = tempfile::tempdir().unwrap();
+    let masked = dir.path().join("masked.hdf5");
+    std::fs::copy(data(SOURCE), &masked).unwrap();
+    let mut perms = std::fs::metadata(&masked).unwrap().permissions();
+    #[allow(clippy::permissions_set_readonly_false)] // a private temp copy
+    perms.set_readonly(false);
+    std::fs::set_permissions(&masked, perms).unwrap();
+    // robomimic's split_train_val_from_hdf5 writes masks as numpy byte strings (`S6`).
+    let script = "import sys, h5py, numpy as np\n\
+                  f = h5py.File(sys.argv[1], 'a')\n\
+                  f.create_dataset('mask/train', data=np.array(['demo_%d' % i for i in (0, 2, 4, 6, 8, 10)][:5], dtype='S'))\n\
+                  f.create_dataset('mask/valid', data=np.array(['demo_9', 'demo_1'], dtype='S'))\n";
+    let out = Command::new(python()).args(["-c", script]).arg(&masked).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let file = RobomimicDataset::open(&masked).unwrap();
+    let valid = file.select(&SourceSelection { filter_key: Some("valid".into()), ..SourceSelection::default() }).unwrap();
+    assert_eq!(valid, ["demo_1", "demo_9"]);
+    let train = file
+        .select(&SourceSelection { filter_key: Some("train".into()), start: Some(1), n: Some(2), ..SourceSelection::default() })
+        .unwrap();
+    assert_eq!(train, ["demo_2", "demo_4"]);
+    let copy = dir.path().join("copy.hdf5");
+    file.write(&copy).unwrap();
+    run_python("compare_hdf5.py", &[&masked, &copy]);
+}
