@@ -57,7 +57,7 @@ pub struct GenerateArgs {
     /// Task spec: our TOML or a MimicGen experiment JSON. Default: the task's bundled spec.
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Also write failed attempts (to <out>_failed.hdf5), up to the spec's max_num_failures.
+    /// Also write failed attempts (to `OUT_failed.hdf5` beside `--out`), up to the spec's max_num_failures.
     #[arg(long)]
     keep_failed: bool,
     /// Keep attempting until --num-demos successes.
@@ -69,6 +69,9 @@ pub struct GenerateArgs {
     /// Put this fraction of demos in a `mask/valid` filter key (the rest in `mask/train`).
     #[arg(long)]
     valid_fraction: Option<f64>,
+    /// Rerun: where the recording goes and how much 3D scene it holds.
+    #[command(flatten)]
+    rerun: crate::view::RerunArgs,
 }
 
 fn default_workers() -> usize {
@@ -146,6 +149,10 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
     let generator = Generator::new(spec.clone(), sources).with_context(|| format!("source demos {}", source_path.display()))?;
     let mut envs: Vec<SimEnv> = (0..args.workers).map(|_| SimEnv::new(Arc::clone(&scene), Arc::clone(&task))).collect();
     let mut obs_env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+    let mut viz = args.rerun.logger("mimicgen", &scene)?;
+    if let Some(v) = viz.as_mut() {
+        v.log_demos(generator.dataset().demos.iter().enumerate()).context("logging the source demos to Rerun")?;
+    }
 
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -197,6 +204,9 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
         if let Err(e) = outcome {
             return ControlFlow::Break(Err(e));
         }
+        if let Some(Err(e)) = viz.as_mut().map(|v| v.log_attempt(&attempt, stats)) {
+            return ControlFlow::Break(Err(EngineError::Io { path: "rerun recording".to_owned(), reason: e.to_string() }));
+        }
         let secs = started.elapsed().as_secs_f64().max(1e-9);
         bar.set_position(if settings.guarantee { stats.successes } else { stats.attempts } as u64);
         #[allow(clippy::cast_precision_loss)]
@@ -210,6 +220,9 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
         ControlFlow::Continue(())
     })?;
     bar.finish_and_clear();
+    if let Some(v) = viz {
+        v.finish().context("flushing the Rerun recording")?;
+    }
     let written = writer.finish()?;
     let failed_written = failed_writer.map(DatasetWriter::finish).transpose()?;
     let wall = started.elapsed().as_secs_f64();
@@ -278,10 +291,10 @@ pub struct DemosArgs {
 /// Unknown task, simulator failure, or a failure to write.
 pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     let task = registry::task(&args.task, &args.variant).map_err(anyhow::Error::msg)?;
-    let script = match task.name() {
-        "stack" => mimicgen_sim::Stack::script(),
-        other => bail!("no scripted demonstrator for {other}"),
-    };
+    let scripts = task.scripts();
+    if scripts.is_empty() {
+        bail!("no scripted demonstrator for {}", task.name());
+    }
     let (scene, xml) = scene_for(task.as_ref(), None, Path::new(""))?;
     let mut env = SimEnv::new(scene, Arc::clone(&task));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
@@ -298,7 +311,8 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             bail!("the scripted demonstrator succeeded only {} times in {} tries", writer.len(), tries - 1);
         }
         env.reset(&mut rng).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let demo = script.record(&mut env, "demo", &mut rng).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let demo =
+            mimicgen_engine::demonstrator::record_sequence(&scripts, &mut env, "demo", &mut rng).map_err(|e| anyhow::anyhow!("{e}"))?;
         if !env.is_success() {
             continue;
         }

@@ -29,6 +29,12 @@ pub struct PickPlaceScript {
     pub open_steps: (usize, usize),
     /// Largest random grasp offset from the object's centre, per axis (m).
     pub grasp_offset_m: f64,
+    /// Range of the hover height above the grasp before descending (m).
+    pub approach_height_m: (f64, f64),
+    /// Range of the lift height above the grasp after closing (m).
+    pub lift_height_m: (f64, f64),
+    /// Height of the retreat above the release pose at the end (m).
+    pub retreat_height_m: f64,
 }
 
 /// Target poses from `from` to `to` moving at most `speed_m` per step (and a matching share of the
@@ -51,11 +57,23 @@ impl PickPlaceScript {
     /// # Errors
     /// The environment's error if a step fails, or [`EnvError::Fatal`] if an object is missing.
     pub fn record<E: Environment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, name: &str, rng: &mut R) -> Result<SourceDemo, EnvError> {
+        record_sequence(std::slice::from_ref(self), env, name, rng)
+    }
+
+    /// Appends this pick-and-place to `traj`, starting from the current state.
+    ///
+    /// # Errors
+    /// As [`PickPlaceScript::record`].
+    pub fn record_into<E: Environment + ?Sized, R: Rng + ?Sized>(
+        &self,
+        env: &mut E,
+        traj: &mut Trajectory,
+        rng: &mut R,
+    ) -> Result<(), EnvError> {
         let objects = env.object_poses();
         let a = *objects.get(&self.pick).ok_or_else(|| env_err(&self.pick))?;
         let b = *objects.get(&self.place_on).ok_or_else(|| env_err(&self.place_on))?;
         let start = env.eef_pose();
-        let mut traj = Trajectory::new(env.state().len(), env.action_dim());
         // Grasp about one of the object's four symmetric yaws, the one closest to the gripper's.
         let quarter = std::f64::consts::FRAC_PI_2;
         let (cube_yaw, eef_yaw) = (yaw_of(&a), yaw_of(&start));
@@ -69,14 +87,14 @@ impl PickPlaceScript {
         let place = pose_from_parts(b.translation.vector + place_xy + offset, grasp_rot);
         let (fast, slow) = (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008));
         let plan: Vec<(Pose, f64, f64, usize)> = vec![
-            (above(&grasp, rng.random_range(0.06..0.12)), fast, -1.0, rng.random_range(0..4)),
+            (above(&grasp, rng.random_range(self.approach_height_m.0..self.approach_height_m.1)), fast, -1.0, rng.random_range(0..4)),
             (grasp, slow, -1.0, rng.random_range(2..5)),
             (grasp, slow, 1.0, rng.random_range(self.close_steps.0..=self.close_steps.1)),
-            (above(&grasp, rng.random_range(0.08..0.14)), fast, 1.0, 0),
+            (above(&grasp, rng.random_range(self.lift_height_m.0..self.lift_height_m.1)), fast, 1.0, 0),
             (above(&place, rng.random_range(0.03..0.08)), fast, 1.0, rng.random_range(0..3)),
             (place, slow, 1.0, rng.random_range(1..4)),
             (place, slow, -1.0, rng.random_range(self.open_steps.0..=self.open_steps.1)),
-            (above(&place, 0.08), fast, -1.0, 0),
+            (above(&place, self.retreat_height_m), fast, -1.0, 0),
         ];
         let mut current = start;
         for (goal, speed, gripper, pause) in plan {
@@ -89,10 +107,27 @@ impl PickPlaceScript {
                     gripper: vec![gripper],
                     noise: 0.0,
                 };
-                execute_step(env, &waypoint, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, &mut traj, rng)?;
+                execute_step(env, &waypoint, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
             }
             current = goal;
         }
-        Ok(traj.to_source_demo(name))
+        Ok(())
     }
+}
+
+/// Records several pick-and-places one after the other as one demo (e.g. Stack Three).
+///
+/// # Errors
+/// As [`PickPlaceScript::record`].
+pub fn record_sequence<E: Environment + ?Sized, R: Rng + ?Sized>(
+    scripts: &[PickPlaceScript],
+    env: &mut E,
+    name: &str,
+    rng: &mut R,
+) -> Result<SourceDemo, EnvError> {
+    let mut traj = Trajectory::new(env.state().len(), env.action_dim());
+    for script in scripts {
+        script.record_into(env, &mut traj, rng)?;
+    }
+    Ok(traj.to_source_demo(name))
 }

@@ -197,6 +197,9 @@ pub fn pick_place_script() -> PickPlaceScript {
         close_steps: (2, 4),
         open_steps: (2, 3),
         grasp_offset_m: 0.003,
+        approach_height_m: (0.06, 0.12),
+        lift_height_m: (0.08, 0.14),
+        retreat_height_m: 0.08,
     }
 }
 

@@ -146,10 +146,7 @@ impl SimEnv {
     ///
     /// # Errors
     /// [`EnvError::Fatal`] on a state of the wrong length.
-    pub fn observations_for_states(
-        &mut self,
-        states: &mimicgen_engine::Rows,
-    ) -> Result<BTreeMap<String, Observation>, EnvError> {
+    pub fn observations_for_states(&mut self, states: &mimicgen_engine::Rows) -> Result<BTreeMap<String, Observation>, EnvError> {
         let mut out: BTreeMap<String, Observation> = BTreeMap::new();
         for state in states.iter() {
             self.set_state(state)?;

@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use crate::task::{Stack, Task};
+use crate::task::{Stack, StackThree, Task};
 
 /// A task the backend can build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -18,18 +18,27 @@ pub struct TaskInfo {
 }
 
 /// Every task, in the order `mimicgen tasks` lists them.
-pub const TASKS: &[TaskInfo] = &[TaskInfo {
-    name: "stack",
-    variants: &["D0", "D1"],
-    description: "red cube onto green cube; D0 both in a 0.16 m square, D1 in 0.40 m; random yaw",
-    env_name: "Stack",
-}];
+pub const TASKS: &[TaskInfo] = &[
+    TaskInfo {
+        name: "stack",
+        variants: &["D0", "D1"],
+        description: "red cube onto green cube; D0 both in a 0.16 m square, D1 in 0.40 m; random yaw",
+        env_name: "Stack",
+    },
+    TaskInfo {
+        name: "stack_three",
+        variants: &["D0", "D1"],
+        description: "red onto green, then blue onto red; D0 cubes in a 0.20 m square, D1 in 0.40 m; random yaw",
+        env_name: "StackThree",
+    },
+];
 
 /// The bundled task spec (our TOML, the paper's settings) for `name`.
 #[must_use]
 pub fn default_spec_toml(name: &str) -> Option<&'static str> {
     match name {
         "stack" => Some(include_str!("../tasks/stack.toml")),
+        "stack_three" => Some(include_str!("../tasks/stack_three.toml")),
         _ => None,
     }
 }
@@ -41,6 +50,7 @@ pub fn default_spec_toml(name: &str) -> Option<&'static str> {
 pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
     match name.to_ascii_lowercase().as_str() {
         "stack" => Ok(Arc::new(Stack::variant(variant)?)),
+        "stack_three" => Ok(Arc::new(StackThree::variant(variant)?)),
         other => Err(format!("unknown task {other:?}; known tasks: {}", TASKS.iter().map(|t| t.name).collect::<Vec<_>>().join(", "))),
     }
 }

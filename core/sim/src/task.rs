@@ -30,6 +30,24 @@ pub trait Task: Send + Sync {
     fn is_success(&self, env: &SimEnv) -> bool;
     /// robosuite's `object` observation for this task in the current state.
     fn object_obs(&self, env: &SimEnv) -> Vec<f64>;
+    /// The scripted demonstrator's pick-and-places, in order (empty if the task has none).
+    fn scripts(&self) -> Vec<PickPlaceScript>;
+}
+
+/// A textured cube as robosuite's `BoxObject`.
+fn cube(name: &str, half: f64, tex: &str, file: &str) -> ObjectModel {
+    ObjectModel::Box {
+        name: name.to_owned(),
+        half_size: [half; 3],
+        rgba: [0.5, 0.0, 0.0, 1.0],
+        texture: (tex.to_owned(), format!("textures/{file}")),
+    }
+}
+
+/// Whether object `upper` rests on `lower`: lifted above the table by `lift_m` and touching it.
+fn stacked(env: &SimEnv, upper: usize, lower: usize, lift_m: f64) -> bool {
+    let objects = &env.scene().objects;
+    env.object_pose(upper).translation.z > TABLE_TOP_Z + lift_m && env.in_contact(&objects[upper].geoms, &objects[lower].geoms)
 }
 
 /// robosuite's per-object observables: each object's position and `xyzw` quaternion, then
@@ -143,6 +161,9 @@ impl Stack {
             close_steps: (6, 9),
             open_steps: (3, 5),
             grasp_offset_m: 0.003,
+            approach_height_m: (0.06, 0.12),
+            lift_height_m: (0.12, 0.18),
+            retreat_height_m: 0.08,
         }
     }
 }
@@ -157,13 +178,11 @@ impl Task for Stack {
     }
 
     fn object_models(&self) -> Vec<ObjectModel> {
-        let cube = |name: &str, half: f64, tex: &str, file: &str| ObjectModel::Box {
-            name: name.to_owned(),
-            half_size: [half; 3],
-            rgba: [0.5, 0.0, 0.0, 1.0],
-            texture: (tex.to_owned(), format!("textures/{file}")),
-        };
         vec![cube("cubeA", 0.02, "redwood", "red-wood.png"), cube("cubeB", 0.025, "greenwood", "green-wood.png")]
+    }
+
+    fn scripts(&self) -> Vec<PickPlaceScript> {
+        vec![Self::script()]
     }
 
     fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
@@ -183,8 +202,86 @@ impl Task for Stack {
 
     fn is_success(&self, env: &SimEnv) -> bool {
         // robosuite's Stack: cubeA lifted above the table, touching cubeB, and not held.
-        let lifted = env.object_pose(0).translation.z > TABLE_TOP_Z + 0.04;
-        let scene = env.scene();
-        lifted && env.in_contact(&scene.objects[0].geoms, &scene.objects[1].geoms) && !env.is_grasping(0)
+        stacked(env, 0, 1, 0.04) && !env.is_grasping(0)
+    }
+}
+
+/// MimicGen's Stack Three: red (`cubeA`) onto green (`cubeB`), then blue (`cubeC`) onto red.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StackThree {
+    /// Where the three cubes are sampled.
+    pub region: PlacementRegion,
+}
+
+impl StackThree {
+    /// D0: cubes in a 0.20 m square; D1: 0.40 m; random yaw.
+    ///
+    /// # Errors
+    /// A message listing the variants when `variant` is not one of them.
+    pub fn variant(variant: &str) -> Result<Self, String> {
+        match variant.to_ascii_uppercase().as_str() {
+            "D0" => Ok(Self { region: PlacementRegion::square(0.20) }),
+            "D1" => Ok(Self { region: PlacementRegion::square(0.40) }),
+            other => Err(format!("stack_three has variants D0 and D1, not {other:?}")),
+        }
+    }
+}
+
+impl Task for StackThree {
+    fn name(&self) -> &str {
+        "stack_three"
+    }
+
+    fn objects(&self) -> Vec<(&'static str, &'static str)> {
+        vec![("cubeA", "cubeA_main"), ("cubeB", "cubeB_main"), ("cubeC", "cubeC_main")]
+    }
+
+    fn object_models(&self) -> Vec<ObjectModel> {
+        vec![
+            cube("cubeA", 0.02, "redwood", "red-wood.png"),
+            cube("cubeB", 0.025, "greenwood", "green-wood.png"),
+            cube("cubeC", 0.02, "bluewood", "blue-wood.png"),
+        ]
+    }
+
+    fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
+        place_boxes(rng, &[self.region; 3], &[[0.02; 3], [0.025; 3], [0.02; 3]], 0.01)
+    }
+
+    fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64> {
+        BTreeMap::from([
+            ("grasp_1".to_owned(), i64::from(env.is_grasping(0))),
+            ("stack_1".to_owned(), i64::from(stacked(env, 0, 1, 0.04))),
+            ("grasp_2".to_owned(), i64::from(env.is_grasping(2))),
+        ])
+    }
+
+    fn is_success(&self, env: &SimEnv) -> bool {
+        stacked(env, 0, 1, 0.04) && stacked(env, 2, 0, 0.08) && !env.is_grasping(2)
+    }
+
+    fn object_obs(&self, env: &SimEnv) -> Vec<f64> {
+        let mut obs = pose_and_gripper_obs(env);
+        let [a, b, c] = [0, 1, 2].map(|i| env.object_pose(i).translation.vector);
+        obs.extend((b - a).iter());
+        obs.extend((c - a).iter());
+        obs.extend((c - b).iter());
+        obs
+    }
+
+    fn scripts(&self) -> Vec<PickPlaceScript> {
+        let first = Stack::script();
+        // Lift well clear of the new stack before carrying on, and approach the blue cube from
+        // above the stack's height, as a careful operator would.
+        let first = PickPlaceScript { retreat_height_m: 0.15, ..first };
+        let second = PickPlaceScript {
+            pick: "cubeC".to_owned(),
+            place_on: "cubeA".to_owned(),
+            release_height_m: 0.02 + 0.02 + 0.006,
+            approach_height_m: (0.13, 0.17),
+            lift_height_m: (0.15, 0.2),
+            ..first.clone()
+        };
+        vec![first, second]
     }
 }

@@ -112,3 +112,16 @@ fn same_seed_same_demos_with_one_or_two_workers_and_blowups_are_failures() {
     let err = env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap_err();
     assert!(matches!(&err, EnvError::Unstable { reason } if reason.contains("MuJoCo") || reason.contains("non-finite")), "{err}");
 }
+
+#[test]
+fn bad_scenes_name_the_file_and_what_is_missing() {
+    let task = Stack::variant("D0").unwrap();
+    let err = Scene::compile("<mujoco><worldbody><body><geom type='box'/></body>", "broken.xml", &[], 20.0).unwrap_err().to_string();
+    assert!(err.contains("broken.xml") && err.contains("cannot compile"), "{err}");
+    // A valid scene without the task's objects (the composed scene with no objects at all).
+    let assets = mimicgen_sim::assets::robosuite_assets_dir().unwrap();
+    let empty = mimicgen_sim::compose::compose_scene(&assets, &[]);
+    let err = Scene::compile(&empty, "empty.xml", &mimicgen_sim::Task::objects(&task), 20.0).unwrap_err().to_string();
+    assert!(err.contains("empty.xml") && err.contains("cubeA_main"), "{err}");
+    assert!(Stack::variant("D7").unwrap_err().contains("D0 and D1"));
+}
