@@ -43,6 +43,21 @@ pub fn default_spec_toml(name: &str) -> Option<&'static str> {
     }
 }
 
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn env_names_map_to_tasks() {
+        let (task, variant) = task_from_env_name("StackThree_D1").unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((task.name(), variant.as_str()), ("stack_three", "D1"));
+        assert_eq!(task_from_env_name("Stack").map(|(t, v)| (t.name().to_owned(), v)), Ok(("stack".to_owned(), "D0".to_owned())));
+        assert!(task_from_env_name("Lift_D0").is_err());
+        let args: serde_json::Value = serde_json::from_str(&env_args("stack_three", "d1")).unwrap_or_default();
+        assert_eq!(args["env_name"], "StackThree_D1");
+    }
+}
+
 /// Builds `name` / `variant`.
 ///
 /// # Errors
@@ -53,6 +68,19 @@ pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
         "stack_three" => Ok(Arc::new(StackThree::variant(variant)?)),
         other => Err(format!("unknown task {other:?}; known tasks: {}", TASKS.iter().map(|t| t.name).collect::<Vec<_>>().join(", "))),
     }
+}
+
+/// The task and variant a robosuite `env_name` names (`Stack_D0` -> stack, D0; `StackThree_D1`
+/// -> stack_three, D1; a bare `Stack` is D0).
+///
+/// # Errors
+/// A message naming the known environments when `env_name` is not one of them.
+pub fn task_from_env_name(env_name: &str) -> Result<(Arc<dyn Task>, String), String> {
+    let (base, variant) = env_name.rsplit_once('_').filter(|(_, v)| v.starts_with('D')).unwrap_or((env_name, "D0"));
+    let info = TASKS.iter().find(|t| t.env_name.eq_ignore_ascii_case(base)).ok_or_else(|| {
+        format!("environment {env_name:?} is not one of ours ({})", TASKS.iter().map(|t| t.env_name).collect::<Vec<_>>().join(", "))
+    })?;
+    Ok((task(info.name, variant)?, variant.to_owned()))
 }
 
 /// robosuite/robomimic's `env_args` JSON for `name` / `variant`, as the reference writes it

@@ -4,6 +4,7 @@ use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 
 use mimicgen_engine::EnvError;
+use mimicgen_engine::coverage::{Coordinate, Dimension};
 use mimicgen_engine::demonstrator::PickPlaceScript;
 use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
 use rand::{Rng, RngCore};
@@ -32,6 +33,21 @@ pub trait Task: Send + Sync {
     fn object_obs(&self, env: &SimEnv) -> Vec<f64>;
     /// The scripted demonstrator's pick-and-places, in order (empty if the task has none).
     fn scripts(&self) -> Vec<PickPlaceScript>;
+    /// The reset distribution as coverage dimensions: each object's x, y and yaw over its range.
+    fn coverage_dimensions(&self) -> Vec<Dimension>;
+}
+
+/// Coverage dimensions of objects sampled in `regions` around the table centre (world x, y; yaw
+/// over the full circle when the region's yaw range is).
+fn region_dimensions(objects: &[&str], regions: &[PlacementRegion]) -> Vec<Dimension> {
+    let mut dims = Vec::with_capacity(objects.len() * 3);
+    for (object, r) in objects.iter().zip(regions) {
+        let yaw = if r.yaw.1 - r.yaw.0 >= TAU - 1e-9 { (-std::f64::consts::PI, std::f64::consts::PI) } else { r.yaw };
+        for (coordinate, (low, high)) in [(Coordinate::X, r.x), (Coordinate::Y, r.y), (Coordinate::Yaw, yaw)] {
+            dims.push(Dimension { object: (*object).to_owned(), coordinate, low, high });
+        }
+    }
+    dims
 }
 
 /// A textured cube as robosuite's `BoxObject`.
@@ -185,6 +201,10 @@ impl Task for Stack {
         vec![Self::script()]
     }
 
+    fn coverage_dimensions(&self) -> Vec<Dimension> {
+        region_dimensions(&["cubeA", "cubeB"], &[self.region; 2])
+    }
+
     fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
         place_boxes(rng, &[self.region, self.region], &[[0.02; 3], [0.025; 3]], 0.01)
     }
@@ -283,5 +303,9 @@ impl Task for StackThree {
             ..first.clone()
         };
         vec![first, second]
+    }
+
+    fn coverage_dimensions(&self) -> Vec<Dimension> {
+        region_dimensions(&["cubeA", "cubeB", "cubeC"], &[self.region; 3])
     }
 }
