@@ -43,21 +43,6 @@ pub fn default_spec_toml(name: &str) -> Option<&'static str> {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn env_names_map_to_tasks() {
-        let (task, variant) = task_from_env_name("StackThree_D1").unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!((task.name(), variant.as_str()), ("stack_three", "D1"));
-        assert_eq!(task_from_env_name("Stack").map(|(t, v)| (t.name().to_owned(), v)), Ok(("stack".to_owned(), "D0".to_owned())));
-        assert!(task_from_env_name("Lift_D0").is_err());
-        let args: serde_json::Value = serde_json::from_str(&env_args("stack_three", "d1")).unwrap_or_default();
-        assert_eq!(args["env_name"], "StackThree_D1");
-    }
-}
-
 /// Builds `name` / `variant`.
 ///
 /// # Errors
@@ -125,4 +110,19 @@ pub fn env_args(name: &str, variant: &str) -> String {
         }
     })
     .to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn env_names_map_to_tasks() {
+        let (task, variant) = task_from_env_name("StackThree_D1").unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((task.name(), variant.as_str()), ("stack_three", "D1"));
+        assert_eq!(task_from_env_name("Stack").map(|(t, v)| (t.name().to_owned(), v)), Ok(("stack".to_owned(), "D0".to_owned())));
+        assert!(task_from_env_name("Lift_D0").is_err());
+        let args: serde_json::Value = serde_json::from_str(&env_args("stack_three", "d1")).unwrap_or_default();
+        assert_eq!(args["env_name"], "StackThree_D1");
+    }
 }
