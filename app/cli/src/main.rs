@@ -12,6 +12,7 @@ use mimicgen_io::{DemoReader, ReadOptions};
 mod bench_io;
 mod bench_sim;
 mod generate;
+mod view;
 
 /// Turn a handful of robot demonstrations into large, diverse training datasets.
 ///
@@ -30,7 +31,8 @@ Examples:
   mimicgen spec convert config_D0.json        print the same task spec as TOML
   mimicgen generate --task stack --variant D0 --num-demos 100 --out stack_d0.hdf5
   mimicgen info source_D0.hdf5                 demos, lengths, obs/action shapes, objects, signals
-  mimicgen export generated.hdf5 --mcap out.mcap   poses, actions, labels for Foxglove";
+  mimicgen export generated.hdf5 --mcap out.mcap   poses, actions, labels for Foxglove
+  mimicgen view generated.hdf5 --demo 3 --spawn     one demo in the Rerun viewer";
 
 #[derive(Subcommand)]
 enum Command {
@@ -45,6 +47,8 @@ enum Command {
     Demos(generate::DemosArgs),
     /// List the tasks and their variants.
     Tasks,
+    /// Show a dataset's demos in the Rerun viewer (3D scene, paths by subtask, signals).
+    View(view::ViewArgs),
     /// Measure generation against bare physics stepping and across worker counts.
     BenchSim(bench_sim::BenchSimArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
@@ -171,6 +175,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::BenchSim(args) => {
             bench_sim::run(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::View(args) => {
+            view::view(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Tasks => {

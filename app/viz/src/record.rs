@@ -1,0 +1,290 @@
+//! Source demos, attempts and run statistics as Rerun entities.
+
+use std::collections::BTreeMap;
+
+use mimicgen_engine::pose::Pose;
+use mimicgen_engine::transform::WaypointKind;
+use mimicgen_engine::{Attempt, RunStats, SourceDemo};
+use rerun::{RecordingStream, TimeColumn};
+
+use crate::VizError;
+
+/// Colours of subtask 0, 1, 2, ... (cycled).
+const SUBTASK_COLORS: [[u8; 3]; 6] = [[255, 140, 0], [30, 144, 255], [186, 85, 211], [0, 206, 209], [255, 105, 180], [154, 205, 50]];
+/// The chosen source segment, as recorded in the source demo.
+const SOURCE_COLOR: [u8; 3] = [170, 170, 170];
+/// The source segment re-expressed in the new scene.
+const TRANSFORMED_COLOR: [u8; 3] = [30, 144, 255];
+/// The interpolation segment bridging to it.
+const INTERPOLATION_COLOR: [u8; 3] = [255, 215, 0];
+/// Executed path of a successful attempt.
+const SUCCESS_COLOR: [u8; 3] = [50, 205, 50];
+/// Executed path of a failed attempt.
+const FAILURE_COLOR: [u8; 3] = [220, 20, 60];
+/// Length of drawn frame axes.
+const AXIS_LENGTH_M: f32 = 0.06;
+
+/// Timeline names.
+pub mod timelines {
+    /// Attempt index in a generation run.
+    pub const ATTEMPT: &str = "attempt";
+    /// Step within an attempt or demo.
+    pub const STEP: &str = "step";
+    /// Steps of every attempt (or demo) one after the other, to play a whole run.
+    pub const FRAME: &str = "frame";
+    /// Demo index in a dataset (`mimicgen view`, and the source demos of a run).
+    pub const DEMO: &str = "demo";
+}
+
+fn rgb(c: [u8; 3]) -> rerun::Color {
+    rerun::Color::from_rgb(c[0], c[1], c[2])
+}
+
+/// The colour of subtask `k`.
+#[must_use]
+pub fn subtask_color(k: usize) -> rerun::Color {
+    rgb(SUBTASK_COLORS[k % SUBTASK_COLORS.len()])
+}
+
+#[allow(clippy::cast_possible_truncation)] // Rerun draws in f32
+fn point(pose: &Pose) -> [f32; 3] {
+    let t = pose.translation.vector;
+    [t.x as f32, t.y as f32, t.z as f32]
+}
+
+/// Arrows for the x (red), y (green), z (blue) axes of every pose.
+#[allow(clippy::cast_possible_truncation)]
+fn frame_arrows<'a>(poses: impl IntoIterator<Item = (String, &'a Pose)>) -> rerun::Arrows3D {
+    let (mut origins, mut vectors, mut colors, mut labels) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for (label, pose) in poses {
+        let r = pose.rotation.to_rotation_matrix();
+        for (axis, c) in [[255, 0, 0], [0, 200, 0], [0, 100, 255]].into_iter().enumerate() {
+            let v = r.matrix().column(axis) * f64::from(AXIS_LENGTH_M);
+            origins.push(point(pose));
+            vectors.push([v.x as f32, v.y as f32, v.z as f32]);
+            colors.push(rgb(c));
+            labels.push(if axis == 0 { label.clone() } else { String::new() });
+        }
+    }
+    rerun::Arrows3D::from_vectors(vectors).with_origins(origins).with_colors(colors).with_labels(labels)
+}
+
+/// Subtask ends read from the signals, spec-free: the first step at which each signal is on after
+/// having been off, sorted. The last subtask runs to the end of the demo.
+#[must_use]
+pub fn signal_boundaries(signals: &BTreeMap<String, Vec<i64>>) -> Vec<(usize, String)> {
+    let mut ends: Vec<(usize, String)> = signals
+        .iter()
+        .filter_map(|(name, values)| {
+            let first_off = values.iter().position(|&v| v == 0)?;
+            let on = values[first_off..].iter().position(|&v| v != 0)? + first_off;
+            Some((on, name.clone()))
+        })
+        .collect();
+    ends.sort();
+    ends
+}
+
+fn step_column(name: &'static str, n: usize, f: impl Fn(usize) -> i64) -> TimeColumn {
+    TimeColumn::new_sequence(name, (0..n).map(f))
+}
+
+#[allow(clippy::cast_possible_wrap)] // step counts are far below i64::MAX
+fn as_i64(v: usize) -> i64 {
+    v as i64
+}
+
+/// Logs one demo (a source demo, or a demo of any dataset) under `root`: the end-effector path
+/// coloured by subtask, the subtask ends with the objects' frames there, and each subtask-end
+/// signal as a plot under `plots/signals`. `demo_index` is the `demo` timeline value;
+/// `frame_offset` the `frame` value of its first step.
+///
+/// # Errors
+/// [`VizError::Rerun`] from the stream.
+pub fn log_demo(rec: &RecordingStream, root: &str, demo: &SourceDemo, demo_index: usize, frame_offset: usize) -> Result<(), VizError> {
+    let err = |what: &str, e: &dyn std::fmt::Display| VizError::rerun(&format!("{root}/{what}"), e);
+    rec.set_time_sequence(timelines::DEMO, as_i64(demo_index));
+    rec.set_time_sequence(timelines::STEP, 0);
+    rec.set_time_sequence(timelines::FRAME, as_i64(frame_offset));
+    rec.log(root, &rerun::Clear::recursive()).map_err(|e| err("clear", &e))?;
+    let ends = signal_boundaries(&demo.subtask_term_signals);
+    let n = demo.eef_poses.len();
+    let mut start = 0;
+    let mut cuts: Vec<usize> = ends.iter().map(|(t, _)| *t).filter(|&t| t > 0 && t < n).collect();
+    cuts.push(n);
+    for (k, &end) in cuts.iter().enumerate() {
+        let strip: Vec<[f32; 3]> = demo.eef_poses[start.min(n)..(end + 1).min(n)].iter().map(point).collect();
+        rec.log(
+            format!("{root}/eef_path/subtask_{k}"),
+            &rerun::LineStrips3D::new([strip]).with_colors([subtask_color(k)]).with_labels([format!("{} subtask {k}", demo.name)]),
+        )
+        .map_err(|e| err("eef_path", &e))?;
+        start = end;
+    }
+    let marks: Vec<(usize, String)> = ends.iter().filter(|(t, _)| *t < n).cloned().collect();
+    rec.log(
+        format!("{root}/subtask_ends"),
+        &rerun::Points3D::new(marks.iter().map(|(t, _)| point(&demo.eef_poses[*t])))
+            .with_radii([0.008])
+            .with_colors(marks.iter().enumerate().map(|(k, _)| subtask_color(k)))
+            .with_labels(marks.iter().map(|(t, s)| format!("{s} on at step {t}"))),
+    )
+    .map_err(|e| err("subtask_ends", &e))?;
+    let frames: Vec<(String, &Pose)> = marks
+        .iter()
+        .flat_map(|(t, s)| demo.object_poses.iter().filter_map(move |(obj, poses)| poses.get(*t).map(|p| (format!("{obj} @ {s}"), p))))
+        .collect();
+    rec.log(format!("{root}/object_frames_at_ends"), &frame_arrows(frames)).map_err(|e| err("object_frames_at_ends", &e))?;
+    let index = || {
+        [
+            step_column(timelines::STEP, n, as_i64),
+            step_column(timelines::DEMO, n, |_| as_i64(demo_index)),
+            step_column(timelines::FRAME, n, |t| as_i64(frame_offset + t)),
+        ]
+    };
+    for (name, values) in &demo.subtask_term_signals {
+        #[allow(clippy::cast_precision_loss)]
+        let scalars = rerun::Scalars::update_fields().with_scalars(values.iter().map(|&v| v as f64)).columns_of_unit_batches();
+        let path = format!("plots/signals/{name}");
+        rec.send_columns(path.as_str(), index(), scalars.map_err(|e| err(&path, &e))?).map_err(|e| err(&path, &e))?;
+    }
+    let gripper: Vec<f64> = demo.gripper_actions.iter().map(|row| row.first().copied().unwrap_or_default()).collect();
+    let cols = rerun::Scalars::update_fields().with_scalars(gripper).columns_of_unit_batches().map_err(|e| err("gripper", &e))?;
+    rec.send_columns("plots/gripper", index(), cols).map_err(|e| err("plots/gripper", &e))?;
+    Ok(())
+}
+
+/// Logs one attempt under `world/attempt` (replaced by the next) and its executed path under
+/// `world/history/attempt_<k>` (kept, to compare many): the new scene's object frames, per
+/// subtask the chosen source segment, the transformed segment, the interpolation segment and the
+/// reference object's frames, the executed path, the gripper command and the outcome.
+/// `frame_offset` is the `frame` value of its first step.
+///
+/// # Errors
+/// [`VizError::Rerun`] from the stream.
+pub fn log_attempt(rec: &RecordingStream, attempt: &Attempt, source_names: &[String], frame_offset: usize) -> Result<(), VizError> {
+    let root = "world/attempt";
+    let err = |what: &str, e: &dyn std::fmt::Display| VizError::rerun(&format!("{root}/{what}"), e);
+    let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
+    rec.set_time_sequence(timelines::ATTEMPT, k);
+    rec.set_time_sequence(timelines::STEP, 0);
+    rec.set_time_sequence(timelines::FRAME, as_i64(frame_offset));
+    rec.log(root, &rerun::Clear::recursive()).map_err(|e| err("clear", &e))?;
+    rec.log(format!("{root}/objects"), &frame_arrows(attempt.initial_object_poses.iter().map(|(name, pose)| (name.clone(), pose))))
+        .map_err(|e| err("objects", &e))?;
+    let name_of = |d: usize| source_names.get(d).cloned().unwrap_or_else(|| format!("demo {d}"));
+    for (s, plan) in attempt.plans.iter().enumerate() {
+        let sub = format!("{root}/subtask_{s}");
+        let strip = |poses: &mut dyn Iterator<Item = &Pose>| -> Vec<[f32; 3]> { poses.map(point).collect() };
+        rec.log(
+            format!("{sub}/source_segment"),
+            &rerun::LineStrips3D::new([strip(&mut plan.source_poses.iter())]).with_colors([rgb(SOURCE_COLOR)]).with_labels([format!(
+                "source {} steps {}..{}",
+                name_of(plan.src_demo),
+                plan.src_span.0,
+                plan.src_span.1
+            )]),
+        )
+        .map_err(|e| err("source_segment", &e))?;
+        rec.log(
+            format!("{sub}/transformed_segment"),
+            &rerun::LineStrips3D::new([strip(&mut plan.transformed_poses.iter())])
+                .with_colors([rgb(TRANSFORMED_COLOR)])
+                .with_labels([format!("subtask {s} transformed")]),
+        )
+        .map_err(|e| err("transformed_segment", &e))?;
+        let mut interp: Vec<[f32; 3]> =
+            plan.waypoints.iter().filter(|(_, kind)| *kind == WaypointKind::Interpolation).map(|(p, _)| point(p)).collect();
+        if let Some((first, _)) = plan.waypoints.iter().find(|(_, kind)| *kind == WaypointKind::Transformed) {
+            interp.push(point(first));
+        }
+        rec.log(
+            format!("{sub}/interpolation_segment"),
+            &rerun::LineStrips3D::new([interp]).with_colors([rgb(INTERPOLATION_COLOR)]).with_labels([format!("subtask {s} interpolation")]),
+        )
+        .map_err(|e| err("interpolation_segment", &e))?;
+        let mut frames = Vec::new();
+        if let Some(p) = &plan.world_from_obj_new {
+            frames.push((format!("subtask {s} object (new scene)"), p));
+        }
+        if let Some(p) = &plan.world_from_obj_src {
+            frames.push((format!("subtask {s} object (in {})", name_of(plan.src_demo)), p));
+        }
+        rec.log(format!("{sub}/object_frames"), &frame_arrows(frames)).map_err(|e| err("object_frames", &e))?;
+    }
+    let traj = &attempt.trajectory;
+    let executed: Vec<[f32; 3]> = traj.eef_poses.iter().map(point).collect();
+    let outcome_color = rgb(if attempt.success { SUCCESS_COLOR } else { FAILURE_COLOR });
+    let sources = attempt.src_demo_per_subtask.iter().map(|&d| name_of(d)).collect::<Vec<_>>().join(", ");
+    let outcome = match &attempt.failure {
+        None if attempt.success => format!("attempt {}: success (sources {sources})", attempt.index),
+        None => format!("attempt {}: failed (sources {sources})", attempt.index),
+        Some(f) => format!("attempt {}: FAILED in subtask {}: {} (sources {sources})", attempt.index, f.subtask, f.reason),
+    };
+    rec.log(
+        format!("{root}/executed_path"),
+        &rerun::LineStrips3D::new([executed.clone()]).with_colors([outcome_color]).with_labels([outcome.clone()]),
+    )
+    .map_err(|e| err("executed_path", &e))?;
+    rec.log(
+        format!("world/history/attempt_{:05}", attempt.index),
+        &rerun::LineStrips3D::new([executed.clone()]).with_colors([outcome_color]).with_radii([rerun::Radius::new_ui_points(0.5)]),
+    )
+    .map_err(|e| err("history", &e))?;
+    let level = if attempt.success { rerun::TextLogLevel::INFO } else { rerun::TextLogLevel::WARN };
+    rec.log("outcome", &rerun::TextLog::new(outcome).with_level(level)).map_err(|e| err("outcome", &e))?;
+    rec.log("plots/attempt/success", &rerun::Scalars::single(f64::from(u8::from(attempt.success)))).map_err(|e| err("success", &e))?;
+    let n = traj.len();
+    if n > 0 {
+        let index = || {
+            [
+                step_column(timelines::STEP, n, as_i64),
+                step_column(timelines::ATTEMPT, n, |_| k),
+                step_column(timelines::FRAME, n, |t| as_i64(frame_offset + t)),
+            ]
+        };
+        let cols = rerun::Points3D::update_fields()
+            .with_positions(executed)
+            .with_colors(std::iter::repeat_n(outcome_color, n))
+            .with_radii(std::iter::repeat_n(0.012_f32, n))
+            .columns_of_unit_batches()
+            .map_err(|e| err("eef", &e))?;
+        rec.send_columns(format!("{root}/eef"), index(), cols).map_err(|e| err("eef", &e))?;
+        let gripper: Vec<f64> = traj.gripper_actions.iter().map(|row| row.first().copied().unwrap_or_default()).collect();
+        let cols = rerun::Scalars::update_fields().with_scalars(gripper).columns_of_unit_batches().map_err(|e| err("gripper", &e))?;
+        rec.send_columns("plots/gripper", index(), cols).map_err(|e| err("plots/gripper", &e))?;
+        #[allow(clippy::cast_precision_loss)]
+        let subtasks = traj.subtask_labels.iter().map(|&s| s as f64);
+        let cols = rerun::Scalars::update_fields().with_scalars(subtasks).columns_of_unit_batches().map_err(|e| err("subtask", &e))?;
+        rec.send_columns("plots/subtask", index(), cols).map_err(|e| err("plots/subtask", &e))?;
+        for (name, values) in &traj.subtask_term_signals {
+            #[allow(clippy::cast_precision_loss)]
+            let cols = rerun::Scalars::update_fields()
+                .with_scalars(values.iter().map(|&v| v as f64))
+                .columns_of_unit_batches()
+                .map_err(|e| err(name, &e))?;
+            rec.send_columns(format!("plots/signals/{name}"), index(), cols).map_err(|e| err(name, &e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Logs the run statistics after an attempt (on the `attempt` timeline): attempts, successes,
+/// generation rate, and per source demo the attempts and successes that used it.
+///
+/// # Errors
+/// [`VizError::Rerun`] from the stream.
+#[allow(clippy::cast_precision_loss)] // counts are far below 2^52
+pub fn log_stats(rec: &RecordingStream, stats: &RunStats, source_names: &[String]) -> Result<(), VizError> {
+    let err = |what: &str, e: &dyn std::fmt::Display| VizError::rerun(what, e);
+    rec.log("stats/attempts", &rerun::Scalars::single(stats.attempts as f64)).map_err(|e| err("stats/attempts", &e))?;
+    rec.log("stats/successes", &rerun::Scalars::single(stats.successes as f64)).map_err(|e| err("stats/successes", &e))?;
+    rec.log("stats/generation_rate", &rerun::Scalars::single(stats.rate())).map_err(|e| err("stats/generation_rate", &e))?;
+    for (d, used) in stats.per_source_demo.iter().enumerate() {
+        let name = source_names.get(d).cloned().unwrap_or_else(|| format!("demo_{d}"));
+        let path = format!("stats/per_source_demo/{name}");
+        rec.log(format!("{path}/attempts"), &rerun::Scalars::single(used.attempts as f64)).map_err(|e| err(&path, &e))?;
+        rec.log(format!("{path}/successes"), &rerun::Scalars::single(used.successes as f64)).map_err(|e| err(&path, &e))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,139 @@
+//! A generation run (or a dataset) streamed to one recording.
+
+use std::sync::Arc;
+
+use mimicgen_engine::{Attempt, RunStats, SourceDemo};
+use mujoco_rs::prelude::MjModel;
+use rerun::RecordingStream;
+
+use crate::record::{self, timelines};
+use crate::{SceneLogger, VizError};
+
+/// Which attempts get the full scene (every geom's pose per step).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SceneLevel {
+    /// Every attempt and source demo.
+    #[default]
+    All,
+    /// Successful attempts and source demos only.
+    Successes,
+    /// No per-step scene poses (paths, frames, plots and statistics only).
+    None,
+}
+
+/// How much to log.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LogConfig {
+    /// Which attempts get per-step scene poses.
+    pub scene: SceneLevel,
+    /// Log the scene at every `scene_stride`-th step.
+    pub scene_stride: usize,
+}
+
+impl Default for LogConfig {
+    fn default() -> Self {
+        Self { scene: SceneLevel::All, scene_stride: 1 }
+    }
+}
+
+/// Logs source demos, attempts and statistics of one run (or the demos of one dataset).
+#[derive(Debug)]
+pub struct RunLogger {
+    rec: RecordingStream,
+    scene: SceneLogger,
+    config: LogConfig,
+    source_names: Vec<String>,
+    frame: usize,
+    demos_cleared: bool,
+}
+
+impl RunLogger {
+    /// Logs the scene's geoms (static) and returns a logger for `rec`.
+    ///
+    /// # Errors
+    /// [`VizError::Rerun`] from the stream.
+    pub fn new(rec: RecordingStream, model: Arc<MjModel>, config: LogConfig) -> Result<Self, VizError> {
+        let scene = SceneLogger::new(model, "world/scene");
+        rec.log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP()).map_err(|e| VizError::rerun("world", &e))?;
+        scene.log_static(&rec)?;
+        Ok(Self { rec, scene, config, source_names: Vec::new(), frame: 0, demos_cleared: false })
+    }
+
+    /// The recording.
+    #[must_use]
+    pub fn stream(&self) -> &RecordingStream {
+        &self.rec
+    }
+
+    /// Logs demos (source demos of a run, or a dataset's demos) on the `demo` timeline under
+    /// `world/demo`, with the scene per step where states fit. Their names label attempts' sources.
+    ///
+    /// # Errors
+    /// [`VizError::Rerun`] from the stream, [`VizError::Sim`] for states that do not fit the scene.
+    pub fn log_demos<'a>(&mut self, demos: impl IntoIterator<Item = (usize, &'a SourceDemo)>) -> Result<(), VizError> {
+        for (index, demo) in demos {
+            if self.source_names.len() <= index {
+                self.source_names.resize(index + 1, String::new());
+            }
+            self.source_names[index].clone_from(&demo.name);
+            record::log_demo(&self.rec, "world/demo", demo, index, self.frame)?;
+            let n = demo.sim.states.len();
+            if self.config.scene != SceneLevel::None && n > 0 {
+                let index_i64 = i64::try_from(index).unwrap_or(i64::MAX);
+                let steps: Vec<i64> = (0..n).map(|t| i64::try_from(t).unwrap_or(i64::MAX)).collect();
+                let frames: Vec<i64> = steps.iter().map(|t| t + i64::try_from(self.frame).unwrap_or(i64::MAX)).collect();
+                self.scene.log_states(
+                    &self.rec,
+                    &demo.sim.states,
+                    self.config.scene_stride,
+                    &[(timelines::STEP, steps), (timelines::DEMO, vec![index_i64; n]), (timelines::FRAME, frames)],
+                )?;
+            }
+            self.frame += demo.len().max(n);
+        }
+        self.rec.disable_timeline(timelines::DEMO);
+        Ok(())
+    }
+
+    /// Logs one attempt and the statistics after it.
+    ///
+    /// # Errors
+    /// [`VizError::Rerun`] from the stream, [`VizError::Sim`] for states that do not fit the scene.
+    pub fn log_attempt(&mut self, attempt: &Attempt, stats: &RunStats) -> Result<(), VizError> {
+        record::log_attempt(&self.rec, attempt, &self.source_names, self.frame)?;
+        if !self.demos_cleared {
+            // Source demos stay on the `demo` timeline; on `frame` they give way to the attempts.
+            self.rec.log("world/demo", &rerun::Clear::recursive()).map_err(|e| VizError::rerun("world/demo", &e))?;
+            self.demos_cleared = true;
+        }
+        record::log_stats(&self.rec, stats, &self.source_names)?;
+        let states = &attempt.trajectory.states;
+        let n = states.len();
+        let wanted = match self.config.scene {
+            SceneLevel::All => true,
+            SceneLevel::Successes => attempt.success,
+            SceneLevel::None => false,
+        };
+        if wanted && n > 0 {
+            let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
+            let steps: Vec<i64> = (0..n).map(|t| i64::try_from(t).unwrap_or(i64::MAX)).collect();
+            let frames: Vec<i64> = steps.iter().map(|t| t + i64::try_from(self.frame).unwrap_or(i64::MAX)).collect();
+            self.scene.log_states(
+                &self.rec,
+                states,
+                self.config.scene_stride,
+                &[(timelines::STEP, steps), (timelines::ATTEMPT, vec![k; n]), (timelines::FRAME, frames)],
+            )?;
+        }
+        self.frame += n;
+        Ok(())
+    }
+
+    /// Flushes everything to the sink.
+    ///
+    /// # Errors
+    /// [`VizError::Rerun`] if the sink cannot be flushed.
+    pub fn finish(self) -> Result<(), VizError> {
+        self.rec.flush_blocking().map_err(|e| VizError::rerun("flush", &e))
+    }
+}

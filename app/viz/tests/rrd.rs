@@ -1,0 +1,95 @@
+//! A small run logged to a `.rrd` file, read back with the Rerun viewer's CLI (`rerun rrd print`
+//! and `rerun rrd stats`), the way a user's viewer will read it.
+
+use std::path::Path;
+use std::process::Command;
+use std::sync::Arc;
+
+use mimicgen_engine::spec::SourceSelection;
+use mimicgen_engine::{Generator, TaskSpec};
+use mimicgen_sim::{Scene, SimEnv, registry};
+use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink, viewer_path};
+
+fn rerun_cli(args: &[&str]) -> String {
+    let bin = viewer_path();
+    assert!(bin.is_file(), "no Rerun viewer at {} (run scripts/setup.sh or set MIMICGEN_RERUN)", bin.display());
+    let _ = Command::new(&bin).args(["analytics", "disable"]).output();
+    let out = Command::new(&bin).args(args).output().expect("run rerun");
+    assert!(out.status.success(), "rerun {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr)
+}
+
+#[test]
+fn three_attempts_read_back_with_the_viewer_cli() {
+    let task = registry::task("stack", "D0").expect("task");
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/stack_D0_source.hdf5");
+    let mut spec = TaskSpec::from_toml_str(registry::default_spec_toml("stack").expect("spec"), "stack").expect("parse spec");
+    spec.generation.num_trials = 3;
+    let mut sources = mimicgen_io::read_source_dataset(&source, &SourceSelection::default()).expect("sources");
+    sources.demos.truncate(2);
+    let xml = sources.demos[0].sim.model_xml.clone().expect("model_file");
+    let scene = Arc::new(Scene::from_model_file(&xml, "stack_D0_source.hdf5", task.as_ref()).expect("scene"));
+    let generator = Generator::new(spec, sources).expect("generator");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rrd = dir.path().join("run.rrd");
+    let rec = Sink::Save(rrd.clone()).open("mimicgen").expect("open recording");
+    let config = LogConfig { scene: SceneLevel::All, scene_stride: 2 };
+    let mut logger = RunLogger::new(rec, Arc::clone(&scene.model), config).expect("logger");
+    let num_geoms = mimicgen_viz::SceneLogger::new(Arc::clone(&scene.model), "world/scene").len();
+    assert!(num_geoms > 20, "only {num_geoms} visible geoms: robot, gripper, table and cubes expected");
+    logger.log_demos(generator.dataset().demos.iter().enumerate()).expect("log sources");
+    let mut envs = vec![SimEnv::new(Arc::clone(&scene), Arc::clone(&task))];
+    let mut logged = 0;
+    let stats = mimicgen_engine::run(&generator, &mut envs, |attempt, stats| {
+        logger.log_attempt(&attempt, stats).expect("log attempt");
+        logged += 1;
+        std::ops::ControlFlow::Continue(())
+    })
+    .expect("run");
+    assert_eq!((stats.attempts, logged), (3, 3));
+    logger.finish().expect("flush");
+
+    let print = rerun_cli(&["rrd", "print", "-vv", rrd.to_str().expect("utf-8 path")]);
+    for entity in [
+        "/world/scene/",
+        "/world/demo/eef_path/subtask_0",
+        "/world/demo/subtask_ends",
+        "/world/demo/object_frames_at_ends",
+        "/plots/signals/grasp",
+        "/plots/gripper",
+        "/world/attempt/objects",
+        "/world/attempt/subtask_0/source_segment",
+        "/world/attempt/subtask_0/transformed_segment",
+        "/world/attempt/subtask_0/interpolation_segment",
+        "/world/attempt/subtask_1/object_frames",
+        "/world/attempt/executed_path",
+        "/world/attempt/eef",
+        "/world/history/attempt_00002",
+        "/outcome",
+        "/stats/attempts",
+        "/stats/successes",
+        "/stats/generation_rate",
+        "/stats/per_source_demo/demo_0/attempts",
+    ] {
+        assert!(print.contains(entity), "entity {entity} missing from `rerun rrd print`:\n{}", &print[..print.len().min(4000)]);
+    }
+    for timeline in ["attempt", "step", "frame", "demo", "log_time"] {
+        assert!(print.contains(&format!("index_name: {timeline}")), "timeline {timeline} missing from `rerun rrd print -vv`");
+    }
+    assert!(print.contains("Mesh3D"), "no Mesh3D (robot links) in the recording");
+    let stats_out = rerun_cli(&["rrd", "stats", rrd.to_str().expect("utf-8 path")]);
+    assert!(stats_out.contains("num_entity_paths"), "unexpected `rerun rrd stats` output:\n{stats_out}");
+    // Rows per entity, summed over chunks (the SDK batches log calls into chunks as it likes).
+    let summary = rerun_cli(&["rrd", "print", "-v", rrd.to_str().expect("utf-8 path")]);
+    let rows = |entity: &str| -> usize {
+        summary
+            .lines()
+            .filter(|l| l.contains(&format!(" - {entity} - ")))
+            .filter_map(|l| l.split(" with ").nth(1)?.split(' ').next()?.parse::<usize>().ok())
+            .sum()
+    };
+    assert_eq!(rows("/outcome"), 3, "one outcome per attempt:\n{summary}");
+    assert_eq!(rows("/stats/generation_rate"), 3, "statistics after every attempt");
+    assert_eq!(rows("/world/attempt/objects"), 3, "object frames per attempt");
+    assert!(print.matches("/world/history/attempt_").count() >= 3, "every attempt's path is kept");
+}
