@@ -144,7 +144,7 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
     let sources = mimicgen_io::read_source_dataset(&source_path, &spec.source)
         .with_context(|| format!("reading source demos {}", source_path.display()))?;
     let (scene, scene_xml) = scene_for(task.as_ref(), sources.demos.first().and_then(|d| d.sim.model_xml.as_deref()), &source_path)?;
-    let env_args = sources.env_args.clone().unwrap_or_else(|| registry::env_args(task.name(), &args.variant));
+    let env_args = registry::env_args_for_variant(sources.env_args.as_deref(), task.name(), &args.variant);
     let num_sources = sources.demos.len();
     let generator = Generator::new(spec.clone(), sources).with_context(|| format!("source demos {}", source_path.display()))?;
     let mut envs: Vec<SimEnv> = (0..args.workers).map(|_| SimEnv::new(Arc::clone(&scene), Arc::clone(&task))).collect();

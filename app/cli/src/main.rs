@@ -11,7 +11,9 @@ use mimicgen_io::{DemoReader, ReadOptions};
 
 mod bench_io;
 mod bench_sim;
+mod coverage;
 mod generate;
+mod prepare;
 mod view;
 
 /// Turn a handful of robot demonstrations into large, diverse training datasets.
@@ -49,6 +51,10 @@ enum Command {
     Tasks,
     /// Show a dataset's demos in the Rerun viewer (3D scene, paths by subtask, signals).
     View(view::ViewArgs),
+    /// Support coverage and histograms of a dataset's initial scenes (the paper's bias analysis).
+    Coverage(coverage::CoverageArgs),
+    /// Turn a plain robomimic dataset into MimicGen source demos by replaying its states.
+    Prepare(prepare::PrepareArgs),
     /// Measure generation against bare physics stepping and across worker counts.
     BenchSim(bench_sim::BenchSimArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
@@ -171,6 +177,14 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Demos(args) => {
             generate::demos(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Coverage(args) => {
+            coverage::run(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Prepare(args) => {
+            prepare::prepare(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::BenchSim(args) => {

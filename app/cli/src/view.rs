@@ -107,22 +107,6 @@ pub struct ViewArgs {
     stride: usize,
 }
 
-/// The task a dataset was recorded on, from `env_args`' `env_name` (`Stack_D0` -> stack, D0).
-fn task_of(env_args: Option<&str>) -> anyhow::Result<Arc<dyn mimicgen_sim::Task>> {
-    let env_name = env_args
-        .and_then(|a| serde_json::from_str::<serde_json::Value>(a).ok())
-        .and_then(|v| v.get("env_name").and_then(|n| n.as_str()).map(str::to_owned))
-        .context("the dataset has no env_args/env_name, so its task is unknown")?;
-    let (prefix, variant) = env_name.rsplit_once('_').unwrap_or((env_name.as_str(), "D0"));
-    let info = registry::TASKS.iter().find(|t| t.env_name == prefix).with_context(|| {
-        format!(
-            "env_name {env_name:?} is not a task this backend knows ({})",
-            registry::TASKS.iter().map(|t| t.env_name).collect::<Vec<_>>().join(", ")
-        )
-    })?;
-    registry::task(info.name, variant).map_err(anyhow::Error::msg)
-}
-
 /// Runs `mimicgen view`.
 ///
 /// # Errors
@@ -130,7 +114,7 @@ fn task_of(env_args: Option<&str>) -> anyhow::Result<Arc<dyn mimicgen_sim::Task>
 pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
     let dataset = RobomimicDataset::open(&args.file).with_context(|| format!("opening {}", args.file.display()))?;
     let sources = dataset.to_source_dataset(&SourceSelection::default()).with_context(|| format!("reading {}", args.file.display()))?;
-    let task = task_of(sources.env_args.as_deref())?;
+    let (task, _) = registry::task_from_env_args(sources.env_args.as_deref()).map_err(anyhow::Error::msg)?;
     let origin = format!("{} (model_file)", args.file.display());
     let scene = match sources.demos.first().and_then(|d| d.sim.model_xml.as_deref()) {
         Some(xml) => Scene::from_model_file(xml, &origin, task.as_ref())?,

@@ -68,6 +68,33 @@ pub fn task_from_env_name(env_name: &str) -> Result<(Arc<dyn Task>, String), Str
     Ok((task(info.name, variant)?, variant.to_owned()))
 }
 
+/// The task and variant a dataset's `env_args` JSON names through its `env_name`.
+///
+/// # Errors
+/// A message saying what is missing or unknown.
+pub fn task_from_env_args(env_args: Option<&str>) -> Result<(Arc<dyn Task>, String), String> {
+    let env_name = env_args
+        .and_then(|a| serde_json::from_str::<serde_json::Value>(a).ok())
+        .and_then(|v| v.get("env_name").and_then(|n| n.as_str()).map(str::to_owned))
+        .ok_or_else(|| "the dataset has no env_args with an env_name, so its task is unknown".to_owned())?;
+    task_from_env_name(&env_name)
+}
+
+/// `env_args` for data generated on `name` / `variant` from sources whose file had
+/// `source_env_args`: the sources' metadata (their controller settings) with `env_name` set to
+/// the generated variant, or [`env_args`] when the sources have none.
+#[must_use]
+pub fn env_args_for_variant(source_env_args: Option<&str>, name: &str, variant: &str) -> String {
+    let ours: serde_json::Value = serde_json::from_str(&env_args(name, variant)).unwrap_or_default();
+    match source_env_args.and_then(|a| serde_json::from_str::<serde_json::Value>(a).ok()) {
+        Some(mut theirs) if theirs.is_object() => {
+            theirs["env_name"] = ours["env_name"].clone();
+            theirs.to_string()
+        }
+        _ => ours.to_string(),
+    }
+}
+
 /// robosuite/robomimic's `env_args` JSON for `name` / `variant`, as the reference writes it
 /// (OSC_POSE, kp 150, 20 Hz, Panda), so robomimic can rebuild the environment.
 #[must_use]
@@ -124,5 +151,9 @@ mod tests {
         assert!(task_from_env_name("Lift_D0").is_err());
         let args: serde_json::Value = serde_json::from_str(&env_args("stack_three", "d1")).unwrap_or_default();
         assert_eq!(args["env_name"], "StackThree_D1");
+        let carried: serde_json::Value =
+            serde_json::from_str(&env_args_for_variant(Some(r#"{"env_name": "Stack_D0", "env_version": "9"}"#), "stack", "D1"))
+                .unwrap_or_default();
+        assert_eq!((carried["env_name"].as_str(), carried["env_version"].as_str()), (Some("Stack_D1"), Some("9")));
     }
 }
