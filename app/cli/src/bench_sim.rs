@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use mimicgen_engine::{Attempt, Environment as _, Generator, TaskSpec};
+use mimicgen_engine::{Attempt, Generator, TaskSpec};
 use mimicgen_sim::{Scene, SimEnv, registry};
 use serde_json::json;
 
@@ -57,11 +57,21 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
     let (two_s, _) = timed(2)?;
     let control_steps: usize = attempts.iter().map(|a| a.trajectory.len()).sum();
     let physics_steps = control_steps * scene.substeps;
+    // Record the controls each attempt applied at every physics step (one more run, untimed), then
+    // time bare mj_step replaying exactly those controls from the same initial states: the same
+    // physics, contacts included, with no controller, recording or engine around it.
     let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
-    let started = Instant::now();
+    let mut recorded = Vec::with_capacity(attempts.len());
     for a in &attempts {
-        env.reset_to_state(&a.initial_state).map_err(|e| anyhow::anyhow!("{e}"))?;
-        env.step_physics_bare(a.trajectory.len() * scene.substeps);
+        env.record_controls(true);
+        let again = generator.attempt(&mut env, a.index)?;
+        anyhow::ensure!(again.trajectory.states == a.trajectory.states, "attempt {} did not repeat exactly", a.index);
+        recorded.push((a.initial_state.clone(), env.take_controls()));
+    }
+    env.record_controls(false);
+    let started = Instant::now();
+    for (state, controls) in &recorded {
+        env.replay_controls_bare(state, controls).map_err(|e| anyhow::anyhow!("{e}"))?;
     }
     let bare_s = started.elapsed().as_secs_f64();
     #[allow(clippy::cast_precision_loss)]
@@ -83,6 +93,5 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
         "peak_rss_mib": peak_rss_mib(),
     });
     println!("{}", serde_json::to_string_pretty(&report)?);
-    let _ = env.state();
     Ok(())
 }

@@ -36,6 +36,7 @@ pub struct SimEnv {
     osc: Osc,
     gripper_command: [f64; 2],
     warnings_seen: i64,
+    control_log: Option<Vec<f64>>,
 }
 
 impl std::fmt::Debug for SimEnv {
@@ -51,7 +52,7 @@ impl SimEnv {
         let data = MjData::new(Arc::clone(&scene.model));
         let nv = usize::try_from(scene.model.ffi().nv).unwrap_or_default();
         let osc = Osc::new(OscConfig::default(), PANDA_INIT_QPOS.to_vec(), nv);
-        Self { scene, task, data, osc, gripper_command: [0.0; 2], warnings_seen: 0 }
+        Self { scene, task, data, osc, gripper_command: [0.0; 2], warnings_seen: 0, control_log: None }
     }
 
     /// The scene.
@@ -158,19 +159,30 @@ impl SimEnv {
         Ok(out)
     }
 
-    /// Steps the bare physics `n` times holding the arm with its current gravity/Coriolis torques,
-    /// with no controller or recording: the baseline benchmarks compare generation against.
-    pub fn step_physics_bare(&mut self, n: usize) {
-        self.data.forward();
-        let robot = &self.scene.robot;
-        let hold: Vec<f64> = robot.arm_dof.iter().map(|&d| self.data.qfrc_bias()[d]).collect();
-        let ctrl = self.data.ctrl_mut();
-        for ((a, [lo, hi]), tau) in robot.arm_actuators.iter().zip(hold) {
-            ctrl[*a] = tau.clamp(*lo, *hi);
-        }
-        for _ in 0..n {
+    /// Starts (or stops, with `false`) recording the controls applied at every physics step, so a
+    /// benchmark can replay exactly the same physics with no controller around it.
+    pub fn record_controls(&mut self, on: bool) {
+        self.control_log = on.then(Vec::new);
+    }
+
+    /// The controls recorded since [`SimEnv::record_controls`], `nu` values per physics step.
+    pub fn take_controls(&mut self) -> Vec<f64> {
+        self.control_log.as_mut().map(std::mem::take).unwrap_or_default()
+    }
+
+    /// Bare MuJoCo: restores `state` and runs `mj_step` once per recorded control vector, with no
+    /// controller, recording or checks. The baseline generation is measured against.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] on a state of the wrong length.
+    pub fn replay_controls_bare(&mut self, state: &[f64], controls: &[f64]) -> Result<(), EnvError> {
+        self.set_state(state)?;
+        let nu = self.data.ctrl().len().max(1);
+        for ctrl in controls.chunks(nu) {
+            self.data.ctrl_mut().copy_from_slice(ctrl);
             self.data.step();
         }
+        Ok(())
     }
 
     fn warning_count(&self) -> i64 {
@@ -198,6 +210,9 @@ impl SimEnv {
         }
         for ((a, [lo, hi]), command) in robot.finger_actuators.iter().zip(self.gripper_command) {
             ctrl[*a] = 0.5 * (hi + lo) + 0.5 * (hi - lo) * command;
+        }
+        if let Some(log) = self.control_log.as_mut() {
+            log.extend_from_slice(self.data.ctrl());
         }
         self.data.step2();
         let warnings = self.warning_count();
