@@ -35,8 +35,9 @@ pub struct RerunArgs {
     /// Which attempts get the 3D scene per step in the recording.
     #[arg(long, value_enum, default_value = "all")]
     rerun_scene: SceneArg,
-    /// Log the 3D scene at every N-th step only.
-    #[arg(long, value_name = "N", default_value_t = 1)]
+    /// Log the 3D scene at every N-th control step only (2 = 10 Hz keeps streaming well inside 10 %
+    /// of generation time; 1 logs every step).
+    #[arg(long, value_name = "N", default_value_t = 2)]
     rerun_stride: usize,
 }
 
