@@ -37,3 +37,55 @@ fn reference_config_drives_generation_and_generated_demos_are_valid_sources() {
     let stats = run(&second, &mut envs, |_, _| ControlFlow::Continue(())).unwrap();
     assert!(stats.successes >= 4, "{stats:?}");
 }
+
+/// The whole product path on the real backend: read bundled source demos, annotate subtask ends
+/// by hand, generate in MuJoCo, write a robomimic dataset, read it back as sources again.
+#[test]
+fn load_annotate_generate_write_reread_in_mujoco() {
+    use std::sync::Arc;
+
+    use mimicgen_io::{DatasetWriter, WriterOptions};
+    use mimicgen_sim::{Scene, SimEnv, registry};
+
+    let task = registry::task("stack", "D0").unwrap();
+    let mut spec = TaskSpec::from_toml_str(registry::default_spec_toml("stack").unwrap(), "stack.toml").unwrap();
+    spec.generation.num_trials = 3;
+    let mut sources = mimicgen_io::read_source_dataset(repo_path("core/sim/data/stack_D0_source.hdf5"), &spec.source).unwrap();
+    // Annotate by hand: end the grasp subtask where the signal says, so generation is unchanged,
+    // but through the manual-boundary path.
+    for demo in &mut sources.demos {
+        let end = mimicgen_engine::segment::first_rising_edge(&demo.subtask_term_signals["grasp"], 0).unwrap();
+        demo.manual_subtask_ends = Some(vec![end]);
+    }
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let generator = Generator::new(spec.clone(), sources).unwrap();
+    let mut envs = vec![SimEnv::new(Arc::clone(&scene), Arc::clone(&task))];
+    let mut obs_env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("generated.hdf5");
+    let mut writer =
+        DatasetWriter::create(&out, WriterOptions { env_args: Some(registry::env_args("stack", "D0")), ..WriterOptions::default() })
+            .unwrap();
+    let mut written = Vec::new();
+    let stats = run(&generator, &mut envs, |attempt, _| {
+        if attempt.success {
+            let obs = obs_env.observations_for_states(&attempt.trajectory.states).unwrap();
+            writer.append_attempt(&attempt, obs, None).unwrap();
+            written.push(attempt);
+        }
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    writer.finish().unwrap();
+    assert_eq!(stats.attempts, 3);
+    assert!(!written.is_empty(), "{stats:?}");
+    let reread = mimicgen_io::read_source_dataset(&out, &spec.source).unwrap();
+    assert_eq!(reread.demos.len(), written.len());
+    for (demo, attempt) in reread.demos.iter().zip(&written) {
+        assert_eq!(demo.sim.actions, attempt.trajectory.actions);
+        assert_eq!(demo.sim.states, attempt.trajectory.states);
+        assert_eq!(demo.eef_poses.len(), attempt.trajectory.len());
+    }
+    // The generated demos are valid sources themselves.
+    Segmentation::new(&reread.demos, &spec).unwrap();
+}
