@@ -187,20 +187,20 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let mut failures_kept = 0usize;
     let stats = mimicgen_engine::run(&generator, &mut envs, |attempt, stats| {
-        let outcome = if attempt.success {
-            obs_env
-                .observations_for_states(&attempt.trajectory.states)
-                .map_err(|e| EngineError::Env { attempt: attempt.index, source: e })
-                .and_then(|obs| writer.append_attempt(&attempt, obs, Some(scene_xml.clone())).map_err(|e| io_err(&e)))
-        } else if let Some(w) = failed_writer.as_mut().filter(|_| failures_kept < settings.max_num_failures) {
+        let target = if attempt.success {
+            Some(&mut writer)
+        } else if failures_kept < settings.max_num_failures {
             failures_kept += 1;
+            failed_writer.as_mut()
+        } else {
+            None
+        };
+        let outcome = target.map_or(Ok(()), |w| {
             obs_env
                 .observations_for_states(&attempt.trajectory.states)
                 .map_err(|e| EngineError::Env { attempt: attempt.index, source: e })
-                .and_then(|obs| w.append_attempt(&attempt, obs, Some(scene_xml.clone())).map_err(|e| io_err(&e)))
-        } else {
-            Ok(String::new())
-        };
+                .and_then(|obs| w.append_attempt(&attempt, obs, Some(scene_xml.clone())).map(drop).map_err(|e| io_err(&e)))
+        });
         if let Err(e) = outcome {
             return ControlFlow::Break(Err(e));
         }

@@ -143,6 +143,15 @@ pub fn place_boxes(
     Ok(poses)
 }
 
+/// The square region (side in m) of `variant` among `sides`, for tasks whose variants differ only
+/// in the size of the square every object is sampled in.
+fn square_variant(task: &str, variant: &str, sides: &[(&str, f64)]) -> Result<PlacementRegion, String> {
+    let wanted = variant.to_ascii_uppercase();
+    sides.iter().find(|(name, _)| *name == wanted).map(|(_, side)| PlacementRegion::square(*side)).ok_or_else(|| {
+        format!("{task} has variants {}, not {variant:?}", sides.iter().map(|(name, _)| *name).collect::<Vec<_>>().join(" and "))
+    })
+}
+
 /// robosuite's Stack: put the red cube (`cubeA`, 4 cm) on the green one (`cubeB`, 5 cm).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stack {
@@ -156,11 +165,7 @@ impl Stack {
     /// # Errors
     /// A message listing the variants when `variant` is not one of them.
     pub fn variant(variant: &str) -> Result<Self, String> {
-        match variant.to_ascii_uppercase().as_str() {
-            "D0" => Ok(Self { region: PlacementRegion::square(0.16) }),
-            "D1" => Ok(Self { region: PlacementRegion::square(0.40) }),
-            other => Err(format!("stack has variants D0 and D1, not {other:?}")),
-        }
+        Ok(Self { region: square_variant("stack", variant, &[("D0", 0.16), ("D1", 0.40)])? })
     }
 }
 
@@ -239,11 +244,7 @@ impl StackThree {
     /// # Errors
     /// A message listing the variants when `variant` is not one of them.
     pub fn variant(variant: &str) -> Result<Self, String> {
-        match variant.to_ascii_uppercase().as_str() {
-            "D0" => Ok(Self { region: PlacementRegion::square(0.20) }),
-            "D1" => Ok(Self { region: PlacementRegion::square(0.40) }),
-            other => Err(format!("stack_three has variants D0 and D1, not {other:?}")),
-        }
+        Ok(Self { region: square_variant("stack_three", variant, &[("D0", 0.20), ("D1", 0.40)])? })
     }
 }
 
