@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use mimicgen_engine::{EngineError, Environment as _, Generator, TaskSpec};
+use mimicgen_engine::{EngineError, Environment as _, Generator, Pose, TaskSpec};
 use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, WriterOptions};
 use mimicgen_sim::{Scene, SimEnv, Task, registry};
 use rand::SeedableRng as _;
@@ -90,11 +90,16 @@ fn scene_for(task: &dyn Task, model_xml: Option<&str>, origin: &Path) -> anyhow:
         }
         None => {
             let assets = mimicgen_sim::assets::robosuite_assets_dir()?;
-            let xml = mimicgen_sim::compose::compose_scene(&assets, &task.object_models());
+            let xml = mimicgen_sim::compose::compose_scene(&assets, &task.object_models(), task.table_top_z());
             let scene = Scene::compile(&xml, &format!("composed {} scene", task.name()), &task.objects(), 20.0)?;
             Ok((Arc::new(scene), xml))
         }
     }
+}
+
+/// Every object's pose at the first step of a recording.
+fn initial_object_poses(object_poses: &BTreeMap<String, Vec<Pose>>) -> BTreeMap<String, Pose> {
+    object_poses.iter().filter_map(|(name, poses)| poses.first().map(|p| (name.clone(), *p))).collect()
 }
 
 fn io_err(e: &mimicgen_io::IoError) -> EngineError {
@@ -196,10 +201,15 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
             None
         };
         let outcome = target.map_or(Ok(()), |w| {
+            let initial = initial_object_poses(&attempt.trajectory.object_poses);
+            obs_env.place_fixed_objects(&initial);
+            let xml = scene
+                .xml_with_fixed_objects(&scene_xml, &initial)
+                .map_err(|e| EngineError::Io { path: String::new(), reason: e.to_string() })?;
             obs_env
                 .observations_for_states(&attempt.trajectory.states)
                 .map_err(|e| EngineError::Env { attempt: attempt.index, source: e })
-                .and_then(|obs| w.append_attempt(&attempt, obs, Some(scene_xml.clone())).map(drop).map_err(|e| io_err(&e)))
+                .and_then(|obs| w.append_attempt(&attempt, obs, Some(xml)).map(drop).map_err(|e| io_err(&e)))
         });
         if let Err(e) = outcome {
             return ControlFlow::Break(Err(e));
@@ -296,7 +306,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
         bail!("no scripted demonstrator for {}", task.name());
     }
     let (scene, xml) = scene_for(task.as_ref(), None, Path::new(""))?;
-    let mut env = SimEnv::new(scene, Arc::clone(&task));
+    let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
     let options =
         WriterOptions { env_args: Some(registry::env_args(task.name(), &args.variant)), compress_obs: false, valid_fraction: None };
@@ -317,6 +327,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             continue;
         }
         let n = demo.len();
+        let initial = initial_object_poses(&demo.object_poses);
         let done: Vec<i64> = (0..n).map(|t| i64::from(t + 1 == n)).collect();
         #[allow(clippy::cast_precision_loss)]
         let data = DemoData {
@@ -334,7 +345,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             }),
             src_demo_inds: Vec::new(),
             src_demo_labels: Vec::new(),
-            model_xml: Some(xml.clone()),
+            model_xml: Some(scene.xml_with_fixed_objects(&xml, &initial)?),
         };
         let name = writer.append(&data)?;
         eprintln!("{name}: {n} steps");

@@ -19,8 +19,14 @@ pub struct PickPlaceScript {
     pub pick: String,
     /// Object to place it on.
     pub place_on: String,
-    /// Height of the grip point above the picked object's centre when grasping (m).
+    /// Where to grip, in the picked object's frame (m): its centre for a cube, the handle of a nut.
+    pub grasp_point_m: [f64; 3],
+    /// Height of the grip point above `grasp_point_m` when grasping (m).
     pub grasp_height_m: f64,
+    /// The grasp's yaw symmetry (rad): a quarter turn for a cube, a half turn for a handle.
+    pub grasp_symmetry_rad: f64,
+    /// Yaw of the gripper relative to the object at a symmetric grasp (rad).
+    pub grasp_yaw_offset_rad: f64,
     /// Height of the picked object's centre above the target object's centre at release (m).
     pub release_height_m: f64,
     /// Steps to hold while closing, drawn from this range.
@@ -33,9 +39,27 @@ pub struct PickPlaceScript {
     pub approach_height_m: (f64, f64),
     /// Range of the lift height above the grasp after closing (m).
     pub lift_height_m: (f64, f64),
+    /// Range of the hover height above the release pose before descending onto the target (m).
+    pub preplace_height_m: (f64, f64),
     /// Height of the retreat above the release pose at the end (m).
     pub retreat_height_m: f64,
+    /// Turn the carried object to the target's yaw modulo this angle before placing it (a square
+    /// nut onto a square peg: a quarter turn); `None` keeps the gripper's yaw.
+    pub place_yaw_symmetry_rad: Option<f64>,
+    /// Steps to wait, holding still, before looking at the scene (objects that reset in the
+    /// air, as robosuite's nuts do, land first).
+    pub settle_steps: usize,
 }
+
+/// One leg of a scripted motion: goal, speed (m per step), gripper command, steps to pause at the
+/// goal, and whether to wait there until the arm has arrived.
+type Leg = (Pose, f64, f64, usize, bool);
+/// How close the arm must be to a precise leg's goal before the script goes on (m).
+const SETTLE_TOLERANCE_M: f64 = 0.004;
+/// The largest turn of the wrist about the vertical the script makes to fit an object (rad).
+const MAX_PLACE_TURN_RAD: f64 = 2.4;
+/// The longest the script waits for that (steps).
+const SETTLE_MAX_STEPS: usize = 40;
 
 /// Target poses from `from` to `to` moving at most `speed_m` per step (and a matching share of the
 /// rotation), ending exactly at `to`.
@@ -70,35 +94,109 @@ impl PickPlaceScript {
         traj: &mut Trajectory,
         rng: &mut R,
     ) -> Result<(), EnvError> {
+        let hold = Waypoint { pose: env.eef_pose(), gripper: vec![-1.0], noise: 0.0 };
+        for _ in 0..self.settle_steps {
+            execute_step(env, &hold, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
+        }
         let objects = env.object_poses();
         let a = *objects.get(&self.pick).ok_or_else(|| env_err(&self.pick))?;
         let b = *objects.get(&self.place_on).ok_or_else(|| env_err(&self.place_on))?;
         let start = env.eef_pose();
-        // Grasp about one of the object's four symmetric yaws, the one closest to the gripper's.
-        let quarter = std::f64::consts::FRAC_PI_2;
-        let (cube_yaw, eef_yaw) = (yaw_of(&a), yaw_of(&start));
-        let grasp_yaw = cube_yaw + ((eef_yaw - cube_yaw) / quarter).round() * quarter + rng.random_range(-0.15..0.15);
+        // Grasp about one of the object's symmetric yaws, the one closest to the gripper's.
+        let symmetry = self.grasp_symmetry_rad;
+        let (object_yaw, eef_yaw) = (yaw_of(&a) + self.grasp_yaw_offset_rad, yaw_of(&start));
+        let grasp_yaw = object_yaw + ((eef_yaw - object_yaw) / symmetry).round() * symmetry + rng.random_range(-0.15..0.15);
         let grasp_rot = Rot::from_axis_angle(&Vec3::z_axis(), grasp_yaw - eef_yaw) * start.rotation;
         let g = self.grasp_offset_m;
-        let offset = Vec3::new(rng.random_range(-g..=g), rng.random_range(-g..=g), self.grasp_height_m + rng.random_range(-g..=g) * 0.5);
+        let grip_point = a.rotation * Vec3::from(self.grasp_point_m);
+        // The grip point relative to the object's centre, in the world frame; the carried object
+        // keeps it while the gripper does not turn.
+        let offset = grip_point
+            + Vec3::new(rng.random_range(-g..=g), rng.random_range(-g..=g), self.grasp_height_m + rng.random_range(-g..=g) * 0.5);
         let grasp = pose_from_parts(a.translation.vector + offset, grasp_rot);
         let above = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
-        let place_xy = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), self.release_height_m);
-        let place = pose_from_parts(b.translation.vector + place_xy + offset, grasp_rot);
         let (fast, slow) = (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008));
-        let plan: Vec<(Pose, f64, f64, usize)> = vec![
-            (above(&grasp, rng.random_range(self.approach_height_m.0..self.approach_height_m.1)), fast, -1.0, rng.random_range(0..4)),
-            (grasp, slow, -1.0, rng.random_range(2..5)),
-            (grasp, slow, 1.0, rng.random_range(self.close_steps.0..=self.close_steps.1)),
-            (above(&grasp, rng.random_range(self.lift_height_m.0..self.lift_height_m.1)), fast, 1.0, 0),
-            (above(&place, rng.random_range(0.03..0.08)), fast, 1.0, rng.random_range(0..3)),
-            (place, slow, 1.0, rng.random_range(1..4)),
-            (place, slow, -1.0, rng.random_range(self.open_steps.0..=self.open_steps.1)),
-            (above(&place, self.retreat_height_m), fast, -1.0, 0),
+        let pick: Vec<Leg> = vec![
+            (
+                above(&grasp, rng.random_range(self.approach_height_m.0..self.approach_height_m.1)),
+                fast,
+                -1.0,
+                rng.random_range(0..4),
+                false,
+            ),
+            (grasp, slow, -1.0, rng.random_range(2..5), true),
+            (grasp, slow, 1.0, rng.random_range(self.close_steps.0..=self.close_steps.1), false),
+            (above(&grasp, rng.random_range(self.lift_height_m.0..self.lift_height_m.1)), fast, 1.0, 0, false),
         ];
         let mut current = start;
-        for (goal, speed, gripper, pause) in plan {
-            let mut targets = moves(&current, &goal, speed);
+        self.follow(env, traj, rng, &mut current, pick)?;
+        // Like an operator watching the object in the hand: aim the place from where the object
+        // actually sits in the gripper (closing the fingers may have pushed it), turning it to
+        // the target's yaw when the fit needs it; aim again once above the target.
+        let place_xy = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), self.release_height_m);
+        let home = start.translation.vector;
+        let place = self
+            .aim(env, &b, place_xy, &grasp_rot, &home)
+            .unwrap_or_else(|| pose_from_parts(b.translation.vector + place_xy + offset, grasp_rot));
+        let (hover, pause) = (rng.random_range(self.preplace_height_m.0..self.preplace_height_m.1), rng.random_range(0..3));
+        self.follow(env, traj, rng, &mut current, vec![(above(&place, hover), fast, 1.0, pause, true)])?;
+        let place = self.aim(env, &b, place_xy, &place.rotation, &home).unwrap_or(place);
+        current = above(&place, hover);
+        let put: Vec<Leg> = vec![
+            (place, slow, 1.0, rng.random_range(1..4), true),
+            (place, slow, -1.0, rng.random_range(self.open_steps.0..=self.open_steps.1), false),
+            // Retreat, and hold a moment before the recording stops, as an operator would.
+            (above(&place, self.retreat_height_m), fast, -1.0, rng.random_range(3..6), false),
+        ];
+        self.follow(env, traj, rng, &mut current, put)?;
+        Ok(())
+    }
+}
+
+impl PickPlaceScript {
+    /// The gripper pose that puts the held object `place_offset` from `target`'s centre, given
+    /// where it sits in the gripper now; `commanded` is the gripper orientation being commanded.
+    /// `None` if the scene has no such object.
+    fn aim<E: Environment + ?Sized>(&self, env: &E, target: &Pose, place_offset: Vec3, commanded: &Rot, home: &Vec3) -> Option<Pose> {
+        let objects = env.object_poses();
+        let now = objects.get(&self.pick)?;
+        let held = env.eef_pose().translation.vector - now.translation.vector;
+        let place = |turn: f64| {
+            let turn = Rot::from_axis_angle(&Vec3::z_axis(), turn);
+            pose_from_parts(target.translation.vector + place_offset + turn * held, turn * commanded)
+        };
+        let Some(sym) = self.place_yaw_symmetry_rad else { return Some(place(0.0)) };
+        // Of the turns that fit, the one that keeps the hand nearest where it started (the
+        // robot's side of the target), within what the wrist comfortably turns.
+        let error = yaw_of(target) - yaw_of(now);
+        let base = error - (error / sym).round() * sym;
+        let mut best: Option<(f64, Pose)> = None;
+        for k in -4_i32..=4 {
+            let turn = base + f64::from(k) * sym;
+            if turn.abs() > MAX_PLACE_TURN_RAD {
+                continue;
+            }
+            let pose = place(turn);
+            let reach = (pose.translation.vector - home).xy().norm();
+            if best.as_ref().is_none_or(|(r, _)| reach < *r) {
+                best = Some((reach, pose));
+            }
+        }
+        best.map(|(_, pose)| pose)
+    }
+
+    /// Drives the controller target through `legs`
+    /// from `current`, with the small jitter of a hand, recording every step into `traj`.
+    fn follow<E: Environment + ?Sized, R: Rng + ?Sized>(
+        &self,
+        env: &mut E,
+        traj: &mut Trajectory,
+        rng: &mut R,
+        current: &mut Pose,
+        legs: Vec<Leg>,
+    ) -> Result<(), EnvError> {
+        for (goal, speed, gripper, pause, precise) in legs {
+            let mut targets = moves(current, &goal, speed);
             targets.extend(std::iter::repeat_n(goal, pause));
             for target in targets {
                 let jitter = Vec3::new(rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4));
@@ -109,7 +207,21 @@ impl PickPlaceScript {
                 };
                 execute_step(env, &waypoint, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
             }
-            current = goal;
+            // Before anything that needs precision, wait (a little) until the arm is there and
+            // has stopped.
+            let mut last = Vec3::repeat(f64::INFINITY);
+            for _ in 0..if precise { SETTLE_MAX_STEPS } else { 0 } {
+                let now = env.eef_pose().translation.vector;
+                let (off, moved) = ((now - goal.translation.vector).norm(), (now - last).norm());
+                // There and still, or stopped short (touching something): go on.
+                if (off < SETTLE_TOLERANCE_M && moved < SETTLE_TOLERANCE_M / 4.0) || moved < SETTLE_TOLERANCE_M / 20.0 {
+                    break;
+                }
+                last = now;
+                let waypoint = Waypoint { pose: goal, gripper: vec![gripper], noise: 0.0 };
+                execute_step(env, &waypoint, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
+            }
+            *current = goal;
         }
         Ok(())
     }

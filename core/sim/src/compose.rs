@@ -22,14 +22,43 @@ pub enum ObjectModel {
         /// Texture for the visual geom: `(texture name, file under the assets directory)`.
         texture: (String, String),
     },
+    /// robosuite's `SquareNutObject` (`objects/square-nut.xml`): four bars round a square hole
+    /// and a handle along +x, body `<name>_main` with a free joint, geoms in `<name>_object`.
+    SquareNut {
+        /// Object name (`SquareNut`).
+        name: String,
+    },
+    /// A box fixed in the world that the task may move between episodes, as robosuite's pegs:
+    /// a mocap body (it never moves during an episode; resets set its pose).
+    FixedBox {
+        /// Body name (`peg1`).
+        body: String,
+        /// Half extents (m).
+        half_size: [f64; 3],
+        /// Default position (m), the one a scene has before any reset.
+        pos: [f64; 3],
+    },
 }
+
+/// robosuite's square nut: `(position, half extents)` of its five box geoms, in the nut frame.
+const SQUARE_NUT_GEOMS: [([f64; 3], [f64; 3]); 5] = [
+    ([-0.03325, 0.0, 0.0], [0.0105, 0.04375, 0.01]),
+    ([0.0, 0.03325, 0.0], [0.03125, 0.0105, 0.01]),
+    ([0.0, -0.03325, 0.0], [0.03125, 0.0105, 0.01]),
+    ([0.03325, 0.0, 0.0], [0.0105, 0.04375, 0.01]),
+    ([0.054, 0.0, 0.0], [0.02525, 0.015875, 0.01]),
+];
+
+/// Where robosuite's square nut handle is, in the nut frame (m): its `handle_site`.
+pub const SQUARE_NUT_HANDLE: [f64; 3] = [0.054, 0.0, 0.0];
 
 impl ObjectModel {
     /// The body whose frame is the object's pose.
     #[must_use]
     pub fn body_name(&self) -> String {
         match self {
-            Self::Box { name, .. } => format!("{name}_main"),
+            Self::Box { name, .. } | Self::SquareNut { name } => format!("{name}_main"),
+            Self::FixedBox { body, .. } => body.clone(),
         }
     }
 
@@ -39,6 +68,8 @@ impl ObjectModel {
                 let _ = writeln!(out, r#"    <texture type="cube" name="{name}_{tex}" file="{{ASSETS}}/{file}"/>"#);
                 let _ = writeln!(out, r#"    <material name="{name}_{tex}_mat" texture="{name}_{tex}" specular="0.4" shininess="0.1"/>"#);
             }
+            Self::SquareNut { name } => write_brass(out, name),
+            Self::FixedBox { body, .. } => write_brass(out, body),
         }
     }
 
@@ -55,20 +86,172 @@ impl ObjectModel {
                 let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 -1"/>"#);
                 let _ = writeln!(out, "    </body>");
             }
+            Self::SquareNut { name } => {
+                let _ = writeln!(out, r#"    <body name="{name}_main" pos="0 0 0" gravcomp="0">"#);
+                let _ = writeln!(out, r#"      <joint name="{name}_joint0" type="free" damping="0.0005"/>"#);
+                let _ = writeln!(out, r#"      <body name="{name}_object" pos="0 0 0" gravcomp="0">"#);
+                for (i, ([px, py, pz], [sx, sy, sz])) in SQUARE_NUT_GEOMS.iter().enumerate() {
+                    let (pos, size) = (format!("{px} {py} {pz}"), format!("{sx} {sy} {sz}"));
+                    let _ = writeln!(
+                        out,
+                        r#"        <geom name="{name}_g{i}" pos="{pos}" size="{size}" type="box" solimp="0.998 0.998 0.001" solref="0.02 1" density="100" friction="0.95 0.3 0.1" condim="4" group="0" rgba="0.5 0 0 1"/>"#
+                    );
+                    let _ = writeln!(
+                        out,
+                        r#"        <geom name="{name}_g{i}_vis" pos="{pos}" size="{size}" type="box" contype="0" conaffinity="0" group="1" mass="0" material="{name}_bmetal"/>"#
+                    );
+                }
+                let [hx, hy, hz] = SQUARE_NUT_HANDLE;
+                let _ = writeln!(out, r#"        <site name="{name}_handle_site" pos="{hx} {hy} {hz}" size="0.005" rgba="1 0 0 -1"/>"#);
+                let _ = writeln!(out, r#"        <site name="{name}_center_site" pos="0 0 0" size="0.003" rgba="1 0 0 -1"/>"#);
+                let _ = writeln!(out, "      </body>");
+                let _ = writeln!(out, r#"      <site name="{name}_bottom_site" pos="0 0 -0.05" size="0.005" rgba="0 0 0 0"/>"#);
+                let _ = writeln!(out, r#"      <site name="{name}_top_site" pos="0 0 0.01" size="0.005" rgba="0 0 0 0"/>"#);
+                let _ =
+                    writeln!(out, r#"      <site name="{name}_horizontal_radius_site" pos="0.11 0.06 0" size="0.005" rgba="0 0 0 0"/>"#);
+                let _ = writeln!(out, "    </body>");
+            }
+            Self::FixedBox { body, half_size: [x, y, z], pos: [px, py, pz] } => {
+                let _ = writeln!(out, r#"    <body name="{body}" pos="{px} {py} {pz}" mocap="true">"#);
+                let _ = writeln!(
+                    out,
+                    r#"      <geom name="{body}_g0" size="{x} {y} {z}" type="box" group="0" friction="1 0.005 0.0001" rgba="0.5 0 0 1"/>"#
+                );
+                let _ = writeln!(
+                    out,
+                    r#"      <geom name="{body}_vis" size="{x} {y} {z}" type="box" contype="0" conaffinity="0" group="1" material="{body}_bmetal"/>"#
+                );
+                let _ = writeln!(out, "    </body>");
+            }
         }
     }
 }
 
-/// The base scene with `objects` added and asset paths pointing into `assets_dir`.
+/// robosuite's brushed-brass material (nuts and pegs), named after `owner`.
+fn write_brass(out: &mut String, owner: &str) {
+    let _ = writeln!(out, r#"    <texture type="cube" name="{owner}_brass" file="{{ASSETS}}/textures/brass-ambra.png"/>"#);
+    let _ = writeln!(
+        out,
+        r#"    <material name="{owner}_bmetal" texture="{owner}_brass" reflectance="1.0" shininess="1.0" specular="1.0" texrepeat="1 1" texuniform="true"/>"#
+    );
+}
+
+/// The table height of the base scene (m): robosuite's `table_offset` z for most tasks.
+pub const BASE_TABLE_TOP_Z: f64 = 0.8;
+
+/// The base scene's table with its top at `top_z` (robosuite's `table_offset` z; 0.82 for nut
+/// assembly): the table body and its legs, as robosuite's `TableArena` sizes them.
+fn with_table_top(xml: &str, top_z: f64) -> String {
+    if (top_z - BASE_TABLE_TOP_Z).abs() < 1e-12 {
+        return xml.to_owned();
+    }
+    // Rounded to the micrometre so the XML reads 0.795, not 0.7949999999999999.
+    let body_z = ((top_z - 0.025) * 1e6).round() / 1e6;
+    let leg_half = (body_z / 2.0 * 1e7).round() / 1e7;
+    xml.replace(r#"<body name="table" pos="0 0 0.775""#, &format!(r#"<body name="table" pos="0 0 {body_z}""#))
+        .replace(r#"size="0.025 0.3875""#, &format!(r#"size="0.025 {leg_half}""#))
+        .replace(r#" -0.3875""#, &format!(r#" -{leg_half}""#))
+}
+
+/// The base scene with its table top at `table_top_z`, `objects` added and asset paths pointing
+/// into `assets_dir`.
 #[must_use]
-pub fn compose_scene(assets_dir: &Path, objects: &[ObjectModel]) -> String {
+pub fn compose_scene(assets_dir: &Path, objects: &[ObjectModel], table_top_z: f64) -> String {
     let (mut assets, mut bodies) = (String::new(), String::new());
     for object in objects {
         object.write_assets(&mut assets);
         object.write_body(&mut bodies);
     }
-    PANDA_TABLE_XML
+    with_table_top(PANDA_TABLE_XML, table_top_z)
         .replace("    <!-- OBJECT ASSETS -->\n", &assets)
         .replace("    <!-- OBJECT BODIES -->\n", &bodies)
         .replace("{ASSETS}", assets_dir.display().to_string().trim_end_matches('/'))
+}
+
+/// One start tag's attributes, parsed from `<tag a="1" b="2">`.
+fn parse_attrs(tag: &str) -> Option<Vec<(String, String)>> {
+    let mut attrs = Vec::new();
+    let mut rest = tag.trim_start_matches('<').split_once(char::is_whitespace).map_or("", |(_, r)| r);
+    loop {
+        rest = rest.trim_start();
+        if rest.is_empty() || rest.starts_with('>') || rest.starts_with("/>") {
+            return Some(attrs);
+        }
+        let (key, after) = rest.split_once('=')?;
+        let after = after.trim_start().strip_prefix('"')?;
+        let (value, after) = after.split_once('"')?;
+        attrs.push((key.trim().to_owned(), value.to_owned()));
+        rest = after;
+    }
+}
+
+/// `xml` with the start tag of body `name` given `set` attributes (replacing any of the same
+/// key) and without the `remove` ones. `None` if the XML has no such body.
+#[must_use]
+pub fn edit_body(xml: &str, name: &str, set: &[(&str, String)], remove: &[&str]) -> Option<String> {
+    let mut from = 0;
+    while let Some(i) = xml[from..].find("<body").map(|i| i + from) {
+        let end = xml[i..].find('>').map(|e| i + e + 1)?;
+        let tag = &xml[i..end];
+        let attrs = parse_attrs(tag)?;
+        if attrs.iter().any(|(k, v)| k == "name" && v == name) {
+            let mut kept: Vec<(String, String)> =
+                attrs.into_iter().filter(|(k, _)| !remove.contains(&k.as_str()) && !set.iter().any(|(s, _)| s == k)).collect();
+            kept.extend(set.iter().map(|(k, v)| ((*k).to_owned(), v.clone())));
+            let body: String = kept.iter().map(|(k, v)| format!(" {k}=\"{v}\"")).collect();
+            let close = if tag.ends_with("/>") { "/>" } else { ">" };
+            return Some(format!("{}<body{body}{close}{}", &xml[..i], &xml[end..]));
+        }
+        from = end;
+    }
+    None
+}
+
+/// `xml` with body `name` at `world_from_body` (position and `wxyz` quaternion; a body in the
+/// world frame, as robosuite's pegs are). `None` if the XML has no such body.
+#[must_use]
+pub fn place_body(xml: &str, name: &str, world_from_body: &mimicgen_engine::pose::Pose) -> Option<String> {
+    let t = world_from_body.translation.vector;
+    let [w, x, y, z] = mimicgen_engine::pose::quat_to_wxyz(&world_from_body.rotation);
+    edit_body(
+        xml,
+        name,
+        &[("pos", format!("{} {} {}", t.x, t.y, t.z)), ("quat", format!("{w} {x} {y} {z}"))],
+        &["euler", "axisangle", "xyaxes", "zaxis"],
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
+
+    #[test]
+    fn bodies_are_edited_by_name_only() {
+        let xml =
+            r#"<worldbody><body name="peg10" pos="1 1 1"/><body pos="0.23 0.1 0.85" name="peg1" euler="0 0 1"><geom/></body></worldbody>"#;
+        let pose = pose_from_parts(Vec3::new(0.1, -0.2, 0.85), Rot::from_axis_angle(&Vec3::z_axis(), std::f64::consts::PI));
+        let out = place_body(xml, "peg1", &pose).unwrap_or_default();
+        assert!(out.contains(r#"<body name="peg10" pos="1 1 1"/>"#), "{out}");
+        let start = out.find(r#"<body name="peg1""#).unwrap_or_default();
+        let attrs = parse_attrs(&out[start..]).unwrap_or_default();
+        assert_eq!(attrs[1], ("pos".to_owned(), "0.1 -0.2 0.85".to_owned()));
+        let quat: Vec<f64> = attrs[2].1.split(' ').filter_map(|v| v.parse().ok()).collect();
+        assert!(quat[0].abs() < 1e-12 && (quat[3].abs() - 1.0).abs() < 1e-12, "{quat:?}");
+        assert!(out.contains("><geom/></body>"), "{out}");
+        assert!(!out.contains("euler"), "{out}");
+        let mocap = edit_body(&out, "peg1", &[("mocap", "true".to_owned())], &[]).unwrap_or_default();
+        assert!(mocap.contains(r#" mocap="true"><geom/>"#), "{mocap}");
+        assert!(edit_body(xml, "peg2", &[], &[]).is_none());
+        assert!(edit_body("<body name=\"peg1\" pos=\"1 2>", "peg1", &[], &[]).is_none());
+    }
+
+    #[test]
+    fn the_table_moves_with_its_legs() {
+        let xml = with_table_top(PANDA_TABLE_XML, 0.82);
+        assert!(xml.contains(r#"<body name="table" pos="0 0 0.795""#));
+        assert_eq!(xml.matches("0.3975").count(), 8, "four legs, each a size and a position");
+        assert!(!xml.contains("0.3875"));
+        assert_eq!(with_table_top(PANDA_TABLE_XML, BASE_TABLE_TOP_Z), PANDA_TABLE_XML);
+    }
 }

@@ -102,17 +102,34 @@ impl SimEnv {
         pose_from_xpos_xmat(&self.data.xpos()[body], &mat)
     }
 
-    /// Places object `i` (with a free joint) at `world_from_object`, at rest.
+    /// Places object `i` at `world_from_object`: at rest for an object with a free joint; a fixed
+    /// (mocap) object moves there and stays. Call `forward` (or step) before reading poses.
     pub fn place_object(&mut self, i: usize, world_from_object: &Pose) {
         let object = &self.scene.objects[i];
+        let t = world_from_object.translation.vector;
+        let w = quat_to_wxyz(&world_from_object.rotation);
         if let (Some(q), Some(v)) = (object.qpos_adr, object.dof_adr) {
-            let t = world_from_object.translation.vector;
-            let w = quat_to_wxyz(&world_from_object.rotation);
             let qpos = self.data.qpos_mut();
             qpos[q..q + 3].copy_from_slice(t.as_slice());
             qpos[q + 3..q + 7].copy_from_slice(&w);
             self.data.qvel_mut()[v..v + 6].fill(0.0);
+        } else if let Some(m) = object.mocap {
+            self.data.mocap_pos_mut()[m] = [t.x, t.y, t.z];
+            self.data.mocap_quat_mut()[m] = w;
         }
+    }
+
+    /// Puts the fixed (mocap) objects where `world_from_objects` (by object name) has them: the
+    /// part of a scene robosuite's flattened state does not hold. Objects not named stay.
+    pub fn place_fixed_objects(&mut self, world_from_objects: &BTreeMap<String, Pose>) {
+        for i in 0..self.scene.objects.len() {
+            if let Some(pose) = world_from_objects.get(&self.scene.objects[i].name)
+                && self.scene.objects[i].mocap.is_some()
+            {
+                self.place_object(i, pose);
+            }
+        }
+        self.data.forward();
     }
 
     /// robosuite's low-dim observations in the current state, keyed as robomimic expects

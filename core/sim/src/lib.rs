@@ -17,7 +17,7 @@ pub mod task;
 
 pub use env::SimEnv;
 pub use scene::Scene;
-pub use task::{Stack, StackThree, Task};
+pub use task::{Square, Stack, StackThree, Task};
 
 /// Everything that can go wrong building or running a simulation.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use crate::task::{Stack, StackThree, Task};
+use crate::task::{Square, Stack, StackThree, Task};
 
 /// A task the backend can build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -31,6 +31,12 @@ pub const TASKS: &[TaskInfo] = &[
         description: "red onto green, then blue onto red; D0 cubes in a 0.20 m square, D1 in 0.40 m; random yaw",
         env_name: "StackThree",
     },
+    TaskInfo {
+        name: "square",
+        variants: &["D0", "D1", "D2"],
+        description: "square nut onto its peg; D0 peg fixed, nut in 0.005 x 0.115 m; D1 peg in 0.4 x 0.4 m, nut in 0.23 x 0.51 m; D2 both in 0.5 x 0.5 m, peg yaw too",
+        env_name: "Square",
+    },
 ];
 
 /// The bundled task spec (our TOML, the paper's settings) for `name`.
@@ -39,6 +45,7 @@ pub fn default_spec_toml(name: &str) -> Option<&'static str> {
     match name {
         "stack" => Some(include_str!("../tasks/stack.toml")),
         "stack_three" => Some(include_str!("../tasks/stack_three.toml")),
+        "square" => Some(include_str!("../tasks/square.toml")),
         _ => None,
     }
 }
@@ -51,6 +58,7 @@ pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
     match name.to_ascii_lowercase().as_str() {
         "stack" => Ok(Arc::new(Stack::variant(variant)?)),
         "stack_three" => Ok(Arc::new(StackThree::variant(variant)?)),
+        "square" => Ok(Arc::new(Square::variant(variant)?)),
         other => Err(format!("unknown task {other:?}; known tasks: {}", TASKS.iter().map(|t| t.name).collect::<Vec<_>>().join(", "))),
     }
 }

@@ -13,13 +13,17 @@ use crate::SimError;
 pub struct SceneObject {
     /// Name the task uses (`cubeA`).
     pub name: String,
+    /// Name of its body in the MJCF (`cubeA_main`).
+    pub body_name: String,
     /// Body whose frame is the object's pose (`cubeA_main`).
     pub body: usize,
     /// Address of its free joint in `qpos` (7 values: xyz, wxyz), if it has one.
     pub qpos_adr: Option<usize>,
     /// Address of its free joint in `qvel` (6 values).
     pub dof_adr: Option<usize>,
-    /// Its collision geoms.
+    /// Its mocap index, for an object fixed in the world that resets may move (a peg).
+    pub mocap: Option<usize>,
+    /// Its collision geoms (its body's and its descendants').
     pub geoms: Vec<usize>,
 }
 
@@ -76,8 +80,33 @@ impl Scene {
     /// # Errors
     /// [`SimError::Compile`] if MuJoCo rejects the XML, [`SimError::MissingName`] for a missing
     /// joint, actuator, site, body or geom.
+    ///
+    /// An object body without joints that is not a mocap body yet (robosuite's pegs) is made one,
+    /// so that resets can move it while it stays fixed during an episode.
     pub fn compile(xml: &str, origin: &str, objects: &[(&str, &str)], control_freq_hz: f64) -> Result<Self, SimError> {
         let model = MjModel::from_xml_string(xml).map_err(|e| SimError::Compile { file: origin.to_owned(), reason: format!("{e:?}") })?;
+        let mut to_mocap = Vec::new();
+        for (_, body_name) in objects {
+            let body = id(&model, MjtObjBase::mjOBJ_BODY, body_name, origin)?;
+            if model.body_jntnum()[body] == 0 && model.body_mocapid()[body] < 0 {
+                if model.body_parentid()[body] != 0 {
+                    return Err(SimError::MissingName {
+                        file: origin.to_owned(),
+                        kind: "joint (or a parent that is the world) of body".to_owned(),
+                        name: (*body_name).to_owned(),
+                    });
+                }
+                to_mocap.push(*body_name);
+            }
+        }
+        if !to_mocap.is_empty() {
+            let mut edited = xml.to_owned();
+            for body in to_mocap {
+                edited = crate::compose::edit_body(&edited, body, &[("mocap", "true".to_owned())], &[])
+                    .ok_or_else(|| SimError::MissingName { file: origin.to_owned(), kind: "body tag".to_owned(), name: body.to_owned() })?;
+            }
+            return Self::compile(&edited, origin, objects, control_freq_hz);
+        }
         let joint = |name: &str| id(&model, MjtObjBase::mjOBJ_JOINT, name, origin);
         let actuator = |name: &str| -> Result<(usize, [f64; 2]), SimError> {
             let a = id(&model, MjtObjBase::mjOBJ_ACTUATOR, name, origin)?;
@@ -115,8 +144,17 @@ impl Scene {
             let body_i32 = i32::try_from(body).unwrap_or(-1);
             let free =
                 (0..model.jnt_bodyid().len()).find(|&j| model.jnt_bodyid()[j] == body_i32 && model.jnt_type()[j] == MjtJoint::mjJNT_FREE);
+            let in_subtree = |mut b: i32| loop {
+                if b == body_i32 {
+                    break true;
+                }
+                if b <= 0 {
+                    break false;
+                }
+                b = model.body_parentid()[usize::try_from(b).unwrap_or_default()];
+            };
             let geoms: Vec<usize> = (0..model.geom_bodyid().len())
-                .filter(|&g| model.geom_bodyid()[g] == body_i32 && (model.geom_contype()[g] != 0 || model.geom_conaffinity()[g] != 0))
+                .filter(|&g| in_subtree(model.geom_bodyid()[g]) && (model.geom_contype()[g] != 0 || model.geom_conaffinity()[g] != 0))
                 .collect();
             if geoms.is_empty() {
                 return Err(SimError::MissingName {
@@ -127,9 +165,11 @@ impl Scene {
             }
             scene_objects.push(SceneObject {
                 name: (*name).to_owned(),
+                body_name: (*body_name).to_owned(),
                 body,
                 qpos_adr: free.map(|j| usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default()),
                 dof_adr: free.map(|j| usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default()),
+                mocap: usize::try_from(model.body_mocapid()[body]).ok(),
                 geoms,
             });
         }
@@ -155,8 +195,31 @@ impl Scene {
     /// [`SimError::Assets`] without local assets, else as [`Scene::compile`].
     pub fn for_task(task: &dyn crate::Task) -> Result<Self, SimError> {
         let assets = crate::assets::robosuite_assets_dir()?;
-        let xml = crate::compose::compose_scene(&assets, &task.object_models());
+        let xml = crate::compose::compose_scene(&assets, &task.object_models(), task.table_top_z());
         Self::compile(&xml, &format!("composed {} scene", task.name()), &task.objects(), 20.0)
+    }
+
+    /// `xml` (this scene's MJCF) with the fixed objects (pegs) where `world_from_objects` has them:
+    /// the `model_file` of an episode, since robosuite's flattened state does not hold them.
+    ///
+    /// # Errors
+    /// [`SimError::MissingName`] if the XML lacks a fixed object's body.
+    pub fn xml_with_fixed_objects(
+        &self,
+        xml: &str,
+        world_from_objects: &std::collections::BTreeMap<String, Pose>,
+    ) -> Result<String, SimError> {
+        let mut out = xml.to_owned();
+        for object in self.objects.iter().filter(|o| o.mocap.is_some()) {
+            if let Some(pose) = world_from_objects.get(&object.name) {
+                out = crate::compose::place_body(&out, &object.body_name, pose).ok_or_else(|| SimError::MissingName {
+                    file: self.origin.clone(),
+                    kind: "body tag".to_owned(),
+                    name: object.body_name.clone(),
+                })?;
+            }
+        }
+        Ok(out)
     }
 
     /// Length of robosuite's flattened state: `[time, qpos, qvel]`.

@@ -9,7 +9,7 @@ use mimicgen_engine::demonstrator::PickPlaceScript;
 use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
 use rand::{Rng, RngCore};
 
-use crate::compose::ObjectModel;
+use crate::compose::{BASE_TABLE_TOP_Z, ObjectModel, SQUARE_NUT_HANDLE};
 use crate::env::SimEnv;
 
 /// What a task adds to a robosuite scene.
@@ -35,6 +35,10 @@ pub trait Task: Send + Sync {
     fn scripts(&self) -> Vec<PickPlaceScript>;
     /// The reset distribution as coverage dimensions: each object's x, y and yaw over its range.
     fn coverage_dimensions(&self) -> Vec<Dimension>;
+    /// Height of the table top (m), robosuite's `table_offset` z.
+    fn table_top_z(&self) -> f64 {
+        TABLE_TOP_Z
+    }
 }
 
 /// Coverage dimensions of objects sampled in `regions` around the table centre (world x, y; yaw
@@ -85,8 +89,8 @@ fn pose_and_gripper_obs(env: &SimEnv) -> Vec<f64> {
     obs
 }
 
-/// Height of robosuite's table top (m): `table_offset` z.
-pub const TABLE_TOP_Z: f64 = 0.8;
+/// Height of robosuite's table top (m): `table_offset` z (Stack, Stack Three).
+pub const TABLE_TOP_Z: f64 = BASE_TABLE_TOP_Z;
 
 /// A region of the table to place an object in, robosuite's `UniformRandomSampler` style.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -177,14 +181,20 @@ impl Stack {
         PickPlaceScript {
             pick: "cubeA".to_owned(),
             place_on: "cubeB".to_owned(),
+            grasp_point_m: [0.0; 3],
             grasp_height_m: -0.002,
+            grasp_symmetry_rad: std::f64::consts::FRAC_PI_2,
+            grasp_yaw_offset_rad: 0.0,
             release_height_m: 0.02 + 0.025 + 0.006,
             close_steps: (6, 9),
             open_steps: (3, 5),
             grasp_offset_m: 0.003,
             approach_height_m: (0.06, 0.12),
             lift_height_m: (0.12, 0.18),
+            preplace_height_m: (0.03, 0.08),
             retreat_height_m: 0.08,
+            place_yaw_symmetry_rad: None,
+            settle_steps: 0,
         }
     }
 }
@@ -308,5 +318,165 @@ impl Task for StackThree {
 
     fn coverage_dimensions(&self) -> Vec<Dimension> {
         region_dimensions(&["cubeA", "cubeB", "cubeC"], &[self.region; 3])
+    }
+}
+
+/// robosuite's nut-assembly table height (`table_offset` z).
+const NUT_TABLE_TOP_Z: f64 = 0.82;
+/// robosuite's square peg (`peg1` of `arenas/pegs_arena.xml`): half extents and default position.
+const PEG_HALF_SIZE: [f64; 3] = [0.016, 0.016, 0.1];
+const PEG_DEFAULT_POS: [f64; 3] = [0.23, 0.1, 0.85];
+/// The square nut's `horizontal_radius` (its `horizontal_radius_site`, 0.11 x 0.06 m).
+const NUT_HORIZONTAL_RADIUS: f64 = 0.125_299_640_861_416_6;
+
+/// MimicGen's Square (robosuite's `NutAssemblySquare`): put the square nut (`square_nut`) onto the
+/// square peg (`square_peg`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Square {
+    /// Where the nut is sampled (x, y around the table centre; any yaw).
+    pub nut: PlacementRegion,
+    /// Where the peg is sampled; `None` keeps it at robosuite's default (0.23, 0.1).
+    pub peg: Option<PlacementRegion>,
+}
+
+impl Square {
+    /// D0: peg fixed, nut in robosuite's 0.005 x 0.115 m region; D1: peg in a 0.4 x 0.4 m region
+    /// (fixed yaw), nut in 0.23 x 0.51 m; D2: both in 0.5 x 0.5 m, peg yaw in [0, 90 deg].
+    ///
+    /// # Errors
+    /// A message listing the variants when `variant` is not one of them.
+    pub fn variant(variant: &str) -> Result<Self, String> {
+        let any = (0.0, TAU);
+        match variant.to_ascii_uppercase().as_str() {
+            "D0" => Ok(Self { nut: PlacementRegion { x: (-0.115, -0.11), y: (0.11, 0.225), yaw: any }, peg: None }),
+            "D1" => Ok(Self {
+                nut: PlacementRegion { x: (-0.115, 0.115), y: (-0.255, 0.255), yaw: any },
+                peg: Some(PlacementRegion { x: (-0.1, 0.3), y: (-0.2, 0.2), yaw: (0.0, 0.0) }),
+            }),
+            "D2" => Ok(Self {
+                nut: PlacementRegion { x: (-0.25, 0.25), y: (-0.25, 0.25), yaw: any },
+                peg: Some(PlacementRegion { x: (-0.25, 0.25), y: (-0.25, 0.25), yaw: (0.0, std::f64::consts::FRAC_PI_2) }),
+            }),
+            _ => Err(format!("square has variants D0, D1 and D2, not {variant:?}")),
+        }
+    }
+
+    /// The scripted demonstrator: grip the handle across its width, carry the nut over the peg
+    /// high enough to clear it, lower it 4 cm onto the peg and let go; it slides to the table.
+    #[must_use]
+    pub fn script() -> PickPlaceScript {
+        PickPlaceScript {
+            pick: "square_nut".to_owned(),
+            place_on: "square_peg".to_owned(),
+            grasp_point_m: SQUARE_NUT_HANDLE,
+            grasp_height_m: -0.003,
+            grasp_symmetry_rad: std::f64::consts::PI,
+            grasp_yaw_offset_rad: std::f64::consts::FRAC_PI_2,
+            release_height_m: -0.005,
+            close_steps: (10, 13),
+            open_steps: (3, 5),
+            grasp_offset_m: 0.003,
+            approach_height_m: (0.06, 0.12),
+            lift_height_m: (0.15, 0.2),
+            preplace_height_m: (0.14, 0.17),
+            retreat_height_m: 0.08,
+            place_yaw_symmetry_rad: Some(std::f64::consts::FRAC_PI_2),
+            settle_steps: 6,
+        }
+    }
+}
+
+impl Task for Square {
+    fn name(&self) -> &str {
+        "square"
+    }
+
+    fn objects(&self) -> Vec<(&'static str, &'static str)> {
+        vec![("square_nut", "SquareNut_main"), ("square_peg", "peg1")]
+    }
+
+    fn object_models(&self) -> Vec<ObjectModel> {
+        vec![
+            ObjectModel::SquareNut { name: "SquareNut".to_owned() },
+            ObjectModel::FixedBox { body: "peg1".to_owned(), half_size: PEG_HALF_SIZE, pos: PEG_DEFAULT_POS },
+        ]
+    }
+
+    fn table_top_z(&self) -> f64 {
+        NUT_TABLE_TOP_Z
+    }
+
+    fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
+        let [px, py, pz] = PEG_DEFAULT_POS;
+        let peg = match &self.peg {
+            // MimicGen samples the peg around the table centre at the arena's peg height.
+            Some(r) => pose_from_parts(
+                Vec3::new(uniform(rng, r.x), uniform(rng, r.y), pz),
+                Rot::from_axis_angle(&Vec3::z_axis(), uniform(rng, r.yaw)),
+            ),
+            None => pose_from_parts(Vec3::new(px, py, pz), Rot::identity()),
+        };
+        // Nut positions that would put it on the peg are rejected (MimicGen: 5000 tries). robosuite
+        // puts the nut's `bottom_site` (5 cm below its centre) 2 cm above the table, so it drops.
+        let peg_radius = PEG_HALF_SIZE[0].hypot(PEG_HALF_SIZE[1]);
+        for _ in 0..5000 {
+            let (x, y) = (uniform(rng, self.nut.x), uniform(rng, self.nut.y));
+            let yaw = uniform(rng, self.nut.yaw);
+            if (x - peg.translation.x).hypot(y - peg.translation.y) > peg_radius + NUT_HORIZONTAL_RADIUS {
+                let nut = pose_from_parts(Vec3::new(x, y, NUT_TABLE_TOP_Z + 0.02 + 0.05), Rot::from_axis_angle(&Vec3::z_axis(), yaw));
+                return Ok(vec![nut, peg]);
+            }
+        }
+        Err(EnvError::Fatal { reason: format!("cannot place the square nut in {:?} clear of the peg", self.nut) })
+    }
+
+    fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64> {
+        BTreeMap::from([("grasp".to_owned(), i64::from(env.is_grasping(0)))])
+    }
+
+    fn is_success(&self, env: &SimEnv) -> bool {
+        use mimicgen_engine::Environment as _;
+        // robosuite's `on_peg` and its reach check: the nut round the peg, low on it, and the
+        // gripper not at the nut's centre (1 - tanh(10 d) < 0.6).
+        let (nut, peg) = (env.object_pose(0).translation.vector, env.object_pose(1).translation.vector);
+        let on_peg = (nut.x - peg.x).abs() < 0.03 && (nut.y - peg.y).abs() < 0.03 && nut.z < NUT_TABLE_TOP_Z + 0.05;
+        let reach = 1.0 - (10.0 * (env.eef_pose().translation.vector - nut).norm()).tanh();
+        on_peg && reach < 0.6
+    }
+
+    fn object_obs(&self, env: &SimEnv) -> Vec<f64> {
+        use mimicgen_engine::Environment as _;
+        // robosuite's nut sensors: position, `xyzw` quaternion, then the nut's pose in the
+        // gripper frame (grip site position, hand orientation); MimicGen's D1/D2 add the peg.
+        let body = env.scene().objects[0].body;
+        let [w, x, y, z] = env.data().xquat()[body];
+        let nut = env.object_pose(0);
+        let hand = env.data().xquat()[env.scene().robot.hand_body];
+        let world_from_gripper = pose_from_parts(
+            env.eef_pose().translation.vector,
+            Rot::from_quaternion(nalgebra::Quaternion::new(hand[0], hand[1], hand[2], hand[3])),
+        );
+        let gripper_from_nut = world_from_gripper.inverse() * nut;
+        let q = gripper_from_nut.rotation.quaternion();
+        let sign = if q.w < 0.0 { -1.0 } else { 1.0 };
+        let mut obs = Vec::with_capacity(17);
+        obs.extend(nut.translation.vector.iter());
+        obs.extend([x, y, z, w]);
+        obs.extend(gripper_from_nut.translation.vector.iter());
+        obs.extend([sign * q.i, sign * q.j, sign * q.k, sign * q.w]);
+        if self.peg.is_some() {
+            obs.extend(env.object_pose(1).translation.vector.iter());
+        }
+        obs
+    }
+
+    fn scripts(&self) -> Vec<PickPlaceScript> {
+        vec![Self::script()]
+    }
+
+    fn coverage_dimensions(&self) -> Vec<Dimension> {
+        let fixed =
+            PlacementRegion { x: (PEG_DEFAULT_POS[0], PEG_DEFAULT_POS[0]), y: (PEG_DEFAULT_POS[1], PEG_DEFAULT_POS[1]), yaw: (0.0, 0.0) };
+        region_dimensions(&["square_nut", "square_peg"], &[self.nut, self.peg.unwrap_or(fixed)])
     }
 }

@@ -120,7 +120,7 @@ fn bad_scenes_name_the_file_and_what_is_missing() {
     assert!(err.contains("broken.xml") && err.contains("cannot compile"), "{err}");
     // A valid scene without the task's objects (the composed scene with no objects at all).
     let assets = mimicgen_sim::assets::robosuite_assets_dir().unwrap();
-    let empty = mimicgen_sim::compose::compose_scene(&assets, &[]);
+    let empty = mimicgen_sim::compose::compose_scene(&assets, &[], mimicgen_sim::compose::BASE_TABLE_TOP_Z);
     let err = Scene::compile(&empty, "empty.xml", &mimicgen_sim::Task::objects(&task), 20.0).unwrap_err().to_string();
     assert!(err.contains("empty.xml") && err.contains("cubeA_main"), "{err}");
     assert!(Stack::variant("D7").unwrap_err().contains("D0 and D1"));
