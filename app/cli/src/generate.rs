@@ -27,6 +27,8 @@ pub fn bundled_source(task: &str, variant: &str) -> PathBuf {
 Examples:
   mimicgen generate                                   # 100 attempts of Stack D0 from the bundled demos
   mimicgen generate --variant D1 --num-demos 1000 --workers 2 --out out/stack_d1.hdf5
+  mimicgen generate --task square --variant D2 --num-demos 1000 --out out/square_d2.hdf5
+  mimicgen generate --task stack_three --guarantee --num-demos 200 --out out/stack_three.hdf5
   mimicgen generate --source source_D0_prepared.hdf5 --config config_D0.json   # your MimicGen files
 
 Successful attempts go to --out (robomimic layout, low-dim observations); with --keep-failed,
@@ -275,7 +277,9 @@ Examples:
   mimicgen demos --task stack --variant D0 --num-demos 10 --out my_sources.hdf5
 
 Records source demos with the scripted demonstrator (teleoperator-like variation in grasps, speeds
-and pauses), keeps the successful ones, and writes them in the MimicGen source layout
+and pauses; it hovers until the arm has caught up before grasping or placing, and aims the place
+from where the object sits in the hand), keeps the successful ones that the task's bundled spec can
+split into subtasks, and writes them in the MimicGen source layout
 (datagen_info with eef/target/object poses and subtask signals), ready for `mimicgen generate --source`.")]
 pub struct DemosArgs {
     /// Task (see `mimicgen tasks`).
@@ -306,6 +310,10 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
         bail!("no scripted demonstrator for {}", task.name());
     }
     let (scene, xml) = scene_for(task.as_ref(), None, Path::new(""))?;
+    // Demos are kept only if the task's bundled spec can split them into its subtasks.
+    let spec = registry::default_spec_toml(task.name())
+        .map(|toml| TaskSpec::from_toml_str(toml, &format!("bundled {} spec", task.name())))
+        .transpose()?;
     let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
     let options =
@@ -318,12 +326,16 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     while writer.len() < args.num_demos {
         tries += 1;
         if tries > 10 * args.num_demos.max(1) {
-            bail!("the scripted demonstrator succeeded only {} times in {} tries", writer.len(), tries - 1);
+            bail!("the scripted demonstrator made only {} usable demos in {} tries", writer.len(), tries - 1);
         }
         env.reset(&mut rng).map_err(|e| anyhow::anyhow!("{e}"))?;
         let demo =
             mimicgen_engine::demonstrator::record_sequence(&scripts, &mut env, "demo", &mut rng).map_err(|e| anyhow::anyhow!("{e}"))?;
         if !env.is_success() {
+            continue;
+        }
+        if let Some(Err(e)) = spec.as_ref().map(|spec| mimicgen_engine::segment::Segmentation::new(std::slice::from_ref(&demo), spec)) {
+            eprintln!("try {tries}: succeeded but is no usable source demo ({e}); discarded");
             continue;
         }
         let n = demo.len();

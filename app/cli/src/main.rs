@@ -31,7 +31,9 @@ const EXAMPLES: &str = "\
 Examples:
   mimicgen spec check config_D0.json          validate a MimicGen experiment JSON or our TOML
   mimicgen spec convert config_D0.json        print the same task spec as TOML
+  mimicgen tasks                              the tasks (stack, stack_three, square) and variants
   mimicgen generate --task stack --variant D0 --num-demos 100 --out stack_d0.hdf5
+  mimicgen generate --task square --variant D1 --num-demos 1000 --out square_d1.hdf5
   mimicgen info source_D0.hdf5                 demos, lengths, obs/action shapes, objects, signals
   mimicgen export generated.hdf5 --mcap out.mcap   poses, actions, labels for Foxglove
   mimicgen view generated.hdf5 --demo 3 --spawn     one demo in the Rerun viewer";

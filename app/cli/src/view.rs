@@ -72,7 +72,7 @@ impl RerunArgs {
             std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         }
         let rec = sink.open(app_id)?;
-        Ok(Some(RunLogger::new(rec, Arc::clone(&scene.model), self.config())?))
+        Ok(Some(RunLogger::new(rec, Arc::clone(&scene.model), self.config())?.with_fixed_objects(scene.fixed_objects())))
     }
 }
 
@@ -130,7 +130,8 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         (None, None) => Sink::Spawn,
     };
     let rec = sink.open("mimicgen")?;
-    let mut logger = RunLogger::new(rec, Arc::clone(&scene.model), LogConfig { scene: SceneLevel::All, scene_stride: args.stride.max(1) })?;
+    let mut logger = RunLogger::new(rec, Arc::clone(&scene.model), LogConfig { scene: SceneLevel::All, scene_stride: args.stride.max(1) })?
+        .with_fixed_objects(scene.fixed_objects());
     let selected = sources.demos.iter().enumerate().filter(|(i, _)| args.demo.is_none_or(|d| d == *i));
     logger.log_demos(selected)?;
     logger.finish()?;

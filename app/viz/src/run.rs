@@ -59,6 +59,14 @@ impl RunLogger {
         Ok(Self { rec, scene, config, source_names: Vec::new(), frame: 0, demos_cleared: false })
     }
 
+    /// Declares the scene's objects that are fixed in the world but placed per episode (pegs):
+    /// `(object name, mocap index)`; each demo and attempt is drawn with them where it had them.
+    #[must_use]
+    pub fn with_fixed_objects(mut self, fixed: Vec<(String, usize)>) -> Self {
+        self.scene.set_fixed_objects(fixed);
+        self
+    }
+
     /// The recording.
     #[must_use]
     pub fn stream(&self) -> &RecordingStream {
@@ -82,6 +90,7 @@ impl RunLogger {
                 let index_i64 = i64::try_from(index).unwrap_or(i64::MAX);
                 let steps: Vec<i64> = (0..n).map(|t| i64::try_from(t).unwrap_or(i64::MAX)).collect();
                 let frames: Vec<i64> = steps.iter().map(|t| t + i64::try_from(self.frame).unwrap_or(i64::MAX)).collect();
+                self.scene.place_fixed_objects(&demo.object_poses);
                 self.scene.log_states(
                     &self.rec,
                     &demo.sim.states,
@@ -118,6 +127,7 @@ impl RunLogger {
             let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
             let steps: Vec<i64> = (0..n).map(|t| i64::try_from(t).unwrap_or(i64::MAX)).collect();
             let frames: Vec<i64> = steps.iter().map(|t| t + i64::try_from(self.frame).unwrap_or(i64::MAX)).collect();
+            self.scene.place_fixed_objects(&attempt.trajectory.object_poses);
             self.scene.log_states(
                 &self.rec,
                 states,

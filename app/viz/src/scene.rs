@@ -29,6 +29,9 @@ pub struct SceneLogger {
     data: MjData<Arc<MjModel>>,
     geoms: Vec<GeomEntity>,
     root: String,
+    /// Objects fixed in the world that episodes place differently (pegs): `(object name, mocap
+    /// index)`. Recorded states do not hold their poses; episodes' object poses do.
+    fixed: Vec<(String, usize)>,
 }
 
 impl std::fmt::Debug for SceneLogger {
@@ -122,7 +125,7 @@ impl SceneLogger {
             geoms.push(GeomEntity { id: g, path });
         }
         let data = MjData::new(Arc::clone(&model));
-        Self { model, data, geoms, root: root.to_owned() }
+        Self { model, data, geoms, root: root.to_owned(), fixed: Vec::new() }
     }
 
     /// Number of geoms logged.
@@ -210,6 +213,42 @@ impl SceneLogger {
         )
     }
 
+    /// Poses the private data at a recorded state (`[time, qpos, ...]`, long enough).
+    fn pose(&mut self, state: &[f64]) {
+        let nq = self.data.qpos().len();
+        self.data.qpos_mut().copy_from_slice(&state[1..=nq]);
+        self.data.kinematics();
+    }
+
+    /// Every logged geom's entity path and world position at the recorded state `state`.
+    ///
+    /// # Errors
+    /// [`VizError::Sim`] for a state shorter than `1 + nq`.
+    pub fn geom_positions(&mut self, state: &[f64]) -> Result<Vec<(String, [f64; 3])>, VizError> {
+        if state.len() <= self.data.qpos().len() {
+            return Err(VizError::Sim { what: self.root.clone(), reason: format!("a state of {} values is too short", state.len()) });
+        }
+        self.pose(state);
+        Ok(self.geoms.iter().map(|g| (g.path.clone(), self.data.geom_xpos()[g.id])).collect())
+    }
+
+    /// Declares the objects fixed in the world that episodes may place differently (a peg):
+    /// `(object name, mocap index)` pairs.
+    pub fn set_fixed_objects(&mut self, fixed: Vec<(String, usize)>) {
+        self.fixed = fixed;
+    }
+
+    /// Puts the fixed objects where an episode's first recorded object poses have them.
+    pub fn place_fixed_objects(&mut self, object_poses: &std::collections::BTreeMap<String, Vec<mimicgen_engine::Pose>>) {
+        for (name, mocap) in &self.fixed {
+            if let Some(pose) = object_poses.get(name).and_then(|p| p.first()) {
+                let t = pose.translation.vector;
+                self.data.mocap_pos_mut()[*mocap] = [t.x, t.y, t.z];
+                self.data.mocap_quat_mut()[*mocap] = mimicgen_engine::pose::quat_to_wxyz(&pose.rotation);
+            }
+        }
+    }
+
     /// Logs every geom's world pose for the recorded simulator states `states` (robosuite's
     /// `[time, qpos, qvel]`), every `stride`-th step, as one column per geom. `index` gives each
     /// timeline's value for every row of `states` (e.g. `step`, `attempt`, `frame`).
@@ -234,9 +273,7 @@ impl SceneLogger {
         let mut translations: Vec<Vec<[f32; 3]>> = vec![Vec::with_capacity(rows.len()); self.geoms.len()];
         let mut quaternions: Vec<Vec<rerun::Quaternion>> = vec![Vec::with_capacity(rows.len()); self.geoms.len()];
         for &t in &rows {
-            let state = states.row(t);
-            self.data.qpos_mut().copy_from_slice(&state[1..=nq]);
-            self.data.kinematics();
+            self.pose(states.row(t));
             let (xpos, xmat) = (self.data.geom_xpos(), self.data.geom_xmat());
             for (i, geom) in self.geoms.iter().enumerate() {
                 translations[i].push(f32s(xpos[geom.id]));

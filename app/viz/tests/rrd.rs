@@ -93,3 +93,29 @@ fn three_attempts_read_back_with_the_viewer_cli() {
     assert_eq!(rows("/world/attempt/objects"), 3, "object frames per attempt");
     assert!(print.matches("/world/history/attempt_").count() >= 3, "every attempt's path is kept");
 }
+
+#[test]
+fn pegs_are_drawn_where_each_episode_had_them() {
+    use mimicgen_engine::Environment as _;
+    use rand::SeedableRng as _;
+    let task = registry::task("square", "D2").expect("task");
+    let scene = Arc::new(Scene::for_task(task.as_ref()).expect("scene"));
+    let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7)).expect("reset");
+    let peg = env.object_pose(1);
+    let state = env.state();
+    let mut logger = mimicgen_viz::SceneLogger::new(Arc::clone(&scene.model), "world/scene");
+    let peg_geom = |positions: Vec<(String, [f64; 3])>| {
+        positions.into_iter().find(|(path, _)| path.ends_with("peg1_vis")).map(|(_, p)| p).expect("peg drawn")
+    };
+    // Without being told, the logger draws the peg where the scene file has it ...
+    let default = peg_geom(logger.geom_positions(&state).expect("pose"));
+    assert!((default[0] - 0.23).abs() < 1e-9 && (default[1] - 0.1).abs() < 1e-9, "{default:?}");
+    // ... and where the episode's object poses have it once it knows the peg is placed per episode.
+    logger.set_fixed_objects(scene.fixed_objects());
+    logger.place_fixed_objects(&std::collections::BTreeMap::from([("square_peg".to_owned(), vec![peg])]));
+    let placed = peg_geom(logger.geom_positions(&state).expect("pose"));
+    let t = peg.translation.vector;
+    assert!((placed[0] - t.x).abs() < 1e-9 && (placed[1] - t.y).abs() < 1e-9, "{placed:?} vs {t:?}");
+    assert!((t.x - 0.23).abs() + (t.y - 0.1).abs() > 1e-3, "seed 7 should move the peg");
+}

@@ -116,14 +116,9 @@ impl PickPlaceScript {
         let grasp = pose_from_parts(a.translation.vector + offset, grasp_rot);
         let above = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
         let (fast, slow) = (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008));
+        // Hover above the grasp until the arm has caught up, then go straight down.
         let pick: Vec<Leg> = vec![
-            (
-                above(&grasp, rng.random_range(self.approach_height_m.0..self.approach_height_m.1)),
-                fast,
-                -1.0,
-                rng.random_range(0..4),
-                false,
-            ),
+            (above(&grasp, rng.random_range(self.approach_height_m.0..self.approach_height_m.1)), fast, -1.0, rng.random_range(0..4), true),
             (grasp, slow, -1.0, rng.random_range(2..5), true),
             (grasp, slow, 1.0, rng.random_range(self.close_steps.0..=self.close_steps.1), false),
             (above(&grasp, rng.random_range(self.lift_height_m.0..self.lift_height_m.1)), fast, 1.0, 0, false),

@@ -199,6 +199,12 @@ impl Scene {
         Self::compile(&xml, &format!("composed {} scene", task.name()), &task.objects(), 20.0)
     }
 
+    /// The objects fixed in the world that resets place (pegs): `(object name, mocap index)`.
+    #[must_use]
+    pub fn fixed_objects(&self) -> Vec<(String, usize)> {
+        self.objects.iter().filter_map(|o| o.mocap.map(|m| (o.name.clone(), m))).collect()
+    }
+
     /// `xml` (this scene's MJCF) with the fixed objects (pegs) where `world_from_objects` has them:
     /// the `model_file` of an episode, since robosuite's flattened state does not hold them.
     ///
