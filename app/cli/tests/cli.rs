@@ -42,3 +42,36 @@ fn help_teaches_with_examples() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("Examples:") && text.contains("mimicgen spec check"), "{text}");
 }
+
+#[test]
+fn square_generates_end_to_end_with_each_demos_peg_in_its_model_file() {
+    let tasks = mimicgen().arg("tasks").output().unwrap();
+    let listing = String::from_utf8_lossy(&tasks.stdout);
+    assert!(listing.contains("square") && listing.contains("D2"), "{listing}");
+    let bad = mimicgen().args(["generate", "--task", "square", "--variant", "D3"]).output().unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("D0, D1 and D2"), "{}", String::from_utf8_lossy(&bad.stderr));
+
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("square_d1.hdf5");
+    let run = mimicgen()
+        .args(["generate", "--task", "square", "--variant", "D1", "--num-demos", "3", "--workers", "1", "--out"])
+        .arg(&out)
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["attempts"], 3);
+    let written = mimicgen_io::read_source_dataset(&out, &Default::default()).unwrap();
+    assert!(written.env_args.as_deref().unwrap_or_default().contains("Square_D1"));
+    assert!(!written.demos.is_empty(), "{report}");
+    for demo in &written.demos {
+        let peg = demo.object_poses["square_peg"][0].translation.vector;
+        let xml = demo.sim.model_xml.as_deref().unwrap();
+        let tag = &xml[xml.find(r#"<body name="peg1""#).unwrap()..];
+        let pos = &tag[tag.find("pos=\"").unwrap() + 5..];
+        let pos: Vec<f64> = pos[..pos.find('"').unwrap()].split(' ').map(|v| v.parse().unwrap()).collect();
+        assert!((pos[0] - peg.x).abs() < 1e-12 && (pos[1] - peg.y).abs() < 1e-12, "{} model_file peg {pos:?} vs {peg:?}", demo.name);
+    }
+}
