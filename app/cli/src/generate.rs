@@ -291,6 +291,10 @@ pub struct DemosArgs {
     /// Successful demos to record.
     #[arg(long, default_value_t = 10)]
     num_demos: usize,
+    /// Record like a hasty operator: descend to grasp or place as soon as the motion is commanded,
+    /// without waiting for the arm to catch up (source demos that transfer worse to wide variants).
+    #[arg(long)]
+    hasty: bool,
     /// Seed of the scenes and of the demonstrator's variation.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -305,7 +309,10 @@ pub struct DemosArgs {
 /// Unknown task, simulator failure, or a failure to write.
 pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     let task = registry::task(&args.task, &args.variant).map_err(anyhow::Error::msg)?;
-    let scripts = task.scripts();
+    let mut scripts = task.scripts();
+    for script in &mut scripts {
+        script.wait_for_arm = !args.hasty;
+    }
     if scripts.is_empty() {
         bail!("no scripted demonstrator for {}", task.name());
     }

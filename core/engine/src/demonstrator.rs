@@ -49,6 +49,9 @@ pub struct PickPlaceScript {
     /// Steps to wait, holding still, before looking at the scene (objects that reset in the
     /// air, as robosuite's nuts do, land first).
     pub settle_steps: usize,
+    /// Before descending to grasp or place, hover until the arm has caught up with its target
+    /// (a careful operator); `false` goes on as soon as the motion has been commanded (a hasty one).
+    pub wait_for_arm: bool,
 }
 
 /// One leg of a scripted motion: goal, speed (m per step), gripper command, steps to pause at the
@@ -205,7 +208,7 @@ impl PickPlaceScript {
             // Before anything that needs precision, wait (a little) until the arm is there and
             // has stopped.
             let mut last = Vec3::repeat(f64::INFINITY);
-            for _ in 0..if precise { SETTLE_MAX_STEPS } else { 0 } {
+            for _ in 0..if precise && self.wait_for_arm { SETTLE_MAX_STEPS } else { 0 } {
                 let now = env.eef_pose().translation.vector;
                 let (off, moved) = ((now - goal.translation.vector).norm(), (now - last).norm());
                 // There and still, or stopped short (touching something): go on.

@@ -206,6 +206,7 @@ pub fn pick_place_script() -> PickPlaceScript {
         retreat_height_m: 0.08,
         place_yaw_symmetry_rad: None,
         settle_steps: 0,
+        wait_for_arm: true,
     }
 }
 

@@ -195,6 +195,7 @@ impl Stack {
             retreat_height_m: 0.08,
             place_yaw_symmetry_rad: None,
             settle_steps: 0,
+            wait_for_arm: true,
         }
     }
 }
@@ -382,6 +383,7 @@ impl Square {
             retreat_height_m: 0.08,
             place_yaw_symmetry_rad: Some(std::f64::consts::FRAC_PI_2),
             settle_steps: 6,
+            wait_for_arm: true,
         }
     }
 }
