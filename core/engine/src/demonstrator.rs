@@ -102,21 +102,21 @@ impl PickPlaceScript {
             execute_step(env, &hold, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
         }
         let objects = env.object_poses();
-        let a = *objects.get(&self.pick).ok_or_else(|| env_err(&self.pick))?;
-        let b = *objects.get(&self.place_on).ok_or_else(|| env_err(&self.place_on))?;
+        let world_from_pick = *objects.get(&self.pick).ok_or_else(|| env_err(&self.pick))?;
+        let world_from_target = *objects.get(&self.place_on).ok_or_else(|| env_err(&self.place_on))?;
         let start = env.eef_pose();
         // Grasp about one of the object's symmetric yaws, the one closest to the gripper's.
         let symmetry = self.grasp_symmetry_rad;
-        let (object_yaw, eef_yaw) = (yaw_of(&a) + self.grasp_yaw_offset_rad, yaw_of(&start));
+        let (object_yaw, eef_yaw) = (yaw_of(&world_from_pick) + self.grasp_yaw_offset_rad, yaw_of(&start));
         let grasp_yaw = object_yaw + ((eef_yaw - object_yaw) / symmetry).round() * symmetry + rng.random_range(-0.15..0.15);
         let grasp_rot = Rot::from_axis_angle(&Vec3::z_axis(), grasp_yaw - eef_yaw) * start.rotation;
         let g = self.grasp_offset_m;
-        let grip_point = a.rotation * Vec3::from(self.grasp_point_m);
+        let grip_point = world_from_pick.rotation * Vec3::from(self.grasp_point_m);
         // The grip point relative to the object's centre, in the world frame; the carried object
         // keeps it while the gripper does not turn.
         let offset = grip_point
             + Vec3::new(rng.random_range(-g..=g), rng.random_range(-g..=g), self.grasp_height_m + rng.random_range(-g..=g) * 0.5);
-        let grasp = pose_from_parts(a.translation.vector + offset, grasp_rot);
+        let grasp = pose_from_parts(world_from_pick.translation.vector + offset, grasp_rot);
         let above = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
         let (fast, slow) = (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008));
         // Hover above the grasp until the arm has caught up, then go straight down.
@@ -134,11 +134,11 @@ impl PickPlaceScript {
         let place_xy = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), self.release_height_m);
         let home = start.translation.vector;
         let place = self
-            .aim(env, &b, place_xy, &grasp_rot, &home)
-            .unwrap_or_else(|| pose_from_parts(b.translation.vector + place_xy + offset, grasp_rot));
+            .aim(env, &world_from_target, place_xy, &grasp_rot, &home)
+            .unwrap_or_else(|| pose_from_parts(world_from_target.translation.vector + place_xy + offset, grasp_rot));
         let (hover, pause) = (rng.random_range(self.preplace_height_m.0..self.preplace_height_m.1), rng.random_range(0..3));
         self.follow(env, traj, rng, &mut current, vec![(above(&place, hover), fast, 1.0, pause, true)])?;
-        let place = self.aim(env, &b, place_xy, &place.rotation, &home).unwrap_or(place);
+        let place = self.aim(env, &world_from_target, place_xy, &place.rotation, &home).unwrap_or(place);
         current = above(&place, hover);
         let put: Vec<Leg> = vec![
             (place, slow, 1.0, rng.random_range(1..4), true),
