@@ -69,8 +69,10 @@ pub fn run(demos: usize, steps: usize, dir: Option<PathBuf>) -> anyhow::Result<(
     let resettable = reset_peak_rss();
     let before = peak_rss_mib().unwrap_or(f64::NAN);
     let start = Instant::now();
-    let mut writer =
-        DatasetWriter::create(&path, WriterOptions { env_args: Some("{}".into()), compress_obs: true, valid_fraction: Some(0.1) })?;
+    let mut writer = DatasetWriter::create(
+        &path,
+        WriterOptions { env_args: Some("{}".into()), compress_obs: true, valid_fraction: Some(0.1), split_seed: 0 },
+    )?;
     for d in 0..demos {
         writer.append(&synthetic_demo(d, steps)?)?;
     }

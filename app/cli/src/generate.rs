@@ -68,7 +68,8 @@ pub struct GenerateArgs {
     /// Hard cap on attempts with --guarantee.
     #[arg(long)]
     max_attempts: Option<usize>,
-    /// Put this fraction of demos in a `mask/valid` filter key (the rest in `mask/train`).
+    /// Put this fraction of demos, drawn at random with the run seed, in a `mask/valid` filter key
+    /// (the rest in `mask/train`).
     #[arg(long)]
     valid_fraction: Option<f64>,
     /// Rerun: where the recording goes and how much 3D scene it holds.
@@ -164,7 +165,12 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let options = WriterOptions { env_args: Some(env_args.clone()), compress_obs: true, valid_fraction: args.valid_fraction };
+    let options = WriterOptions {
+        env_args: Some(env_args.clone()),
+        compress_obs: true,
+        valid_fraction: args.valid_fraction,
+        split_seed: spec.generation.seed,
+    };
     let mut writer = DatasetWriter::create(&args.out, options.clone())?;
     let failed_path = sibling(&args.out, "_failed", "hdf5");
     let mut failed_writer = if spec.generation.keep_failed {
@@ -323,8 +329,12 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
         .transpose()?;
     let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
-    let options =
-        WriterOptions { env_args: Some(registry::env_args(task.name(), &args.variant)), compress_obs: false, valid_fraction: None };
+    let options = WriterOptions {
+        env_args: Some(registry::env_args(task.name(), &args.variant)),
+        compress_obs: false,
+        valid_fraction: None,
+        split_seed: 0,
+    };
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }

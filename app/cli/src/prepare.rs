@@ -52,7 +52,7 @@ pub fn prepare(args: &PrepareArgs) -> anyhow::Result<()> {
             registry::task_from_env_args(env_args.as_deref()).map_err(|e| anyhow!("{file}: data attribute env_args: {e}; pass --task"))?.0
         }
     };
-    let mut writer = DatasetWriter::create(&args.out, WriterOptions { env_args, compress_obs: true, valid_fraction: None })?;
+    let mut writer = DatasetWriter::create(&args.out, WriterOptions { env_args, compress_obs: true, valid_fraction: None, split_seed: 0 })?;
     let mut scenes: BTreeMap<String, Arc<Scene>> = BTreeMap::new();
     for name in dataset.demo_names().to_vec() {
         let demo = dataset.demo(&name).ok_or_else(|| anyhow!("{file}: data/{name} vanished"))?;

@@ -191,6 +191,26 @@ pub struct WriterOptions {
     pub compress_obs: bool,
     /// Write `mask/train` and `mask/valid` with this fraction of demos in `valid`.
     pub valid_fraction: Option<f64>,
+    /// Seed of the random train/valid split (robomimic shuffles demos before splitting).
+    pub split_seed: u64,
+}
+
+/// robomimic's train/valid split: `floor(n * fraction)` demos drawn at random (seeded) for `valid`,
+/// the rest in `train`; each list in the order of `names`.
+#[must_use]
+pub fn split_train_valid(names: &[String], fraction: f64, seed: u64) -> (Vec<String>, Vec<String>) {
+    use rand::SeedableRng as _;
+    use rand::seq::SliceRandom as _;
+    #[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let num_valid = ((names.len() as f64 * fraction.clamp(0.0, 1.0)).floor() as usize).min(names.len());
+    let mut order: Vec<usize> = (0..names.len()).collect();
+    order.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed));
+    let mut is_valid = vec![false; names.len()];
+    for &i in &order[..num_valid] {
+        is_valid[i] = true;
+    }
+    let (valid, train): (Vec<_>, Vec<_>) = names.iter().cloned().zip(is_valid).partition(|(_, v)| *v);
+    (train.into_iter().map(|(n, _)| n).collect(), valid.into_iter().map(|(n, _)| n).collect())
 }
 
 /// Writes a robomimic-layout dataset one demo at a time; memory does not grow with the number of
@@ -287,13 +307,7 @@ impl DatasetWriter {
         let label = self.label.clone();
         tree::write_attr(&label, &self.data, "data", "total", &Array::int(self.total))?;
         if let Some(fraction) = self.options.valid_fraction {
-            let (mut train, mut valid) = (Vec::new(), Vec::new());
-            for (i, name) in self.names.iter().enumerate() {
-                // Spread validation demos evenly: demo i is in `valid` when floor((i+1)f) > floor(i f).
-                #[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
-                let is_valid = ((i + 1) as f64 * fraction).floor() > (i as f64 * fraction).floor();
-                if is_valid { valid.push(name.clone()) } else { train.push(name.clone()) }
-            }
+            let (train, valid) = split_train_valid(&self.names, fraction, self.options.split_seed);
             let mask = self.h5.create_group("mask").map_err(|e| IoError::hdf5(&label, "/", "mask", &e))?;
             for (key, names) in [("train", train), ("valid", valid)] {
                 let len = names.iter().map(String::len).max().unwrap_or(1).max(1);
@@ -314,5 +328,28 @@ impl DatasetWriter {
             reason: format!("renaming {} into place: {e}", partial.display()),
         })?;
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::split_train_valid;
+
+    #[test]
+    fn the_valid_split_is_random_but_seeded() {
+        let names: Vec<String> = (0..40).map(|i| format!("demo_{i}")).collect();
+        let (train, valid) = split_train_valid(&names, 0.1, 1);
+        assert_eq!((train.len(), valid.len()), (36, 4));
+        assert!(valid.iter().all(|v| !train.contains(v)));
+        // In the names' order, the same for the same seed, different for another.
+        assert!(valid.windows(2).all(|w| names.iter().position(|n| *n == w[0]) < names.iter().position(|n| *n == w[1])));
+        assert_eq!(split_train_valid(&names, 0.1, 1).1, valid);
+        let others: Vec<Vec<String>> = (2..6).map(|seed| split_train_valid(&names, 0.1, seed).1).collect();
+        assert!(others.iter().any(|o| *o != valid), "seeds 1-5 all chose {valid:?}");
+        // Not the evenly spread demo_9, demo_19, ... of a deterministic split.
+        let even: Vec<String> = [9, 19, 29, 39].iter().map(|i| format!("demo_{i}")).collect();
+        assert!(std::iter::once(&valid).chain(&others).any(|v| *v != even));
+        assert_eq!(split_train_valid(&names, 0.0, 1).1.len(), 0);
+        assert_eq!(split_train_valid(&names, 1.0, 1).0.len(), 0);
     }
 }

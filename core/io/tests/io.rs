@@ -150,6 +150,7 @@ fn write_generated(path: &Path, attempts: usize, valid_fraction: Option<f64>) ->
         env_args: Some(r#"{"env_name": "PickPlace", "type": 1, "env_kwargs": {"controller_configs": {"type": "OSC_POSE"}}}"#.into()),
         compress_obs: true,
         valid_fraction,
+        split_seed: 7,
     };
     let mut writer = DatasetWriter::create(path, options).unwrap();
     for a in &kept {
