@@ -362,8 +362,9 @@ impl Square {
         }
     }
 
-    /// The scripted demonstrator: grip the handle across its width, carry the nut over the peg
-    /// high enough to clear it, lower it 4 cm onto the peg and let go; it slides to the table.
+    /// The scripted demonstrator: wait for the nut to land, grip the handle across its width,
+    /// carry the nut high over the peg, turned to the peg's yaw (mod 90 deg) with the handle on the
+    /// robot's side, push it down the peg to just above the table and let go.
     #[must_use]
     pub fn script() -> PickPlaceScript {
         PickPlaceScript {
