@@ -9,7 +9,8 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use mimicgen_engine::{EngineError, Environment as _, Generator, Pose, TaskSpec};
+use mimicgen_engine::demo::initial_object_poses;
+use mimicgen_engine::{EngineError, Environment as _, Generator, TaskSpec};
 use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, WriterOptions};
 use mimicgen_sim::{Scene, SimEnv, Task, registry};
 use rand::SeedableRng as _;
@@ -98,11 +99,6 @@ fn scene_for(task: &dyn Task, model_xml: Option<&str>, origin: &Path) -> anyhow:
             Ok((Arc::new(scene), xml))
         }
     }
-}
-
-/// Every object's pose at the first step of a recording.
-fn initial_object_poses(object_poses: &BTreeMap<String, Vec<Pose>>) -> BTreeMap<String, Pose> {
-    object_poses.iter().filter_map(|(name, poses)| poses.first().map(|p| (name.clone(), *p))).collect()
 }
 
 fn io_err(e: &mimicgen_io::IoError) -> EngineError {

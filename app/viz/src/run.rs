@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use mimicgen_engine::demo::initial_object_poses;
 use mimicgen_engine::{Attempt, RunStats, SourceDemo};
 use mujoco_rs::prelude::MjModel;
 use rerun::RecordingStream;
@@ -90,7 +91,7 @@ impl RunLogger {
                 let index_i64 = i64::try_from(index).unwrap_or(i64::MAX);
                 let steps: Vec<i64> = (0..n).map(|t| i64::try_from(t).unwrap_or(i64::MAX)).collect();
                 let frames: Vec<i64> = steps.iter().map(|t| t + i64::try_from(self.frame).unwrap_or(i64::MAX)).collect();
-                self.scene.place_fixed_objects(&demo.object_poses);
+                self.scene.place_fixed_objects(&initial_object_poses(&demo.object_poses));
                 self.scene.log_states(
                     &self.rec,
                     &demo.sim.states,
@@ -127,7 +128,7 @@ impl RunLogger {
             let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
             let steps: Vec<i64> = (0..n).map(|t| i64::try_from(t).unwrap_or(i64::MAX)).collect();
             let frames: Vec<i64> = steps.iter().map(|t| t + i64::try_from(self.frame).unwrap_or(i64::MAX)).collect();
-            self.scene.place_fixed_objects(&attempt.trajectory.object_poses);
+            self.scene.place_fixed_objects(&initial_object_poses(&attempt.trajectory.object_poses));
             self.scene.log_states(
                 &self.rec,
                 states,

@@ -238,13 +238,12 @@ impl SceneLogger {
         self.fixed = fixed;
     }
 
-    /// Puts the fixed objects where an episode's first recorded object poses have them.
-    pub fn place_fixed_objects(&mut self, object_poses: &std::collections::BTreeMap<String, Vec<mimicgen_engine::Pose>>) {
+    /// Puts the fixed objects where `world_from_objects` (an episode's initial object poses, by
+    /// name) has them.
+    pub fn place_fixed_objects(&mut self, world_from_objects: &std::collections::BTreeMap<String, mimicgen_engine::Pose>) {
         for (name, mocap) in &self.fixed {
-            if let Some(pose) = object_poses.get(name).and_then(|p| p.first()) {
-                let t = pose.translation.vector;
-                self.data.mocap_pos_mut()[*mocap] = [t.x, t.y, t.z];
-                self.data.mocap_quat_mut()[*mocap] = mimicgen_engine::pose::quat_to_wxyz(&pose.rotation);
+            if let Some(pose) = world_from_objects.get(name) {
+                mimicgen_sim::env::set_mocap_pose(&mut self.data, *mocap, pose);
             }
         }
     }

@@ -113,7 +113,7 @@ fn pegs_are_drawn_where_each_episode_had_them() {
     assert!((default[0] - 0.23).abs() < 1e-9 && (default[1] - 0.1).abs() < 1e-9, "{default:?}");
     // ... and where the episode's object poses have it once it knows the peg is placed per episode.
     logger.set_fixed_objects(scene.fixed_objects());
-    logger.place_fixed_objects(&std::collections::BTreeMap::from([("square_peg".to_owned(), vec![peg])]));
+    logger.place_fixed_objects(&std::collections::BTreeMap::from([("square_peg".to_owned(), peg)]));
     let placed = peg_geom(logger.geom_positions(&state).expect("pose"));
     let t = peg.translation.vector;
     assert!((placed[0] - t.x).abs() < 1e-9 && (placed[1] - t.y).abs() < 1e-9, "{placed:?} vs {t:?}");

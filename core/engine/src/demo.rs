@@ -93,6 +93,13 @@ impl Rows {
     }
 }
 
+/// Every object's pose at the first step of a recording (`object_poses` of a [`SourceDemo`] or a
+/// generated trajectory): the scene an episode started in.
+#[must_use]
+pub fn initial_object_poses(object_poses: &BTreeMap<String, Vec<Pose>>) -> BTreeMap<String, Pose> {
+    object_poses.iter().filter_map(|(name, poses)| poses.first().map(|p| (name.clone(), *p))).collect()
+}
+
 /// What a simulator needs to replay or rewrite a demo; the engine never looks inside.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct SimPayload {

@@ -133,12 +133,10 @@ impl PickPlaceScript {
         // the target's yaw when the fit needs it; aim again once above the target.
         let place_xy = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), self.release_height_m);
         let home = start.translation.vector;
-        let place = self
-            .aim(env, &world_from_target, place_xy, &grasp_rot, &home)
-            .unwrap_or_else(|| pose_from_parts(world_from_target.translation.vector + place_xy + offset, grasp_rot));
+        let place = self.aim(env, &world_from_target, place_xy, &grasp_rot, &home)?;
         let (hover, pause) = (rng.random_range(self.preplace_height_m.0..self.preplace_height_m.1), rng.random_range(0..3));
         self.follow(env, traj, rng, &mut current, vec![(above(&place, hover), fast, 1.0, pause, true)])?;
-        let place = self.aim(env, &world_from_target, place_xy, &place.rotation, &home).unwrap_or(place);
+        let place = self.aim(env, &world_from_target, place_xy, &place.rotation, &home)?;
         current = above(&place, hover);
         let put: Vec<Leg> = vec![
             (place, slow, 1.0, rng.random_range(1..4), true),
@@ -149,21 +147,28 @@ impl PickPlaceScript {
         self.follow(env, traj, rng, &mut current, put)?;
         Ok(())
     }
-}
 
-impl PickPlaceScript {
     /// The gripper pose that puts the held object `place_offset` from `target`'s centre, given
     /// where it sits in the gripper now; `commanded` is the gripper orientation being commanded.
-    /// `None` if the scene has no such object.
-    fn aim<E: Environment + ?Sized>(&self, env: &E, target: &Pose, place_offset: Vec3, commanded: &Rot, home: &Vec3) -> Option<Pose> {
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] if the scene has no such object.
+    fn aim<E: Environment + ?Sized>(
+        &self,
+        env: &E,
+        target: &Pose,
+        place_offset: Vec3,
+        commanded: &Rot,
+        home: &Vec3,
+    ) -> Result<Pose, EnvError> {
         let objects = env.object_poses();
-        let now = objects.get(&self.pick)?;
+        let now = objects.get(&self.pick).ok_or_else(|| env_err(&self.pick))?;
         let held = env.eef_pose().translation.vector - now.translation.vector;
         let place = |turn: f64| {
             let turn = Rot::from_axis_angle(&Vec3::z_axis(), turn);
             pose_from_parts(target.translation.vector + place_offset + turn * held, turn * commanded)
         };
-        let Some(sym) = self.place_yaw_symmetry_rad else { return Some(place(0.0)) };
+        let Some(sym) = self.place_yaw_symmetry_rad else { return Ok(place(0.0)) };
         // Of the turns that fit, the one that keeps the hand nearest where it started (the
         // robot's side of the target), within what the wrist comfortably turns.
         let error = yaw_of(target) - yaw_of(now);
@@ -180,7 +185,8 @@ impl PickPlaceScript {
                 best = Some((reach, pose));
             }
         }
-        best.map(|(_, pose)| pose)
+        // `base` is within half a symmetry of zero, so the unturned-by-k candidate always qualifies.
+        Ok(best.map_or_else(|| place(base), |(_, pose)| pose))
     }
 
     /// Drives the controller target through `legs`

@@ -28,6 +28,13 @@ pub type Observation = (Vec<usize>, Vec<f64>);
 /// MuJoCo's warning kinds, in `mjtWarning` order.
 const WARNING_NAMES: [&str; 8] = ["INERTIA", "CONTACTFULL", "CNSTRFULL", "VGEOMFULL", "BADQPOS", "BADQVEL", "BADQACC", "BADCTRL"];
 
+/// Puts mocap body `mocap` of `data` at `world_from_body` (position and `wxyz` quaternion).
+pub fn set_mocap_pose(data: &mut MjData<Arc<MjModel>>, mocap: usize, world_from_body: &Pose) {
+    let t = world_from_body.translation.vector;
+    data.mocap_pos_mut()[mocap] = [t.x, t.y, t.z];
+    data.mocap_quat_mut()[mocap] = quat_to_wxyz(&world_from_body.rotation);
+}
+
 /// One robosuite-like environment: a scene, its MuJoCo data, the controller and the task.
 pub struct SimEnv {
     scene: Arc<Scene>,
@@ -106,16 +113,15 @@ impl SimEnv {
     /// (mocap) object moves there and stays. Call `forward` (or step) before reading poses.
     pub fn place_object(&mut self, i: usize, world_from_object: &Pose) {
         let object = &self.scene.objects[i];
-        let t = world_from_object.translation.vector;
-        let w = quat_to_wxyz(&world_from_object.rotation);
         if let (Some(q), Some(v)) = (object.qpos_adr, object.dof_adr) {
+            let t = world_from_object.translation.vector;
+            let w = quat_to_wxyz(&world_from_object.rotation);
             let qpos = self.data.qpos_mut();
             qpos[q..q + 3].copy_from_slice(t.as_slice());
             qpos[q + 3..q + 7].copy_from_slice(&w);
             self.data.qvel_mut()[v..v + 6].fill(0.0);
         } else if let Some(m) = object.mocap {
-            self.data.mocap_pos_mut()[m] = [t.x, t.y, t.z];
-            self.data.mocap_quat_mut()[m] = w;
+            set_mocap_pose(&mut self.data, m, world_from_object);
         }
     }
 

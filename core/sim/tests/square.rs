@@ -102,8 +102,7 @@ fn bundled_demos_succeed_and_generated_demos_carry_their_peg() {
     let mut written = Vec::new();
     let stats = mimicgen_engine::run(&generator, &mut envs, |attempt, _| {
         if attempt.success {
-            let initial: BTreeMap<String, _> =
-                attempt.trajectory.object_poses.iter().map(|(name, poses)| (name.clone(), poses[0])).collect();
+            let initial = mimicgen_engine::demo::initial_object_poses(&attempt.trajectory.object_poses);
             written.push((d0_scene.xml_with_fixed_objects(&xml, &initial).unwrap(), attempt.trajectory.states.clone(), initial));
         }
         ControlFlow::Continue(())
