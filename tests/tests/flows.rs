@@ -54,7 +54,7 @@ fn load_annotate_generate_write_reread_in_mujoco() {
     // Annotate by hand: end the grasp subtask where the signal says, so generation is unchanged,
     // but through the manual-boundary path.
     for demo in &mut sources.demos {
-        let end = mimicgen_engine::segment::first_rising_edge(&demo.subtask_term_signals["grasp"], 0).unwrap();
+        let end = mimicgen_engine::segment::subtask_end_from_signal(&demo.subtask_term_signals["grasp"], 0).unwrap();
         demo.manual_subtask_ends = Some(vec![end]);
     }
     let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());

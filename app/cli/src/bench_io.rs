@@ -10,18 +10,7 @@ use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
 use mimicgen_engine::spec::SourceSelection;
 use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, DemoReader, DemoSource as _, ReadOptions, RobomimicDataset, WriterOptions};
 
-/// Peak resident memory (`VmHWM`) of this process in MiB, if Linux reports it.
-fn peak_rss_mib() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib / 1024.0)
-}
-
-/// Resets the peak-RSS counter (Linux >= 4.0); false when not possible.
-fn reset_peak_rss() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
-}
+use mimicgen_pipeline::memory::{peak_rss_mib, reset_peak_rss};
 
 #[allow(clippy::cast_precision_loss)]
 fn synthetic_demo(d: usize, steps: usize) -> anyhow::Result<DemoData> {
@@ -56,6 +45,7 @@ fn synthetic_demo(d: usize, steps: usize) -> anyhow::Result<DemoData> {
         src_demo_inds: vec![0, 1],
         src_demo_labels: vec![0; steps],
         model_xml: Some("<mujoco model=\"bench\"/>".to_owned()),
+        attempt_index: None,
     })
 }
 

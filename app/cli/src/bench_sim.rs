@@ -1,12 +1,17 @@
 //! `mimicgen bench-sim`: what generation costs on the MuJoCo backend, as ratios measured in one run.
 
 use std::ops::ControlFlow;
+use std::path::Path;
 use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use mimicgen_engine::{Attempt, Generator, TaskSpec};
-use mimicgen_sim::{Scene, SimEnv, registry};
+use mimicgen_engine::{Attempt, Environment as _};
+use mimicgen_io::RobomimicDataset;
+use mimicgen_pipeline::memory::{peak_rss_mib, reset_peak_rss};
+use mimicgen_pipeline::{Pipeline, Report, RunConfig};
+use mimicgen_sim::SimEnv;
 use serde_json::json;
 
 /// Arguments of `mimicgen bench-sim`.
@@ -21,14 +26,31 @@ pub struct BenchSimArgs {
     /// Variant.
     #[arg(long, default_value = "D0")]
     variant: String,
+    /// Also measure `generate --early-abort` against the default on the same attempts.
+    #[arg(long)]
+    early_abort: bool,
+    /// Directory for the datasets the end-to-end runs write (default: a temporary one).
+    #[arg(long)]
+    dir: Option<std::path::PathBuf>,
 }
 
-/// Peak resident memory of this process so far (Linux `VmHWM`), in MiB.
-#[must_use]
-pub fn peak_rss_mib() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let kib: f64 = status.lines().find(|l| l.starts_with("VmHWM:"))?.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib / 1024.0)
+/// One end-to-end `generate` run (the pipeline: simulation, observations, compression, writing),
+/// timed, with its peak resident memory.
+fn end_to_end(args: &BenchSimArgs, out: &Path, workers: usize, early_abort: bool) -> anyhow::Result<(f64, Report)> {
+    let config = RunConfig {
+        task: Some(args.task.clone()),
+        variant: Some(args.variant.clone()),
+        num_demos: Some(args.attempts),
+        workers,
+        out: out.to_path_buf(),
+        early_abort,
+        overwrite: true,
+        ..RunConfig::default()
+    };
+    reset_peak_rss();
+    let started = Instant::now();
+    let report = Pipeline::prepare(&config)?.run(&AtomicBool::new(false), |_| {})?;
+    Ok((started.elapsed().as_secs_f64(), report))
 }
 
 /// Runs the benchmark and prints a JSON report.
@@ -36,23 +58,55 @@ pub fn peak_rss_mib() -> Option<f64> {
 /// # Errors
 /// As `mimicgen generate`.
 pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
-    let task = registry::task(&args.task, &args.variant).map_err(anyhow::Error::msg)?;
-    let mut spec = TaskSpec::from_toml_str(registry::default_spec_toml(task.name()).unwrap_or_default(), "bundled spec")?;
-    spec.generation.num_trials = args.attempts;
-    let source = crate::generate::bundled_source(task.name(), "D0");
-    let sources = mimicgen_io::read_source_dataset(&source, &spec.source).with_context(|| source.display().to_string())?;
-    let scene = Arc::new(Scene::for_task(task.as_ref())?);
-    let generator = Generator::new(spec, sources)?;
+    // The engine loop and bare physics run on the very generator and scene `generate` uses.
+    let pipeline = Pipeline::prepare(&RunConfig {
+        task: Some(args.task.clone()),
+        variant: Some(args.variant.clone()),
+        num_demos: Some(args.attempts),
+        ..RunConfig::default()
+    })?;
+    let task = Arc::clone(pipeline.task());
+    let scene = Arc::clone(pipeline.scene());
+    let generator = pipeline.generator();
     let timed = |workers: usize| -> anyhow::Result<(f64, Vec<Attempt>)> {
         let mut envs: Vec<SimEnv> = (0..workers).map(|_| SimEnv::new(Arc::clone(&scene), Arc::clone(&task))).collect();
         let mut attempts = Vec::new();
         let started = Instant::now();
-        mimicgen_engine::run(&generator, &mut envs, |a, _| {
+        mimicgen_engine::run(generator, &mut envs, |a, _| {
             attempts.push(a);
             ControlFlow::Continue(())
         })?;
         Ok((started.elapsed().as_secs_f64(), attempts))
     };
+    let dir = match &args.dir {
+        Some(d) => {
+            std::fs::create_dir_all(d).with_context(|| d.display().to_string())?;
+            None
+        }
+        None => Some(tempfile_dir()?),
+    };
+    let dir_path = args.dir.clone().or_else(|| dir.as_ref().map(|d| d.0.clone())).unwrap_or_default();
+    let (e2e_one_s, e2e_one) = end_to_end(args, &dir_path.join("one.hdf5"), 1, false)?;
+    let e2e_one_peak = e2e_one.peak_rss_mib;
+    let (e2e_two_s, e2e_two) = end_to_end(args, &dir_path.join("two.hdf5"), 2, false)?;
+    let identical = RobomimicDataset::open(dir_path.join("one.hdf5"))?.data() == RobomimicDataset::open(dir_path.join("two.hdf5"))?.data();
+    anyhow::ensure!(e2e_one.successes == e2e_two.successes, "1 and 2 workers disagree on the successes");
+    let early = if args.early_abort {
+        let (s, r) = end_to_end(args, &dir_path.join("early.hdf5"), 1, true)?;
+        let same = RobomimicDataset::open(dir_path.join("one.hdf5"))?.data() == RobomimicDataset::open(dir_path.join("early.hdf5"))?.data();
+        #[allow(clippy::cast_precision_loss)]
+        Some(json!({
+            "early_abort_1_worker_s": s,
+            "successes": r.successes,
+            "same_successful_demos": same,
+            "s_per_success_default": e2e_one_s / e2e_one.successes.max(1) as f64,
+            "s_per_success_early_abort": s / r.successes.max(1) as f64,
+            "time_saved_fraction": 1.0 - s / e2e_one_s,
+        }))
+    } else {
+        None
+    };
+    reset_peak_rss();
     let (one_s, attempts) = timed(1)?;
     let (two_s, _) = timed(2)?;
     let control_steps: usize = attempts.iter().map(|a| a.trajectory.len()).sum();
@@ -66,14 +120,22 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
         env.record_controls(true);
         let again = generator.attempt(&mut env, a.index)?;
         anyhow::ensure!(again.trajectory.states == a.trajectory.states, "attempt {} did not repeat exactly", a.index);
-        recorded.push((a.initial_state.clone(), env.take_controls()));
+        recorded.push((a.initial_state.clone(), env.take_controls(), env.state()));
     }
     env.record_controls(false);
     let started = Instant::now();
-    for (state, controls) in &recorded {
+    for (state, controls, _) in &recorded {
         env.replay_controls_bare(state, controls).map_err(|e| anyhow::anyhow!("{e}"))?;
     }
     let bare_s = started.elapsed().as_secs_f64();
+    // The bare replay is the same physics only if it ends where the attempt ended.
+    let mut worst_final_state_diff = 0.0_f64;
+    for (state, controls, last) in &recorded {
+        env.replay_controls_bare(state, controls).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let diff = env.state().iter().zip(last).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        worst_final_state_diff = worst_final_state_diff.max(diff);
+    }
+    drop(dir);
     #[allow(clippy::cast_precision_loss)]
     let report = json!({
         "task": task.name(),
@@ -90,8 +152,33 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
         "attempts_per_s_1_worker": attempts.len() as f64 / one_s,
         "attempts_per_s_2_workers": attempts.len() as f64 / two_s,
         "speedup_2_workers": one_s / two_s,
+        "bare_replay_final_state_max_abs_diff": worst_final_state_diff,
+        "end_to_end_1_worker_s": e2e_one_s,
+        "end_to_end_2_workers_s": e2e_two_s,
+        "end_to_end_speedup_2_workers": e2e_one_s / e2e_two_s,
+        "end_to_end_1_and_2_workers_identical_datasets": identical,
+        "ratio_end_to_end_to_bare_physics": e2e_one_s / bare_s,
+        "ratio_end_to_end_to_engine_loop": e2e_one_s / one_s,
+        "end_to_end_successes": e2e_one.successes,
+        "end_to_end_1_worker_peak_rss_mib": e2e_one_peak,
+        "early_abort": early,
         "peak_rss_mib": peak_rss_mib(),
     });
     println!("{}", serde_json::to_string_pretty(&report)?);
     Ok(())
+}
+
+/// A temporary directory removed on drop (no extra dependency for one bench).
+struct TempDir(std::path::PathBuf);
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn tempfile_dir() -> anyhow::Result<TempDir> {
+    let dir = std::env::temp_dir().join(format!("mimicgen-bench-sim-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| dir.display().to_string())?;
+    Ok(TempDir(dir))
 }

@@ -2,25 +2,18 @@
 //! robomimic datasets.
 
 use std::collections::BTreeMap;
-use std::ops::ControlFlow;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use mimicgen_engine::demo::initial_object_poses;
-use mimicgen_engine::{EngineError, Environment as _, Generator, TaskSpec};
+use mimicgen_engine::{Environment as _, TaskSpec};
 use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, WriterOptions};
-use mimicgen_sim::{Scene, SimEnv, Task, registry};
+use mimicgen_pipeline::{Event, Pipeline, RunConfig};
+use mimicgen_sim::{Scene, SimEnv, registry};
 use rand::SeedableRng as _;
-use serde_json::json;
-
-/// Where the bundled scripted source demos of a task live.
-#[must_use]
-pub fn bundled_source(task: &str, variant: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../core/sim/data/{task}_{variant}_source.hdf5"))
-}
 
 /// Arguments of `mimicgen generate`.
 #[derive(clap::Args, Debug)]
@@ -30,18 +23,25 @@ Examples:
   mimicgen generate --variant D1 --num-demos 1000 --workers 2 --out out/stack_d1.hdf5
   mimicgen generate --task square --variant D2 --num-demos 1000 --out out/square_d2.hdf5
   mimicgen generate --task stack_three --guarantee --num-demos 200 --out out/stack_three.hdf5
-  mimicgen generate --source source_D0_prepared.hdf5 --config config_D0.json   # your MimicGen files
+  mimicgen generate --source source_D0_prepared.hdf5 --config config_D1.json   # your MimicGen files: Stack D1
+  mimicgen generate --num-demos 1000 --out out/big.hdf5 --resume      # continue a killed run exactly
 
-Successful attempts go to --out (robomimic layout, low-dim observations); with --keep-failed,
-failed ones go to <out>_failed.hdf5. A JSON report (rate, per source demo, failures by subtask and
-reason) is printed and written next to the dataset as <out>.json.")]
+The task and variant come from --task/--variant, else from the config's experiment.task.name
+(MimicGen's `Stack_D1`), else from the source file's env_args, else stack / D0; inputs that name
+different tasks are an error. Successful attempts go to --out (robomimic layout, low-dim
+observations); with --keep-failed, failed ones go to <out>_failed.hdf5. A JSON report (rate, per
+source demo, failures by subtask and reason) is printed and written next to the dataset as
+<out>.json. An existing output is never replaced without --overwrite. While running, the dataset
+is <out>.partial; after a crash or kill, the same command with --resume continues it, and the
+finished dataset equals an uninterrupted run's.")]
 pub struct GenerateArgs {
-    /// Task to generate (see `mimicgen tasks`).
-    #[arg(long, default_value = "stack")]
-    task: String,
-    /// Task variant: the reset distribution new scenes are drawn from.
-    #[arg(long, default_value = "D0")]
-    variant: String,
+    /// Task to generate (see `mimicgen tasks`). Default: what the inputs name, else stack.
+    #[arg(long)]
+    task: Option<String>,
+    /// Task variant: the reset distribution new scenes are drawn from. Default: what the inputs
+    /// name, else D0.
+    #[arg(long)]
+    variant: Option<String>,
     /// Attempts to make (successes to reach with --guarantee). Default: the spec's num_trials.
     #[arg(long)]
     num_demos: Option<usize>,
@@ -69,10 +69,21 @@ pub struct GenerateArgs {
     /// Hard cap on attempts with --guarantee.
     #[arg(long)]
     max_attempts: Option<usize>,
-    /// Put this fraction of demos, drawn at random with the run seed, in a `mask/valid` filter key
-    /// (the rest in `mask/train`).
+    /// Put this fraction (0 to 1) of demos, drawn at random with the run seed, in a `mask/valid`
+    /// filter key (the rest in `mask/train`).
     #[arg(long)]
     valid_fraction: Option<f64>,
+    /// End an attempt as soon as a subtask's segment ends without its signal (the grasp missed),
+    /// instead of running the remaining subtasks first. Saves time on failures; an attempt that
+    /// would have recovered by luck is lost (see BENCHMARKS.md).
+    #[arg(long)]
+    early_abort: bool,
+    /// Replace existing outputs (dataset, failed attempts, report, an interrupted run's .partial).
+    #[arg(long, conflicts_with = "resume")]
+    overwrite: bool,
+    /// Continue the interrupted run that left `<out>.partial` (same arguments; --workers may differ).
+    #[arg(long)]
+    resume: bool,
     /// Rerun: where the recording goes and how much 3D scene it holds.
     #[command(flatten)]
     rerun: crate::view::RerunArgs,
@@ -82,192 +93,102 @@ fn default_workers() -> usize {
     std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
 }
 
-/// The scene a run uses: the source file's own `model_file` when it has one (so generation happens
-/// in the scene the demos were recorded in), else the task's composed scene.
-fn scene_for(task: &dyn Task, model_xml: Option<&str>, origin: &Path) -> anyhow::Result<(Arc<Scene>, String)> {
-    match model_xml {
-        Some(xml) => {
-            let assets = mimicgen_sim::assets::robosuite_assets_dir()?;
-            let local = mimicgen_sim::assets::remap_asset_paths(xml, &assets);
-            let scene = Scene::compile(&local, &format!("{} (model_file)", origin.display()), &task.objects(), 20.0)?;
-            Ok((Arc::new(scene), xml.to_owned()))
-        }
-        None => {
-            let assets = mimicgen_sim::assets::robosuite_assets_dir()?;
-            let xml = mimicgen_sim::compose::compose_scene(&assets, &task.object_models(), task.table_top_z());
-            let scene = Scene::compile(&xml, &format!("composed {} scene", task.name()), &task.objects(), 20.0)?;
-            Ok((Arc::new(scene), xml))
+impl GenerateArgs {
+    fn run_config(&self) -> RunConfig {
+        RunConfig {
+            task: self.task.clone(),
+            variant: self.variant.clone(),
+            config: self.config.clone(),
+            source: self.source.clone(),
+            out: self.out.clone(),
+            workers: self.workers,
+            num_demos: self.num_demos,
+            seed: self.seed,
+            keep_failed: self.keep_failed,
+            guarantee: self.guarantee,
+            max_attempts: self.max_attempts,
+            valid_fraction: self.valid_fraction,
+            early_abort: self.early_abort,
+            overwrite: self.overwrite,
+            resume: self.resume,
         }
     }
 }
 
-fn io_err(e: &mimicgen_io::IoError) -> EngineError {
-    EngineError::Io { path: String::new(), reason: e.to_string() }
-}
-
-fn sibling(out: &Path, suffix: &str, ext: &str) -> PathBuf {
-    let stem = out.file_stem().map_or_else(|| "generated".into(), |s| s.to_string_lossy().into_owned());
-    out.with_file_name(format!("{stem}{suffix}.{ext}"))
-}
-
-/// Runs `mimicgen generate`.
+/// Runs `mimicgen generate`: the pipeline, with a progress bar and (optionally) a Rerun recording
+/// as consumers of its events.
 ///
 /// # Errors
 /// Bad arguments, unreadable inputs, or a failure to write the outputs.
 pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
-    let task = registry::task(&args.task, &args.variant).map_err(anyhow::Error::msg)?;
-    let mut spec = match &args.config {
-        Some(path) => TaskSpec::load(path)?,
-        None => {
-            TaskSpec::from_toml_str(registry::default_spec_toml(task.name()).unwrap_or_default(), &format!("bundled {} spec", task.name()))?
-        }
-    };
-    let g = &mut spec.generation;
-    if let Some(n) = args.num_demos {
-        g.num_trials = n;
-    }
-    if let Some(seed) = args.seed {
-        g.seed = seed;
-    }
-    g.keep_failed |= args.keep_failed;
-    g.guarantee |= args.guarantee;
-    if let Some(cap) = args.max_attempts {
-        g.max_attempts = cap;
-    }
-    if args.workers == 0 {
-        bail!("--workers must be at least 1");
-    }
-    let source_path = args.source.clone().unwrap_or_else(|| bundled_source(task.name(), "D0"));
-    if !source_path.is_file() {
-        bail!(
-            "source demos {} not found (record them with `mimicgen demos --task {}`, or pass --source)",
-            source_path.display(),
-            task.name()
-        );
-    }
-    let sources = mimicgen_io::read_source_dataset(&source_path, &spec.source)
-        .with_context(|| format!("reading source demos {}", source_path.display()))?;
-    let (scene, scene_xml) = scene_for(task.as_ref(), sources.demos.first().and_then(|d| d.sim.model_xml.as_deref()), &source_path)?;
-    let env_args = registry::env_args_for_variant(sources.env_args.as_deref(), task.name(), &args.variant);
-    let num_sources = sources.demos.len();
-    let generator = Generator::new(spec.clone(), sources).with_context(|| format!("source demos {}", source_path.display()))?;
-    let mut envs: Vec<SimEnv> = (0..args.workers).map(|_| SimEnv::new(Arc::clone(&scene), Arc::clone(&task))).collect();
-    let mut obs_env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
-    let mut viz = args.rerun.logger("mimicgen", &scene)?;
+    let pipeline = Pipeline::prepare(&args.run_config())?;
+    let mut viz = args.rerun.logger("mimicgen", pipeline.scene())?;
     if let Some(v) = viz.as_mut() {
-        v.log_demos(generator.dataset().demos.iter().enumerate()).context("logging the source demos to Rerun")?;
+        v.log_demos(pipeline.generator().dataset().demos.iter().enumerate()).context("logging the source demos to Rerun")?;
     }
-
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
-    let options = WriterOptions {
-        env_args: Some(env_args.clone()),
-        compress_obs: true,
-        valid_fraction: args.valid_fraction,
-        split_seed: spec.generation.seed,
-    };
-    let mut writer = DatasetWriter::create(&args.out, options.clone())?;
-    let failed_path = sibling(&args.out, "_failed", "hdf5");
-    let mut failed_writer = if spec.generation.keep_failed {
-        Some(DatasetWriter::create(&failed_path, WriterOptions { valid_fraction: None, ..options })?)
-    } else {
-        None
-    };
-
-    let settings = &spec.generation;
-    let total = if settings.guarantee { settings.num_trials } else { settings.attempt_cap() };
-    let bar = ProgressBar::new(total as u64);
+    let bar = ProgressBar::hidden();
     bar.set_style(
         ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:30}] {pos}/{len} {msg} ETA {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    eprintln!(
-        "generating {} {} {} from {} source demos in {} on {} worker(s), seed {}",
-        if settings.guarantee { "until" } else { "with" },
-        settings.num_trials,
-        if settings.guarantee { "successes" } else { "attempts" },
-        num_sources,
-        source_path.display(),
-        args.workers,
-        settings.seed
-    );
-    let started = Instant::now();
-    let mut failures_kept = 0usize;
-    let stats = mimicgen_engine::run(&generator, &mut envs, |attempt, stats| {
-        let target = if attempt.success {
-            Some(&mut writer)
-        } else if failures_kept < settings.max_num_failures {
-            failures_kept += 1;
-            failed_writer.as_mut()
-        } else {
-            None
-        };
-        let outcome = target.map_or(Ok(()), |w| {
-            let initial = initial_object_poses(&attempt.trajectory.object_poses);
-            obs_env.place_fixed_objects(&initial);
-            let xml = scene
-                .xml_with_fixed_objects(&scene_xml, &initial)
-                .map_err(|e| EngineError::Io { path: String::new(), reason: e.to_string() })?;
-            obs_env
-                .observations_for_states(&attempt.trajectory.states)
-                .map_err(|e| EngineError::Env { attempt: attempt.index, source: e })
-                .and_then(|obs| w.append_attempt(&attempt, obs, Some(xml)).map(drop).map_err(|e| io_err(&e)))
-        });
-        if let Err(e) = outcome {
-            return ControlFlow::Break(Err(e));
+    let cancel = AtomicBool::new(false);
+    let mut viz_error: Option<anyhow::Error> = None;
+    let mut guarantee = false;
+    let report = pipeline.run(&cancel, |event| match event {
+        Event::Started(info) => {
+            guarantee = info.guarantee;
+            bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+            bar.set_length(info.target as u64);
+            eprintln!(
+                "generating {} {} {} of {} {} from {} source demos in {} on {} worker(s), seed {}{}",
+                if info.guarantee { "until" } else { "with" },
+                info.target,
+                if info.guarantee { "successes" } else { "attempts" },
+                info.task,
+                info.variant,
+                info.num_sources,
+                info.source.display(),
+                info.workers,
+                info.seed,
+                if info.resumed_from > 0 { format!(", resuming at attempt {}", info.resumed_from) } else { String::new() }
+            );
         }
-        if let Some(Err(e)) = viz.as_mut().map(|v| v.log_attempt(&attempt, stats)) {
-            return ControlFlow::Break(Err(EngineError::Io { path: "rerun recording".to_owned(), reason: e.to_string() }));
+        Event::Attempt(a) => {
+            if let Some(v) = viz.as_mut()
+                && let Err(e) = v.log_attempt(&a.attempt, &a.stats)
+            {
+                viz_error.get_or_insert_with(|| anyhow::Error::new(e).context("logging to the Rerun recording"));
+                cancel.store(true, Ordering::Relaxed);
+            }
+            let stats = &a.stats;
+            bar.set_position(if guarantee { stats.successes } else { stats.attempts } as u64);
+            #[allow(clippy::cast_precision_loss)]
+            bar.set_message(format!(
+                "{} ok / {} tried, rate {:.1}%, {:.2} demos/s",
+                stats.successes,
+                stats.attempts,
+                100.0 * stats.rate(),
+                stats.successes as f64 / a.elapsed_s.max(1e-9)
+            ));
         }
-        let secs = started.elapsed().as_secs_f64().max(1e-9);
-        bar.set_position(if settings.guarantee { stats.successes } else { stats.attempts } as u64);
-        #[allow(clippy::cast_precision_loss)]
-        bar.set_message(format!(
-            "{} ok / {} tried, rate {:.1}%, {:.2} demos/s",
-            stats.successes,
-            stats.attempts,
-            100.0 * stats.rate(),
-            stats.successes as f64 / secs
-        ));
-        ControlFlow::Continue(())
+        Event::Finished(_) => bar.finish_and_clear(),
     })?;
-    bar.finish_and_clear();
+    if let Some(e) = viz_error {
+        return Err(e);
+    }
     if let Some(v) = viz {
         v.finish().context("flushing the Rerun recording")?;
     }
-    let written = writer.finish()?;
-    let failed_written = failed_writer.map(DatasetWriter::finish).transpose()?;
-    let wall = started.elapsed().as_secs_f64();
-    let report = json!({
-        "task": task.name(),
-        "variant": args.variant,
-        "seed": settings.seed,
-        "workers": args.workers,
-        "source": source_path.display().to_string(),
-        "output": written.display().to_string(),
-        "failed_output": failed_written.map(|p| p.display().to_string()),
-        "attempts": stats.attempts,
-        "successes": stats.successes,
-        "generation_rate": stats.rate(),
-        "wall_time_s": wall,
-        "attempts_per_s": if wall > 0.0 { f64::from(u32::try_from(stats.attempts).unwrap_or(u32::MAX)) / wall } else { 0.0 },
-        "per_source_demo": stats.per_source_demo.iter().enumerate().map(|(i, d)| json!({"demo": i, "attempts": d.attempts, "successes": d.successes})).collect::<Vec<_>>(),
-        "peak_rss_mib": crate::bench_sim::peak_rss_mib(),
-        "failures": stats.failures.iter().map(|f| json!({"subtask": f.subtask, "reason": f.reason.to_string(), "count": f.count})).collect::<Vec<_>>(),
-    });
-    let text = serde_json::to_string_pretty(&report)?;
-    let report_path = sibling(&args.out, "", "json");
-    std::fs::write(&report_path, &text).with_context(|| format!("writing {}", report_path.display()))?;
-    println!("{text}");
+    println!("{}", serde_json::to_string_pretty(&report)?);
     eprintln!(
-        "{} of {} attempts succeeded ({:.1}%) in {wall:.1} s; dataset {}, report {}",
-        stats.successes,
-        stats.attempts,
-        100.0 * stats.rate(),
-        written.display(),
-        report_path.display()
+        "{} of {} attempts succeeded ({:.1}%) in {:.1} s; dataset {}, report {}",
+        report.successes,
+        report.attempts,
+        100.0 * report.generation_rate,
+        report.wall_time_s,
+        report.output,
+        pipeline.report_path().display()
     );
     Ok(())
 }
@@ -318,7 +239,9 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     if scripts.is_empty() {
         bail!("no scripted demonstrator for {}", task.name());
     }
-    let (scene, xml) = scene_for(task.as_ref(), None, Path::new(""))?;
+    let (scene, xml) = Scene::for_task_with_xml(task.as_ref())?;
+    let scene = Arc::new(scene);
+    let xml = mimicgen_sim::assets::portable_asset_paths(&xml);
     // Demos are kept only if the task's bundled spec can split them into its subtasks.
     let spec = registry::default_spec_toml(task.name())
         .map(|toml| TaskSpec::from_toml_str(toml, &format!("bundled {} spec", task.name())))
@@ -371,6 +294,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             src_demo_inds: Vec::new(),
             src_demo_labels: Vec::new(),
             model_xml: Some(scene.xml_with_fixed_objects(&xml, &initial)?),
+            attempt_index: None,
         };
         let name = writer.append(&data)?;
         eprintln!("{name}: {n} steps");

@@ -110,6 +110,7 @@ pub fn prepare(args: &PrepareArgs) -> anyhow::Result<()> {
             src_demo_inds: Vec::new(),
             src_demo_labels: Vec::new(),
             model_xml: Some(xml.to_owned()),
+            attempt_index: None,
         };
         writer.append(&data)?;
         eprintln!("{name}: {} steps", data.actions.len());

@@ -69,17 +69,14 @@ fn frame_arrows<'a>(poses: impl IntoIterator<Item = (String, &'a Pose)>) -> reru
     rerun::Arrows3D::from_vectors(vectors).with_origins(origins).with_colors(colors).with_labels(labels)
 }
 
-/// Subtask ends read from the signals, spec-free: the first step at which each signal is on after
-/// having been off, sorted. The last subtask runs to the end of the demo.
+/// Subtask ends read from the signals, spec-free, as the engine's segmentation reads them
+/// ([`mimicgen_engine::segment::subtask_end_from_signal`] from step 0), sorted. The last subtask
+/// runs to the end of the demo.
 #[must_use]
 pub fn signal_boundaries(signals: &BTreeMap<String, Vec<i64>>) -> Vec<(usize, String)> {
     let mut ends: Vec<(usize, String)> = signals
         .iter()
-        .filter_map(|(name, values)| {
-            let first_off = values.iter().position(|&v| v == 0)?;
-            let on = values[first_off..].iter().position(|&v| v != 0)? + first_off;
-            Some((on, name.clone()))
-        })
+        .filter_map(|(name, values)| Some((mimicgen_engine::segment::subtask_end_from_signal(values, 0)?, name.clone())))
         .collect();
     ends.sort();
     ends
@@ -127,7 +124,7 @@ pub fn log_demo(rec: &RecordingStream, root: &str, demo: &SourceDemo, demo_index
         &rerun::Points3D::new(marks.iter().map(|(t, _)| point(&demo.eef_poses[*t])))
             .with_radii([0.008])
             .with_colors(marks.iter().enumerate().map(|(k, _)| subtask_color(k)))
-            .with_labels(marks.iter().map(|(t, s)| format!("{s} on at step {t}"))),
+            .with_labels(marks.iter().map(|(t, s)| format!("{s} ends subtask at step {t}"))),
     )
     .map_err(|e| err("subtask_ends", &e))?;
     let frames: Vec<(String, &Pose)> = marks

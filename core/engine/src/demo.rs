@@ -181,6 +181,12 @@ impl SourceDemo {
                 check_finite(pose, &format!("{}/object_poses/{name}[{t}]", self.name))?;
             }
         }
+        let rows = [("gripper_action", &self.gripper_actions), ("actions", &self.sim.actions), ("states", &self.sim.states)];
+        for (field, rows) in rows {
+            if let Some((t, _)) = rows.iter().enumerate().find(|(_, row)| row.iter().any(|v| !v.is_finite())) {
+                return Err(EngineError::NonFinite { what: format!("{}/{field}[{t}]", self.name) });
+            }
+        }
         Ok(())
     }
 }

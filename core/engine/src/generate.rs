@@ -336,6 +336,9 @@ impl Generator {
                 if !signal_seen && attempt.failure.is_none() {
                     attempt.failure =
                         Some(Failure { subtask: subtask_index, reason: FailureReason::SignalNeverOn { signal: name.to_owned() } });
+                    if settings.early_abort && !attempt.success {
+                        return Ok(attempt);
+                    }
                 }
             }
         }
@@ -485,6 +488,18 @@ impl RunStats {
     }
 }
 
+/// Where a run starts and what can stop it early, beyond the spec's own stopping rule.
+#[derive(Debug, Default)]
+pub struct RunControl<'a> {
+    /// Index of the first attempt to run (a resumed run starts where the interrupted one stopped).
+    pub start: usize,
+    /// Statistics of the attempts before `start`.
+    pub stats: Option<RunStats>,
+    /// Set to stop after the attempts already handed back: every attempt before the stop has been
+    /// passed to the callback, in order, none after it.
+    pub cancel: Option<&'a AtomicBool>,
+}
+
 /// Runs attempts on every environment in `envs` in parallel (one worker thread each) and passes
 /// them to `on_attempt` in index order, until the spec's stopping rule is met or `on_attempt`
 /// breaks. The attempts seen, and so the dataset, do not depend on `envs.len()`.
@@ -496,9 +511,32 @@ where
     E: Environment + Send,
     F: FnMut(Attempt, &RunStats) -> ControlFlow<Result<(), EngineError>>,
 {
+    run_with(generator, envs, RunControl::default(), |_, _| Ok(()), |attempt, (), stats| on_attempt(attempt, stats))
+}
+
+/// [`run`], resumable and cancellable, with a step `finish` that each worker applies to its own
+/// attempts on its own environment before handing them back (computing observations, say), so
+/// that work runs in parallel too. `on_attempt` gets each attempt with what `finish` made of it.
+///
+/// # Errors
+/// The first fatal environment error, the first error of `finish`, or the error `on_attempt`
+/// breaks with.
+pub fn run_with<E, P, W, F>(
+    generator: &Generator,
+    envs: &mut [E],
+    control: RunControl<'_>,
+    finish: W,
+    mut on_attempt: F,
+) -> Result<RunStats, EngineError>
+where
+    E: Environment + Send,
+    P: Send,
+    W: Fn(&mut E, &Attempt) -> Result<P, EngineError> + Sync,
+    F: FnMut(Attempt, P, &RunStats) -> ControlFlow<Result<(), EngineError>>,
+{
     let settings = &generator.spec.generation;
     let cap = settings.attempt_cap();
-    let mut stats = RunStats::new(generator.dataset.demos.len());
+    let mut stats = control.stats.unwrap_or_else(|| RunStats::new(generator.dataset.demos.len()));
     if envs.is_empty() {
         return Err(EngineError::Config {
             file: String::new(),
@@ -506,20 +544,26 @@ where
             reason: "at least one environment is needed".to_owned(),
         });
     }
-    let next = AtomicUsize::new(0);
+    let cancelled = || control.cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+    let done = |stats: &RunStats| settings.guarantee && stats.successes >= settings.num_trials;
+    if done(&stats) || control.start >= cap || cancelled() {
+        return Ok(stats);
+    }
+    let next = AtomicUsize::new(control.start);
     let stop = AtomicBool::new(false);
-    let (sender, receiver) = mpsc::sync_channel::<(usize, Result<Attempt, EngineError>)>(envs.len() * 2);
+    type Outcome<P> = Result<(Attempt, P), EngineError>;
+    let (sender, receiver) = mpsc::sync_channel::<(usize, Outcome<P>)>(envs.len() * 2);
     std::thread::scope(|scope| {
         for (worker, env) in envs.iter_mut().enumerate() {
             let sender = sender.clone();
-            let (next, stop) = (&next, &stop);
+            let (next, stop, finish) = (&next, &stop, &finish);
             let spawned = std::thread::Builder::new().name(format!("mimicgen-worker-{worker}")).spawn_scoped(scope, move || {
                 loop {
                     let index = next.fetch_add(1, Ordering::Relaxed);
                     if index >= cap || stop.load(Ordering::Relaxed) {
                         break;
                     }
-                    let result = generator.attempt(env, index as u64);
+                    let result = generator.attempt(env, index as u64).and_then(|a| finish(env, &a).map(|p| (a, p)));
                     if sender.send((index, result)).is_err() {
                         break;
                     }
@@ -531,25 +575,29 @@ where
             }
         }
         drop(sender);
-        let mut pending: BTreeMap<usize, Result<Attempt, EngineError>> = BTreeMap::new();
-        let mut expected = 0usize;
+        let mut pending: BTreeMap<usize, Outcome<P>> = BTreeMap::new();
+        let mut expected = control.start;
         let outcome = 'receive: loop {
-            if expected >= cap || (settings.guarantee && stats.successes >= settings.num_trials) {
+            if expected >= cap || done(&stats) || cancelled() {
                 break Ok(());
             }
-            let Ok((index, result)) = receiver.recv() else { break Ok(()) };
+            let (index, result) = match receiver.recv_timeout(std::time::Duration::from_millis(50)) {
+                Ok(message) => message,
+                Err(mpsc::RecvTimeoutError::Timeout) => continue,
+                Err(mpsc::RecvTimeoutError::Disconnected) => break Ok(()),
+            };
             pending.insert(index, result);
             while let Some(result) = pending.remove(&expected) {
                 expected += 1;
-                let attempt = match result {
+                let (attempt, payload) = match result {
                     Ok(a) => a,
                     Err(e) => break 'receive Err(e),
                 };
                 stats.record(&attempt);
-                if let ControlFlow::Break(result) = on_attempt(attempt, &stats) {
+                if let ControlFlow::Break(result) = on_attempt(attempt, payload, &stats) {
                     break 'receive result;
                 }
-                if settings.guarantee && stats.successes >= settings.num_trials {
+                if done(&stats) || cancelled() {
                     break 'receive Ok(());
                 }
             }

@@ -256,6 +256,7 @@ pub fn pick_place_spec(num_trials: usize, seed: u64) -> TaskSpec {
     };
     TaskSpec {
         name: "kinematic_pick_place".to_owned(),
+        env_name: None,
         generation: GenerationSettings { num_trials, select_src_per_subtask: true, seed, ..GenerationSettings::default() },
         source: crate::spec::SourceSelection::default(),
         subtasks: vec![subtask("cubeA", Some("grasp"), Some((10, 20))), subtask("cubeB", None, None)],

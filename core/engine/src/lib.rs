@@ -42,7 +42,7 @@ pub(crate) mod testing;
 
 pub use demo::{Rows, SimPayload, SourceDataset, SourceDemo};
 pub use env::{EnvError, Environment};
-pub use generate::{Attempt, Failure, FailureReason, Generator, RunStats, run};
+pub use generate::{Attempt, Failure, FailureReason, Generator, RunControl, RunStats, run, run_with};
 pub use pose::Pose;
 pub use spec::{GenerationSettings, SelectionStrategy, SubtaskSpec, TaskSpec};
 
@@ -57,6 +57,12 @@ pub enum EngineError {
         what: String,
         /// What is wrong with it.
         reason: String,
+    },
+    /// A recorded array (states, actions, gripper actions) holds NaN or infinity.
+    #[error("{what} contains NaN or infinity")]
+    NonFinite {
+        /// The demo, field and step.
+        what: String,
     },
     /// Arrays of one demo disagree in shape.
     #[error("bad shape in {what}: {reason}")]

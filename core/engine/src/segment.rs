@@ -1,7 +1,13 @@
 //! Splitting source demos into object-centric subtask segments (paper Sec. 3.1).
 //!
-//! A subtask ends at the first 0 -> 1 transition of its signal after the previous boundary
-//! (or at a hand-annotated step, which overrides the signal); the last subtask ends with the demo.
+//! A subtask ends just after the first step at which its signal turns on (0 -> 1) at or after the
+//! previous boundary, so that step belongs to the subtask: `[start, t + 1)`, as MimicGen's
+//! `parse_source_dataset` reads it. A hand-annotated boundary overrides the signal; the last
+//! subtask ends with the demo.
+//!
+//! Where we differ from the reference on purpose: it takes the first *change* of the signal in
+//! either direction, so a signal that starts on and turns off ends the subtask at the fall; we
+//! wait for the first rise, which is what "the subtask is done" means.
 //! Each attempt then shifts every boundary but the last by an offset drawn from the subtask's
 //! `term_offset_range`, so segments vary a little from attempt to attempt, as MimicGen does.
 
@@ -14,10 +20,18 @@ use crate::spec::TaskSpec;
 /// Half-open step range `[start, end)` of one subtask in one demo.
 pub type Span = (usize, usize);
 
-/// First step `t > after` where `signal[t-1] == 0` and `signal[t] != 0`.
+/// First step `t >= from` (and `t >= 1`) where `signal[t-1] == 0` and `signal[t] != 0`.
 #[must_use]
-pub fn first_rising_edge(signal: &[i64], after: usize) -> Option<usize> {
-    ((after + 1)..signal.len()).find(|&t| signal[t - 1] == 0 && signal[t] != 0)
+pub fn first_rising_edge(signal: &[i64], from: usize) -> Option<usize> {
+    (from.max(1)..signal.len()).find(|&t| signal[t - 1] == 0 && signal[t] != 0)
+}
+
+/// The end (exclusive) of a subtask that starts at `start` and whose signal is `signal`: one past
+/// the first step at or after `start` where the signal turns on, as MimicGen's segmentation
+/// reads it. `None` when the signal never turns on there.
+#[must_use]
+pub fn subtask_end_from_signal(signal: &[i64], start: usize) -> Option<usize> {
+    first_rising_edge(signal, start).map(|t| t + 1)
 }
 
 /// Nominal subtask boundaries of every demo, before per-attempt offsets.
@@ -59,8 +73,8 @@ impl Segmentation {
                         .as_deref()
                         .ok_or_else(|| fail(i, "has no term_signal and the demo has no manual boundaries".to_owned()))?;
                     let signal = demo.subtask_term_signals.get(name).ok_or_else(|| fail(i, format!("demo has no signal {name:?}")))?;
-                    let end = first_rising_edge(signal, prev)
-                        .ok_or_else(|| fail(i, format!("signal {name:?} never turns on after step {prev}")))?;
+                    let end = subtask_end_from_signal(signal, prev)
+                        .ok_or_else(|| fail(i, format!("signal {name:?} never turns on at or after step {prev}")))?;
                     demo_ends.push(end);
                     prev = end;
                 }
@@ -152,6 +166,7 @@ mod tests {
         };
         TaskSpec {
             name: "t".into(),
+            env_name: None,
             generation: Default::default(),
             source: Default::default(),
             subtasks: vec![sub(Some("on"), offsets), sub(None, None)],
@@ -162,16 +177,21 @@ mod tests {
     fn rising_edge_after_the_previous_boundary() {
         let s = [1, 1, 0, 0, 1, 1, 0, 1];
         assert_eq!(first_rising_edge(&s, 0), Some(4));
-        assert_eq!(first_rising_edge(&s, 4), Some(7));
-        assert_eq!(first_rising_edge(&s, 7), None);
+        assert_eq!(first_rising_edge(&s, 4), Some(4));
+        assert_eq!(first_rising_edge(&s, 5), Some(7));
+        assert_eq!(first_rising_edge(&s, 8), None);
         assert_eq!(first_rising_edge(&[0, 0, 0], 0), None);
+        // The step where the signal turns on belongs to the subtask that ends there.
+        assert_eq!(subtask_end_from_signal(&s, 0), Some(5));
+        assert_eq!(subtask_end_from_signal(&s, 5), Some(8));
+        assert_eq!(subtask_end_from_signal(&[1, 1, 0], 0), None);
     }
 
     #[test]
     fn signals_split_demos_and_the_last_subtask_runs_to_the_end() {
         let demos = vec![demo_with_object_at("cube", 0.0)];
         let seg = Segmentation::new(&demos, &spec(None)).unwrap();
-        assert_eq!(seg.nominal_spans(0), vec![(0, 4), (4, 10)]);
+        assert_eq!(seg.nominal_spans(0), vec![(0, 5), (5, 10)]);
     }
 
     #[test]
@@ -196,7 +216,7 @@ mod tests {
                 ends.insert(spans[0].1);
             }
         }
-        assert_eq!(ends.into_iter().collect::<Vec<_>>(), vec![2, 3, 4, 5, 6, 7]);
+        assert_eq!(ends.into_iter().collect::<Vec<_>>(), vec![3, 4, 5, 6, 7, 8]);
     }
 
     #[test]
@@ -208,7 +228,7 @@ mod tests {
         assert!(err.contains("demo_7") && err.contains("subtask 0") && err.contains("never turns on"), "{err}");
 
         let demo = demo_with_object_at("cube", 0.0);
-        let err = Segmentation::new(std::slice::from_ref(&demo), &spec(Some((-4, 0)))).unwrap_err().to_string();
+        let err = Segmentation::new(std::slice::from_ref(&demo), &spec(Some((-5, 0)))).unwrap_err().to_string();
         assert!(err.contains("can be empty"), "{err}");
         let err = Segmentation::new(std::slice::from_ref(&demo), &spec(Some((0, 6)))).unwrap_err().to_string();
         assert!(err.contains("can be empty") || err.contains("past the demo"), "{err}");

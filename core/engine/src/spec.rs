@@ -138,6 +138,9 @@ pub struct GenerationSettings {
     pub interpolate_from_last_target_pose: bool,
     /// Run seed: attempt k draws from a stream derived from (seed, k).
     pub seed: u64,
+    /// End an attempt as soon as a subtask's segment has run without its end signal turning on,
+    /// instead of executing the remaining subtasks first (the reference always runs them all).
+    pub early_abort: bool,
 }
 
 impl Default for GenerationSettings {
@@ -152,6 +155,7 @@ impl Default for GenerationSettings {
             transform_first_robot_pose: false,
             interpolate_from_last_target_pose: true,
             seed: 1,
+            early_abort: false,
         }
     }
 }
@@ -190,6 +194,11 @@ pub struct TaskSpec {
     /// Task name (`stack`).
     #[serde(default)]
     pub name: String,
+    /// The robosuite environment to generate in, when the spec names one (MimicGen's
+    /// `experiment.task.name`, e.g. `Stack_D1`): it selects the task and variant of a run unless
+    /// they are given explicitly.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub env_name: Option<String>,
     /// Run settings.
     #[serde(default)]
     pub generation: GenerationSettings,
@@ -228,11 +237,7 @@ impl TaskSpec {
     /// # Errors
     /// [`EngineError::Config`] naming the file and the offending field.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, EngineError> {
-        let spec: Self = toml::from_str(text).map_err(|e| EngineError::Config {
-            file: origin.to_owned(),
-            field: String::new(),
-            reason: e.to_string(),
-        })?;
+        let spec: Self = toml::from_str(text).map_err(|e| toml_error(text, origin, &e))?;
         spec.check(origin)?;
         Ok(spec)
     }
@@ -295,6 +300,7 @@ impl TaskSpec {
         let g = json.experiment.generation;
         let spec = Self {
             name: json.name.unwrap_or_default(),
+            env_name: json.experiment.task.and_then(|t| t.name),
             generation: GenerationSettings {
                 num_trials: g.num_trials,
                 guarantee: g.guarantee,
@@ -305,6 +311,7 @@ impl TaskSpec {
                 transform_first_robot_pose: g.transform_first_robot_pose,
                 interpolate_from_last_target_pose: g.interpolate_from_last_target_pose,
                 seed: json.experiment.seed.unwrap_or(1),
+                ..GenerationSettings::default()
             },
             source: json.experiment.source.unwrap_or_default(),
             subtasks: out,
@@ -415,6 +422,37 @@ impl TaskSpec {
     }
 }
 
+/// A TOML error as `file:line`, the dotted field (`subtask[1].object_ref`) and the message.
+fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> EngineError {
+    let Some(span) = e.span() else {
+        return EngineError::Config { file: origin.to_owned(), field: String::new(), reason: e.message().to_owned() };
+    };
+    let start = span.start.min(text.len());
+    let line = text[..start].matches('\n').count() + 1;
+    let lines: Vec<&str> = text.lines().take(line).collect();
+    let key = lines.last().and_then(|l| l.split_once('=')).map(|(k, _)| k.trim().trim_matches('"').to_owned());
+    // The table the line sits in, with its index when it is an array of tables.
+    let mut table: Option<String> = None;
+    let mut counts: std::collections::BTreeMap<String, usize> = std::collections::BTreeMap::new();
+    for l in &lines {
+        let l = l.trim();
+        if let Some(name) = l.strip_prefix("[[").and_then(|r| r.strip_suffix("]]")) {
+            let n = counts.entry(name.trim().to_owned()).or_insert(0);
+            table = Some(format!("{}[{n}]", name.trim()));
+            *n += 1;
+        } else if let Some(name) = l.strip_prefix('[').and_then(|r| r.strip_suffix(']')) {
+            table = Some(name.trim().to_owned());
+        }
+    }
+    let field = match (table, key) {
+        (Some(t), Some(k)) => format!("{t}.{k}"),
+        (Some(t), None) => t,
+        (None, Some(k)) => k,
+        (None, None) => String::new(),
+    };
+    EngineError::Config { file: format!("{origin}:{line}"), field, reason: e.message().trim().to_owned() }
+}
+
 #[derive(Deserialize)]
 struct MgConfig {
     name: Option<String>,
@@ -425,6 +463,7 @@ struct MgConfig {
 #[derive(Deserialize)]
 struct MgExperiment {
     source: Option<SourceSelection>,
+    task: Option<MgExperimentTask>,
     generation: MgGeneration,
     max_num_failures: Option<usize>,
     seed: Option<u64>,
@@ -443,6 +482,11 @@ struct MgGeneration {
     transform_first_robot_pose: bool,
     #[serde(default)]
     interpolate_from_last_target_pose: bool,
+}
+
+#[derive(Deserialize)]
+struct MgExperimentTask {
+    name: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -494,6 +538,15 @@ mod tests {
         let spec = TaskSpec::from_mimicgen_json_str(CONFIG_D0, "config_D0.json").unwrap();
         let text = spec.to_toml_string().unwrap();
         assert_eq!(TaskSpec::from_toml_str(&text, "x.toml").unwrap(), spec);
+    }
+
+    #[test]
+    fn toml_type_errors_name_the_line_and_field() {
+        let text = "name = \"stack\"\n\n[[subtask]]\nobject_ref = \"cubeA\"\nterm_signal = \"grasp\"\n\n[[subtask]]\nobject_ref = 3\n";
+        let err = TaskSpec::from_toml_str(text, "my.toml").unwrap_err().to_string();
+        assert!(err.contains("my.toml:8") && err.contains("subtask[1].object_ref") && err.contains("string"), "{err}");
+        let err = TaskSpec::from_toml_str("[generation]\nseed = \"x\"\n[[subtask]]\n", "g.toml").unwrap_err().to_string();
+        assert!(err.contains("g.toml:2") && err.contains("generation.seed"), "{err}");
     }
 
     #[test]

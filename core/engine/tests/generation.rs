@@ -227,3 +227,34 @@ fn a_spec_naming_a_missing_object_is_rejected_up_front() {
     let err = Generator::new(spec, kinematic::scripted_dataset(2, 1).unwrap()).unwrap_err().to_string();
     assert!(err.contains("subtask[1].object_ref") && err.contains("cubeZ"), "{err}");
 }
+
+/// Where we differ from the reference on purpose: MimicGen prepends the segment's first gripper
+/// action for every subtask but the first robot pose only for the first, so from the second
+/// subtask on its gripper commands run one step behind the poses they came with (and the last one
+/// is dropped). We keep every transformed pose with the gripper action recorded beside it in the
+/// source demo, as Isaac Lab Mimic does.
+#[test]
+fn later_subtasks_keep_each_pose_with_its_own_gripper_action() {
+    let mut spec = kinematic::pick_place_spec(4, 3);
+    for subtask in &mut spec.subtasks {
+        subtask.action_noise = 0.0;
+    }
+    let generator = generator(spec);
+    let (attempts, _) = collect(&generator, 1, 0.1);
+    for attempt in &attempts {
+        for (subtask, plan) in attempt.plans.iter().enumerate().skip(1) {
+            let demo = &generator.dataset().demos[plan.src_demo];
+            let executed: Vec<&[f64]> = (0..attempt.trajectory.len())
+                .filter(|&t| attempt.trajectory.subtask_labels[t] == subtask && attempt.trajectory.kinds[t] == WaypointKind::Transformed)
+                .map(|t| attempt.trajectory.gripper_actions.row(t))
+                .collect();
+            let source: Vec<&[f64]> = (plan.src_span.0..plan.src_span.1).map(|t| demo.gripper_actions.row(t)).collect();
+            // The first transformed pose is reached by the interpolation; the rest execute with the
+            // gripper actions of their own source steps, up to the segment's last (the reference
+            // would give the action one step earlier, and drop the last).
+            assert!(!executed.is_empty() && executed.len() < source.len());
+            assert_eq!(executed, source[source.len() - executed.len()..], "attempt {} subtask {subtask}", attempt.index);
+            assert_eq!(executed.last(), source.last());
+        }
+    }
+}

@@ -34,4 +34,4 @@ pub mod writer;
 
 pub use dataset::{DatasetReport, DemoReader, DemoSource, ReadOptions, RobomimicDataset, read_source_dataset, write_tree};
 pub use error::{IoError, Result};
-pub use writer::{DatagenInfo, DatasetWriter, DemoData, Observation, WriterOptions};
+pub use writer::{ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, Observation, WriterOptions};

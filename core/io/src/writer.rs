@@ -50,7 +50,13 @@ pub struct DemoData {
     pub src_demo_labels: Vec<i64>,
     /// The scene XML (`model_file` attribute).
     pub model_xml: Option<String>,
+    /// Index of the generation attempt this demo came from (`mimicgen_attempt` attribute), which
+    /// lets an interrupted run resume exactly where its last kept attempt was decided.
+    pub attempt_index: Option<u64>,
 }
+
+/// The demo attribute holding [`DemoData::attempt_index`].
+pub const ATTEMPT_ATTR: &str = "mimicgen_attempt";
 
 impl DemoData {
     /// A generation attempt as a demo: its trajectory, annotations and source labels, with
@@ -78,6 +84,7 @@ impl DemoData {
             src_demo_inds: to_i64(&attempt.src_demo_per_subtask),
             src_demo_labels: to_i64(&t.src_demo_labels),
             model_xml,
+            attempt_index: Some(attempt.index),
         }
     }
 
@@ -160,6 +167,9 @@ impl DemoData {
         }
         if let Some(xml) = &self.model_xml {
             g.attrs.insert("model_file".into(), Array::string(xml));
+        }
+        if let Some(index) = self.attempt_index {
+            g.attrs.insert(ATTEMPT_ATTR.into(), Array::int(i64::try_from(index).unwrap_or(i64::MAX)));
         }
         Ok(g)
     }
@@ -259,6 +269,88 @@ impl DatasetWriter {
         }
         h5.flush().map_err(|e| err("/", "", &e))?;
         Ok(Self { h5, data, label, partial, out, options, names: Vec::new(), total: 0 })
+    }
+
+    /// Reopens the `<out>.partial` file an interrupted writer left, to go on appending: keeps the
+    /// demos that were completely written (`num_samples` set) and whose attempt index (if any) is
+    /// below `next_attempt`, and removes the rest, so the file holds exactly the demos of the
+    /// attempts before `next_attempt`.
+    ///
+    /// # Errors
+    /// [`IoError::Fs`] if there is no such file, [`IoError::Hdf5`] if it cannot be opened or edited.
+    pub fn resume(out: impl AsRef<Path>, options: WriterOptions, next_attempt: u64) -> Result<Self> {
+        let out = out.as_ref().to_path_buf();
+        let partial = Self::partial_path(&out);
+        let label = partial.display().to_string();
+        if !partial.is_file() {
+            return Err(IoError::Fs { file: label, reason: "no interrupted run to resume here (the file does not exist)".to_owned() });
+        }
+        let err = |g: &str, f: &str, e: &hdf5::Error| IoError::hdf5(&label, g, f, e);
+        let h5 = hdf5::File::open_rw(&partial).map_err(|e| err("/", "", &e))?;
+        let data = h5.group("data").map_err(|e| err("/", "data", &e))?;
+        let mut names = Vec::new();
+        let mut total = 0i64;
+        let mut dropping = false;
+        for i in 0.. {
+            let name = format!("demo_{i}");
+            if !data.link_exists(&name) {
+                break;
+            }
+            let g = data.group(&name).map_err(|e| err("data", &name, &e))?;
+            let int_attr = |attr: &str| -> Option<i64> { g.attr(attr).ok().and_then(|a| a.read_scalar::<i64>().ok()) };
+            let steps = int_attr("num_samples");
+            let attempt = int_attr(ATTEMPT_ATTR).and_then(|a| u64::try_from(a).ok());
+            dropping |= steps.is_none() || attempt.is_some_and(|a| a >= next_attempt);
+            if dropping {
+                drop(g);
+                data.unlink(&name).map_err(|e| err("data", &name, &e))?;
+                continue;
+            }
+            total += steps.unwrap_or(0);
+            names.push(name);
+        }
+        h5.flush().map_err(|e| err("/", "", &e))?;
+        Ok(Self { h5, data, label, partial, out, options, names, total })
+    }
+
+    /// String attributes `names` of the root of the `<out>.partial` file an interrupted writer left
+    /// (`None` for each one it lacks).
+    ///
+    /// # Errors
+    /// [`IoError::Fs`] if there is no such file, [`IoError::Hdf5`] if it cannot be read.
+    pub fn partial_root_attrs(out: impl AsRef<Path>, names: &[&str]) -> Result<Vec<Option<String>>> {
+        let partial = Self::partial_path(out.as_ref());
+        let label = partial.display().to_string();
+        if !partial.is_file() {
+            return Err(IoError::Fs { file: label, reason: "no interrupted run to resume here (the file does not exist)".to_owned() });
+        }
+        let h5 = hdf5::File::open(&partial).map_err(|e| IoError::hdf5(&label, "/", "", &e))?;
+        Ok(names
+            .iter()
+            .map(|name| {
+                let a = h5.attr(name).ok()?;
+                tree::read_array(&label, "/", name, &a).ok()?.as_str().map(str::to_owned)
+            })
+            .collect())
+    }
+
+    /// Sets a string attribute on the file's root (replacing an earlier value) and flushes.
+    ///
+    /// # Errors
+    /// [`IoError::Hdf5`] on write errors.
+    pub fn set_root_attr(&mut self, name: &str, value: &str) -> Result<()> {
+        if self.h5.attr_names().is_ok_and(|names| names.iter().any(|n| n == name)) {
+            self.h5.delete_attr(name).map_err(|e| IoError::hdf5(&self.label, "/", name, &e))?;
+        }
+        tree::write_attr(&self.label, &self.h5, "/", name, &Array::string(value))?;
+        self.h5.flush().map_err(|e| IoError::hdf5(&self.label, "/", name, &e))
+    }
+
+    /// A string attribute of the file's root, if set.
+    #[must_use]
+    pub fn root_attr(&self, name: &str) -> Option<String> {
+        let a = self.h5.attr(name).ok()?;
+        tree::read_array(&self.label, "/", name, &a).ok()?.as_str().map(str::to_owned)
     }
 
     /// Number of demos written so far.

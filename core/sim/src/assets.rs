@@ -14,14 +14,9 @@ const ASSETS_MARKER: &str = "robosuite/models/assets/";
 /// # Errors
 /// [`SimError::Assets`] if the directory does not exist (with the command that creates it).
 pub fn robosuite_assets_dir() -> Result<PathBuf, SimError> {
-    let dir = if let Some(dir) = std::env::var_os("MIMICGEN_ASSETS") {
-        PathBuf::from(dir)
-    } else {
-        let cache = std::env::var_os("MIMICGEN_CACHE")
-            .map(PathBuf::from)
-            .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/mimicgen")))
-            .unwrap_or_else(|| PathBuf::from(".cache/mimicgen"));
-        cache.join("robosuite-1.4.1/robosuite/models/assets")
+    let dir = match std::env::var_os("MIMICGEN_ASSETS") {
+        Some(dir) => PathBuf::from(dir),
+        None => cache_dir().join("robosuite-1.4.1/robosuite/models/assets"),
     };
     if dir.join("robots/panda/robot.xml").is_file() {
         Ok(dir)
@@ -31,6 +26,28 @@ pub fn robosuite_assets_dir() -> Result<PathBuf, SimError> {
             reason: "robosuite assets not found; run scripts/setup.sh (or set MIMICGEN_ASSETS)".to_owned(),
         })
     }
+}
+
+/// The project's cache: `$MIMICGEN_CACHE`, else `~/.cache/mimicgen` (what `scripts/setup.sh` fills).
+#[must_use]
+pub fn cache_dir() -> PathBuf {
+    std::env::var_os("MIMICGEN_CACHE")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/mimicgen")))
+        .unwrap_or_else(|| PathBuf::from(".cache/mimicgen"))
+}
+
+/// Where the robosuite asset paths of a `model_file` we write point: a machine-independent
+/// location that robosuite's and MimicGen's `edit_model_xml` re-point at their own install (by the
+/// last path component named `robosuite`), as we do on load. It holds no component named
+/// `mimicgen`, which MimicGen's envs would re-point into the mimicgen package instead.
+pub const PORTABLE_ASSETS_DIR: &str = "/robosuite/models/assets";
+
+/// `xml` with every robosuite asset path re-pointed at [`PORTABLE_ASSETS_DIR`], so the file is the
+/// same on every machine and loads in robosuite and MimicGen. Other paths are left alone.
+#[must_use]
+pub fn portable_asset_paths(xml: &str) -> String {
+    remap_asset_paths(xml, Path::new(PORTABLE_ASSETS_DIR))
 }
 
 /// Rewrites every `file="..."` attribute that points into some machine's robosuite install so it
@@ -62,6 +79,16 @@ pub fn remap_asset_paths(xml: &str, assets_dir: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn portable_paths_have_no_mimicgen_component() {
+        let xml = r#"<mesh file="/root/.cache/mimicgen/robosuite-1.4.1/robosuite/models/assets/robots/panda/meshes/link0.stl"/><texture file="/x/mimicgen/models/robosuite/assets/textures/a.png"/>"#;
+        let out = portable_asset_paths(xml);
+        assert_eq!(
+            out,
+            r#"<mesh file="/robosuite/models/assets/robots/panda/meshes/link0.stl"/><texture file="/x/mimicgen/models/robosuite/assets/textures/a.png"/>"#
+        );
+    }
 
     #[test]
     fn remaps_only_robosuite_paths() {

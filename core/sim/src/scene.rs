@@ -194,9 +194,18 @@ impl Scene {
     /// # Errors
     /// [`SimError::Assets`] without local assets, else as [`Scene::compile`].
     pub fn for_task(task: &dyn crate::Task) -> Result<Self, SimError> {
+        Self::for_task_with_xml(task).map(|(scene, _)| scene)
+    }
+
+    /// [`Scene::for_task`], with the composed MJCF (the `model_file` its episodes are written with).
+    ///
+    /// # Errors
+    /// As [`Scene::for_task`].
+    pub fn for_task_with_xml(task: &dyn crate::Task) -> Result<(Self, String), SimError> {
         let assets = crate::assets::robosuite_assets_dir()?;
         let xml = crate::compose::compose_scene(&assets, &task.object_models(), task.table_top_z());
-        Self::compile(&xml, &format!("composed {} scene", task.name()), &task.objects(), 20.0)
+        let scene = Self::compile(&xml, &format!("composed {} scene", task.name()), &task.objects(), 20.0)?;
+        Ok((scene, xml))
     }
 
     /// The objects fixed in the world that resets place (pegs): `(object name, mocap index)`.

@@ -1,0 +1,46 @@
+//! The source demos that ship with the project, found by an installed binary too.
+//!
+//! The files are compiled into the crate and written once to the cache directory
+//! (`$MIMICGEN_CACHE/bundled/<version>/`), since HDF5 reads from a path.
+
+use std::path::PathBuf;
+
+use crate::PipelineError;
+
+/// `(task, variant, file name, bytes)` of every bundled source file.
+const FILES: &[(&str, &str, &str, &[u8])] = &[
+    ("stack", "D0", "stack_D0_source.hdf5", include_bytes!("../../sim/data/stack_D0_source.hdf5")),
+    ("stack_three", "D0", "stack_three_D0_source.hdf5", include_bytes!("../../sim/data/stack_three_D0_source.hdf5")),
+    ("square", "D0", "square_D0_source.hdf5", include_bytes!("../../sim/data/square_D0_source.hdf5")),
+];
+
+/// The bundled scripted source demos of `task` (recorded in its D0 variant), as a file on disk.
+///
+/// # Errors
+/// [`PipelineError::Input`] when the task has no bundled demos, [`PipelineError::Fs`] when the
+/// cache cannot be written.
+pub fn source_demos(task: &str) -> Result<PathBuf, PipelineError> {
+    let (_, _, name, bytes) = FILES.iter().find(|(t, ..)| *t == task).ok_or_else(|| PipelineError::Input {
+        file: String::new(),
+        field: "--source".to_owned(),
+        reason: format!("task {task:?} has no bundled source demos; record some with `mimicgen demos --task {task}` and pass --source"),
+    })?;
+    let dir = mimicgen_sim::assets::cache_dir().join("bundled").join(env!("CARGO_PKG_VERSION"));
+    let path = dir.join(name);
+    if std::fs::read(&path).is_ok_and(|on_disk| on_disk == *bytes) {
+        return Ok(path);
+    }
+    let fs = |e: std::io::Error| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() };
+    std::fs::create_dir_all(&dir).map_err(fs)?;
+    // Written under a temporary name and renamed, so a concurrent run never reads half a file.
+    let tmp = dir.join(format!("{name}.{}.tmp", std::process::id()));
+    std::fs::write(&tmp, bytes).map_err(fs)?;
+    std::fs::rename(&tmp, &path).map_err(fs)?;
+    Ok(path)
+}
+
+/// Tasks with bundled source demos.
+#[must_use]
+pub fn tasks() -> Vec<&'static str> {
+    FILES.iter().map(|(t, ..)| *t).collect()
+}

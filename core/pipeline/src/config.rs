@@ -1,0 +1,255 @@
+//! What a user asks of a run, and how the task, variant, spec and sources are worked out from it.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use mimicgen_engine::TaskSpec;
+use mimicgen_sim::{Task, registry};
+use serde::{Deserialize, Serialize};
+
+use crate::PipelineError;
+
+/// A run as the user describes it: every field of `mimicgen generate`. `None` means "the default"
+/// or "what the inputs say".
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunConfig {
+    /// Task (`stack`); default: what the config or the source file names, else `stack`.
+    pub task: Option<String>,
+    /// Variant (`D1`); default: what the config or the source file names, else `D0`.
+    pub variant: Option<String>,
+    /// Task spec file (our TOML or a MimicGen experiment JSON); default: the task's bundled spec.
+    pub config: Option<PathBuf>,
+    /// Source demos (MimicGen source layout); default: the task's bundled demos.
+    pub source: Option<PathBuf>,
+    /// Output dataset; failed attempts go to `<out>_failed.hdf5`, the report to `<out>.json`.
+    pub out: PathBuf,
+    /// Worker threads, each with its own simulator. The dataset does not depend on it.
+    pub workers: usize,
+    /// Attempts to make (successes to reach with `guarantee`); default: the spec's `num_trials`.
+    pub num_demos: Option<usize>,
+    /// Run seed; default: the spec's.
+    pub seed: Option<u64>,
+    /// Also write failed attempts (up to the spec's `max_num_failures`).
+    pub keep_failed: bool,
+    /// Keep attempting until `num_demos` successes.
+    pub guarantee: bool,
+    /// Hard cap on attempts with `guarantee`.
+    pub max_attempts: Option<usize>,
+    /// Fraction of demos, drawn with the run seed, in a `mask/valid` filter key.
+    pub valid_fraction: Option<f64>,
+    /// End an attempt as soon as a subtask ends without its signal (see `GenerationSettings`).
+    pub early_abort: bool,
+    /// Replace an existing output.
+    pub overwrite: bool,
+    /// Continue the interrupted run that left `<out>.partial`.
+    pub resume: bool,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        Self {
+            task: None,
+            variant: None,
+            config: None,
+            source: None,
+            out: PathBuf::from("out/generated.hdf5"),
+            workers: 1,
+            num_demos: None,
+            seed: None,
+            keep_failed: false,
+            guarantee: false,
+            max_attempts: None,
+            valid_fraction: None,
+            early_abort: false,
+            overwrite: false,
+            resume: false,
+        }
+    }
+}
+
+/// The task and variant one input names, with where it said so.
+#[derive(Debug, Clone)]
+struct Named {
+    task: String,
+    variant: String,
+    origin: String,
+}
+
+/// Works out the task and variant: `--task/--variant` first, then the config's
+/// `experiment.task.name`, then the source file's `env_args`, then `stack` / `D0`. Inputs that
+/// name different tasks are an error naming both; the variant of an earlier one wins, since
+/// source demos are usually recorded in D0 and generated in a wider variant.
+///
+/// # Errors
+/// [`PipelineError::Input`] for unknown names or contradicting inputs.
+pub(crate) fn resolve_task(
+    explicit_task: Option<&str>,
+    explicit_variant: Option<&str>,
+    spec: Option<(&TaskSpec, &Path)>,
+    source_env_args: Option<(&str, &Path)>,
+) -> Result<(Arc<dyn Task>, String), PipelineError> {
+    let mut named: Vec<Named> = Vec::new();
+    if let Some(task) = explicit_task {
+        let variant = explicit_variant.unwrap_or_default().to_owned();
+        named.push(Named { task: task.to_ascii_lowercase(), variant, origin: "--task".to_owned() });
+    }
+    if let Some((spec, path)) = spec
+        && let Some(env_name) = &spec.env_name
+    {
+        let (task, variant) = registry::task_from_env_name(env_name)
+            .map_err(|reason| PipelineError::input(path.display().to_string(), "experiment.task.name", reason))?;
+        named.push(Named {
+            task: task.name().to_owned(),
+            variant,
+            origin: format!("{} (experiment.task.name {env_name:?})", path.display()),
+        });
+    }
+    if let Some((env_args, path)) = source_env_args {
+        // A source file whose env is not one of ours (or has none) names no task.
+        if let Ok((task, variant)) = registry::task_from_env_args(Some(env_args)) {
+            named.push(Named { task: task.name().to_owned(), variant, origin: format!("{} (data attribute env_args)", path.display()) });
+        }
+    }
+    if let Some(first) = named.first()
+        && let Some(other) = named.iter().find(|n| n.task != first.task)
+    {
+        return Err(PipelineError::input(
+            String::new(),
+            "task",
+            format!(
+                "{} names task {:?} but {} names task {:?}; pass the inputs of one task (or fix the one that is wrong)",
+                first.origin, first.task, other.origin, other.task
+            ),
+        ));
+    }
+    let task = named.first().map_or("stack", |n| n.task.as_str());
+    let variant = explicit_variant
+        .map(str::to_owned)
+        .or_else(|| named.iter().map(|n| n.variant.clone()).find(|v| !v.is_empty()))
+        .unwrap_or_else(|| "D0".to_owned());
+    let task = registry::task(task, &variant).map_err(|reason| PipelineError::input(String::new(), "--task/--variant", reason))?;
+    Ok((task, variant))
+}
+
+/// The controller the MuJoCo backend drives: robosuite's OSC_POSE with delta poses, kp 150,
+/// damping ratio 1, fixed impedance, 20 Hz, actions scaled to 5 cm / 0.5 rad.
+///
+/// Refuses a source file recorded with anything else (absolute poses, another controller or
+/// gains), since its actions would mean something else here.
+///
+/// # Errors
+/// [`PipelineError::Input`] naming the file and the field that differs.
+pub(crate) fn check_controller(env_args: Option<&str>, file: &Path) -> Result<(), PipelineError> {
+    let Some(text) = env_args else { return Ok(()) };
+    let file = file.display().to_string();
+    let value: serde_json::Value = serde_json::from_str(text)
+        .map_err(|e| PipelineError::input(file.clone(), "data attribute env_args", format!("is not JSON: {e}")))?;
+    let kwargs = &value["env_kwargs"];
+    let differs = |field: &str, got: &serde_json::Value, want: &str| {
+        PipelineError::input(
+            file.clone(),
+            format!("env_args env_kwargs.{field}"),
+            format!(
+                "is {got}, but generation drives robosuite's OSC_POSE controller with {want}; \
+                 these source demos' actions would mean something else here (re-record them with that controller)"
+            ),
+        )
+    };
+    if let Some(freq) = kwargs.get("control_freq").filter(|f| !f.is_null())
+        && freq.as_f64().is_none_or(|f| (f - 20.0).abs() > 1e-9)
+    {
+        return Err(differs("control_freq", freq, "control_freq 20"));
+    }
+    let Some(controller) = kwargs.get("controller_configs").filter(|c| !c.is_null()) else { return Ok(()) };
+    let field = |name: &str| format!("controller_configs.{name}");
+    match controller.get("type") {
+        Some(t) if t.as_str() == Some("OSC_POSE") => {}
+        Some(t) => return Err(differs(&field("type"), t, "type OSC_POSE")),
+        None => return Err(differs("controller_configs", controller, "a robosuite 1.4 `type: OSC_POSE` config")),
+    }
+    if let Some(delta) = controller.get("control_delta")
+        && delta.as_bool() != Some(true)
+    {
+        return Err(differs(&field("control_delta"), delta, "delta poses (control_delta true); absolute poses are not implemented"));
+    }
+    let numbers: [(&str, f64); 2] = [("kp", 150.0), ("damping_ratio", 1.0)];
+    for (name, want) in numbers {
+        if let Some(v) = controller.get(name)
+            && v.as_f64().is_none_or(|x| (x - want).abs() > 1e-9)
+        {
+            return Err(differs(&field(name), v, &format!("{name} {want}")));
+        }
+    }
+    if let Some(mode) = controller.get("impedance_mode")
+        && mode.as_str() != Some("fixed")
+    {
+        return Err(differs(&field("impedance_mode"), mode, "impedance_mode fixed"));
+    }
+    let limits: [(&str, [f64; 6]); 2] =
+        [("output_max", [0.05, 0.05, 0.05, 0.5, 0.5, 0.5]), ("output_min", [-0.05, -0.05, -0.05, -0.5, -0.5, -0.5])];
+    for (name, want) in limits {
+        if let Some(v) = controller.get(name) {
+            let got: Option<Vec<f64>> = match v {
+                serde_json::Value::Array(a) => a.iter().map(serde_json::Value::as_f64).collect(),
+                serde_json::Value::Number(n) => n.as_f64().map(|x| vec![x; 6]),
+                _ => None,
+            };
+            if got.is_none_or(|g| g.len() != 6 || g.iter().zip(want).any(|(a, b)| (a - b).abs() > 1e-9)) {
+                return Err(differs(&field(name), v, &format!("{name} {want:?}")));
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(controller: &str) -> String {
+        format!(r#"{{"env_name": "Stack_D0", "env_kwargs": {{"control_freq": 20, "controller_configs": {controller}}}}}"#)
+    }
+
+    #[test]
+    fn our_controller_passes_and_others_are_refused_by_field() {
+        let path = Path::new("src.hdf5");
+        assert!(check_controller(Some(&registry::env_args("stack", "D0")), path).is_ok());
+        assert!(check_controller(None, path).is_ok());
+        for (controller, field) in [
+            (r#"{"type": "OSC_POSITION"}"#, "controller_configs.type"),
+            (r#"{"type": "OSC_POSE", "control_delta": false}"#, "controller_configs.control_delta"),
+            (r#"{"type": "OSC_POSE", "kp": 300}"#, "controller_configs.kp"),
+            (r#"{"type": "OSC_POSE", "impedance_mode": "variable"}"#, "controller_configs.impedance_mode"),
+            (r#"{"type": "OSC_POSE", "output_max": 0.1}"#, "controller_configs.output_max"),
+            (r#"{"body_parts": {}}"#, "controller_configs"),
+        ] {
+            let err = check_controller(Some(&args(controller)), path).unwrap_err().to_string();
+            assert!(err.contains("src.hdf5") && err.contains(field), "{controller}: {err}");
+        }
+        let err = check_controller(Some(r#"{"env_kwargs": {"control_freq": 10}}"#), path).unwrap_err().to_string();
+        assert!(err.contains("control_freq"), "{err}");
+    }
+
+    #[test]
+    fn the_task_comes_from_the_inputs_unless_given() {
+        let mut spec = TaskSpec::from_toml_str(registry::default_spec_toml("stack").unwrap(), "stack.toml").unwrap();
+        spec.env_name = Some("Stack_D1".to_owned());
+        let cfg = Path::new("config_D1.json");
+        let src = Path::new("src.hdf5");
+        let d0 = registry::env_args("stack", "D0");
+        let pick = |t: Option<&str>, v: Option<&str>, s: Option<(&TaskSpec, &Path)>, e: Option<(&str, &Path)>| {
+            resolve_task(t, v, s, e).map(|(task, variant)| (task.name().to_owned(), variant))
+        };
+        let got = |t, v, s, e| pick(t, v, s, e).unwrap();
+        assert_eq!(got(None, None, Some((&spec, cfg)), Some((&d0, src))), ("stack".into(), "D1".into()));
+        assert_eq!(got(None, None, None, Some((&d0, src))), ("stack".into(), "D0".into()));
+        assert_eq!(got(None, Some("D0"), Some((&spec, cfg)), None), ("stack".into(), "D0".into()));
+        assert_eq!(got(None, None, None, None), ("stack".into(), "D0".into()));
+        let square = registry::env_args("square", "D0");
+        assert_eq!(got(None, None, None, Some((&square, src))), ("square".into(), "D0".into()));
+        let err = pick(None, None, Some((&spec, cfg)), Some((&square, src))).unwrap_err().to_string();
+        assert!(err.contains("config_D1.json") && err.contains("src.hdf5") && err.contains("square"), "{err}");
+        let err = pick(Some("square"), None, Some((&spec, cfg)), None).unwrap_err().to_string();
+        assert!(err.contains("--task") && err.contains("config_D1.json"), "{err}");
+    }
+}

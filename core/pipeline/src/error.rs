@@ -1,0 +1,65 @@
+//! The pipeline's one error type.
+
+use mimicgen_engine::EngineError;
+use mimicgen_io::IoError;
+use mimicgen_sim::SimError;
+
+/// Everything that can stop a run. Failed attempts are not errors: they are records in the report.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PipelineError {
+    /// The user's input is invalid: an argument, a config, a source file, an output that exists.
+    #[error("{}{}{reason}", if file.is_empty() { String::new() } else { format!("{file}: ") }, if field.is_empty() { String::new() } else { format!("{field}: ") })]
+    Input {
+        /// The file at fault (empty for a command-line argument).
+        file: String,
+        /// The field or argument at fault.
+        field: String,
+        /// What is wrong and what to do.
+        reason: String,
+    },
+    /// The engine rejected the inputs or a simulator failed for good; `file` names the input.
+    #[error("{file}: {source}")]
+    Engine {
+        /// The input concerned (the source demos or the spec), or the run.
+        file: String,
+        /// The engine's error.
+        source: EngineError,
+    },
+    /// Reading or writing a dataset failed.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// The simulator could not be built.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// A file-system operation failed.
+    #[error("{file}: {reason}")]
+    Fs {
+        /// The path.
+        file: String,
+        /// What the OS said.
+        reason: String,
+    },
+}
+
+impl PipelineError {
+    /// True when the user's input is at fault (exit code 2 in the CLI, `ValueError` in Python).
+    #[must_use]
+    pub fn is_user_error(&self) -> bool {
+        match self {
+            Self::Input { .. } => true,
+            Self::Engine { source, .. } => source.is_user_error(),
+            Self::Io(e) => e.is_user_error(),
+            Self::Sim(e) => e.is_user_error(),
+            Self::Fs { .. } => false,
+        }
+    }
+
+    pub(crate) fn input(file: impl Into<String>, field: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self::Input { file: file.into(), field: field.into(), reason: reason.into() }
+    }
+
+    pub(crate) fn engine(file: impl Into<String>, source: EngineError) -> Self {
+        Self::Engine { file: file.into(), source }
+    }
+}

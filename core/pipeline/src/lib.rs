@@ -1,0 +1,37 @@
+//! A whole generation run as a library: the one pipeline behind the `mimicgen` CLI, the app and
+//! the Python package.
+//!
+//! What it does: works out the task and variant from the inputs ([`RunConfig`]), reads and checks
+//! the spec and the source demos (refusing controllers the backend does not implement), compiles
+//! the scene, runs attempts on worker threads that also compute the observations of the attempts
+//! that will be kept, writes the robomimic dataset (and failed attempts) in attempt order,
+//! commits its progress after every attempt so an interrupted run resumes exactly, and reports
+//! typed [`Event`]s and a [`Report`]. A cancel flag stops it cleanly with valid outputs.
+//! What it does not do: print, parse arguments, or draw (front ends consume the events).
+//!
+//! ```no_run
+//! use std::sync::atomic::AtomicBool;
+//! use mimicgen_pipeline::{Event, Pipeline, RunConfig};
+//!
+//! # fn main() -> Result<(), mimicgen_pipeline::PipelineError> {
+//! let config = RunConfig { num_demos: Some(20), workers: 2, out: "out/stack.hdf5".into(), ..RunConfig::default() };
+//! let pipeline = Pipeline::prepare(&config)?;
+//! let cancel = AtomicBool::new(false);
+//! let report = pipeline.run(&cancel, |event| {
+//!     if let Event::Attempt(a) = event {
+//!         println!("attempt {}: {:?}", a.attempt.index, a.outcome);
+//!     }
+//! })?;
+//! println!("{} of {} succeeded", report.successes, report.attempts);
+//! # Ok(()) }
+//! ```
+
+pub mod bundled;
+mod config;
+mod error;
+pub mod memory;
+mod run;
+
+pub use config::RunConfig;
+pub use error::PipelineError;
+pub use run::{AttemptEvent, DemoReport, Event, FailureReport, Outcome, PROGRESS_ATTR, Pipeline, RUN_ATTR, Report, RunInfo, sibling};

@@ -1,0 +1,576 @@
+//! A prepared run and its execution: workers, observations, writers, progress, report.
+
+use std::collections::BTreeMap;
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use mimicgen_engine::demo::initial_object_poses;
+use mimicgen_engine::{Attempt, EngineError, Generator, RunControl, RunStats, TaskSpec};
+use mimicgen_io::{DatasetWriter, Observation, WriterOptions};
+use mimicgen_sim::{Scene, SimEnv, Task, registry};
+use serde::{Deserialize, Serialize};
+
+use crate::config::{check_controller, resolve_task};
+use crate::{PipelineError, RunConfig};
+
+/// Root attribute of the output (and of its `.partial`) holding the run description.
+pub const RUN_ATTR: &str = "mimicgen_run";
+/// Root attribute of the `.partial` file holding the progress of the run (the commit point of
+/// each attempt: attempts before its `next_attempt` are decided and their demos written).
+pub const PROGRESS_ATTR: &str = "mimicgen_progress";
+
+/// What a run was asked to make; a resumed run must describe the same dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct RunDescription {
+    task: String,
+    variant: String,
+    source: String,
+    /// FNV-1a of the source file's bytes, so a resumed run reads the same demos.
+    source_fingerprint: String,
+    spec: TaskSpec,
+    valid_fraction: Option<f64>,
+}
+
+/// How far a run has got, stored in the `.partial` file after every attempt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Progress {
+    next_attempt: usize,
+    failures_kept: usize,
+    stats: RunStats,
+}
+
+/// Where an attempt went.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Outcome {
+    /// A success, written to the dataset as `demo`.
+    Written {
+        /// Its name in the dataset.
+        demo: String,
+    },
+    /// A failure kept in the failed-attempts file as `demo`.
+    KeptFailed {
+        /// Its name in the failed-attempts file.
+        demo: String,
+    },
+    /// A failure not kept.
+    Discarded,
+}
+
+/// What a run reports as it goes. Front ends (the CLI's progress bar, the app, Python) consume
+/// these; the run itself prints nothing.
+#[derive(Debug, Clone)]
+pub enum Event {
+    /// The run has started.
+    Started(RunInfo),
+    /// An attempt was decided (in index order).
+    Attempt(Box<AttemptEvent>),
+    /// The run has ended (completed or cancelled) and its outputs are complete.
+    Finished(Box<Report>),
+}
+
+/// The run as it starts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunInfo {
+    /// Task name.
+    pub task: String,
+    /// Variant.
+    pub variant: String,
+    /// Source demo file.
+    pub source: PathBuf,
+    /// Number of source demos.
+    pub num_sources: usize,
+    /// Worker threads.
+    pub workers: usize,
+    /// Run seed.
+    pub seed: u64,
+    /// Attempts to make, or successes to reach with `guarantee`.
+    pub target: usize,
+    /// Whether `target` counts successes.
+    pub guarantee: bool,
+    /// First attempt index of this session (non-zero when resumed).
+    pub resumed_from: usize,
+}
+
+/// One decided attempt.
+#[derive(Debug, Clone)]
+pub struct AttemptEvent {
+    /// The attempt's full record.
+    pub attempt: Attempt,
+    /// Where it went.
+    pub outcome: Outcome,
+    /// Statistics of the run so far, this attempt included.
+    pub stats: RunStats,
+    /// Seconds since this session of the run started.
+    pub elapsed_s: f64,
+}
+
+/// Attempts and successes of one source demo, as reported.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DemoReport {
+    /// Source demo index.
+    pub demo: usize,
+    /// Attempts that used it.
+    pub attempts: usize,
+    /// Of those, successes.
+    pub successes: usize,
+}
+
+/// Failures of one subtask for one reason, as reported.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FailureReport {
+    /// Subtask index.
+    pub subtask: usize,
+    /// Why (human-readable).
+    pub reason: String,
+    /// How many attempts.
+    pub count: usize,
+}
+
+/// The report of a run, written as `<out>.json` beside the dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    /// Task name.
+    pub task: String,
+    /// Variant.
+    pub variant: String,
+    /// Run seed.
+    pub seed: u64,
+    /// Worker threads.
+    pub workers: usize,
+    /// Source demo file.
+    pub source: String,
+    /// The dataset.
+    pub output: String,
+    /// The failed-attempts file, if kept.
+    pub failed_output: Option<String>,
+    /// Attempts decided (over every session of a resumed run).
+    pub attempts: usize,
+    /// Successful attempts.
+    pub successes: usize,
+    /// successes / attempts.
+    pub generation_rate: f64,
+    /// Wall time of this session.
+    pub wall_time_s: f64,
+    /// Attempts of this session per second.
+    pub attempts_per_s: f64,
+    /// Per source demo.
+    pub per_source_demo: Vec<DemoReport>,
+    /// Peak resident memory of the process, MiB.
+    pub peak_rss_mib: Option<f64>,
+    /// Failures by subtask and reason.
+    pub failures: Vec<FailureReport>,
+    /// Whether the run was cancelled before its stopping rule (the dataset is complete and valid,
+    /// with the attempts decided before the cancel).
+    pub cancelled: bool,
+    /// First attempt index of this session (non-zero when resumed).
+    pub resumed_from: usize,
+    /// Whether attempts ended at the first subtask that missed its signal.
+    pub early_abort: bool,
+}
+
+/// A run ready to go: inputs read and checked, scene compiled, task resolved.
+pub struct Pipeline {
+    config: RunConfig,
+    task: Arc<dyn Task>,
+    variant: String,
+    source_path: PathBuf,
+    generator: Generator,
+    scene: Arc<Scene>,
+    /// The scene's MJCF with portable asset paths: each demo's `model_file` starts from it.
+    scene_xml: String,
+    env_args: String,
+    description: RunDescription,
+}
+
+impl std::fmt::Debug for Pipeline {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Pipeline").field("task", &self.task.name()).field("variant", &self.variant).field("config", &self.config).finish()
+    }
+}
+
+fn fnv1a(bytes: &[u8]) -> String {
+    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    format!("{hash:016x}")
+}
+
+/// `<out stem><suffix>.<ext>` beside `out`.
+#[must_use]
+pub fn sibling(out: &Path, suffix: &str, ext: &str) -> PathBuf {
+    let stem = out.file_stem().map_or_else(|| "generated".into(), |s| s.to_string_lossy().into_owned());
+    out.with_file_name(format!("{stem}{suffix}.{ext}"))
+}
+
+impl Pipeline {
+    /// Reads and checks every input of `config`: works out the task and variant, loads the spec
+    /// and the source demos, refuses sources recorded with another controller, compiles the
+    /// scene and parses the segments.
+    ///
+    /// # Errors
+    /// [`PipelineError`] naming the file and field at fault.
+    pub fn prepare(config: &RunConfig) -> Result<Self, PipelineError> {
+        if config.workers == 0 {
+            return Err(PipelineError::input("", "--workers", "must be at least 1"));
+        }
+        if let Some(f) = config.valid_fraction
+            && !(0.0..=1.0).contains(&f)
+        {
+            return Err(PipelineError::input("", "--valid-fraction", format!("must be between 0 and 1, got {f}")));
+        }
+        let spec_from_file = match &config.config {
+            Some(path) => Some(TaskSpec::load(path).map_err(|e| PipelineError::engine(path.display().to_string(), e))?),
+            None => None,
+        };
+        let source_file = match &config.source {
+            Some(path) => {
+                if !path.is_file() {
+                    return Err(PipelineError::input(path.display().to_string(), "--source", "no such file"));
+                }
+                Some((path.clone(), mimicgen_io::RobomimicDataset::open(path)?))
+            }
+            None => None,
+        };
+        let (task, variant) = resolve_task(
+            config.task.as_deref(),
+            config.variant.as_deref(),
+            spec_from_file.as_ref().zip(config.config.as_deref()),
+            source_file.as_ref().and_then(|(p, d)| d.env_args().map(|a| (a, p.as_path()))),
+        )?;
+        let mut spec = match spec_from_file {
+            Some(spec) => spec,
+            None => {
+                let toml = registry::default_spec_toml(task.name()).ok_or_else(|| {
+                    PipelineError::input("", "--config", format!("task {} has no bundled spec; pass --config", task.name()))
+                })?;
+                TaskSpec::from_toml_str(toml, &format!("bundled {} spec", task.name()))
+                    .map_err(|e| PipelineError::engine("bundled spec", e))?
+            }
+        };
+        let g = &mut spec.generation;
+        if let Some(n) = config.num_demos {
+            g.num_trials = n;
+        }
+        if let Some(seed) = config.seed {
+            g.seed = seed;
+        }
+        g.keep_failed |= config.keep_failed;
+        g.guarantee |= config.guarantee;
+        g.early_abort |= config.early_abort;
+        if let Some(cap) = config.max_attempts {
+            g.max_attempts = cap;
+        }
+        let (source_path, dataset) = match source_file {
+            Some(found) => found,
+            None => {
+                let path = crate::bundled::source_demos(task.name())?;
+                let dataset = mimicgen_io::RobomimicDataset::open(&path)?;
+                (path, dataset)
+            }
+        };
+        let source_label = source_path.display().to_string();
+        check_controller(dataset.env_args(), &source_path)?;
+        let sources = dataset.to_source_dataset(&spec.source)?;
+        drop(dataset);
+        let model_xml = sources.demos.first().and_then(|d| d.sim.model_xml.clone());
+        let (scene, xml) = match model_xml {
+            Some(xml) => (Scene::from_model_file(&xml, &format!("{source_label} (model_file)"), task.as_ref())?, xml),
+            None => Scene::for_task_with_xml(task.as_ref())?,
+        };
+        let scene_xml = mimicgen_sim::assets::portable_asset_paths(&xml);
+        let env_args = registry::env_args_for_variant(sources.env_args.as_deref(), task.name(), &variant);
+        let generator = Generator::new(spec.clone(), sources).map_err(|e| PipelineError::engine(source_label.clone(), e))?;
+        let bytes = std::fs::read(&source_path).map_err(|e| PipelineError::Fs { file: source_label.clone(), reason: e.to_string() })?;
+        let description = RunDescription {
+            task: task.name().to_owned(),
+            variant: variant.clone(),
+            source: source_label,
+            source_fingerprint: fnv1a(&bytes),
+            spec,
+            valid_fraction: config.valid_fraction,
+        };
+        Ok(Self { config: config.clone(), task, variant, source_path, generator, scene: Arc::new(scene), scene_xml, env_args, description })
+    }
+
+    /// The task.
+    #[must_use]
+    pub fn task(&self) -> &Arc<dyn Task> {
+        &self.task
+    }
+
+    /// The variant new scenes are drawn from.
+    #[must_use]
+    pub fn variant(&self) -> &str {
+        &self.variant
+    }
+
+    /// The generator (spec, source demos, segmentation).
+    #[must_use]
+    pub fn generator(&self) -> &Generator {
+        &self.generator
+    }
+
+    /// The compiled scene every worker simulates.
+    #[must_use]
+    pub fn scene(&self) -> &Arc<Scene> {
+        &self.scene
+    }
+
+    /// The source demo file.
+    #[must_use]
+    pub fn source_path(&self) -> &Path {
+        &self.source_path
+    }
+
+    /// The `env_args` the outputs carry: the controller and environment generation used.
+    #[must_use]
+    pub fn env_args(&self) -> &str {
+        &self.env_args
+    }
+
+    /// The config this pipeline was prepared from.
+    #[must_use]
+    pub fn config(&self) -> &RunConfig {
+        &self.config
+    }
+
+    /// The failed-attempts file of this run.
+    #[must_use]
+    pub fn failed_path(&self) -> PathBuf {
+        sibling(&self.config.out, "_failed", "hdf5")
+    }
+
+    /// The report file of this run.
+    #[must_use]
+    pub fn report_path(&self) -> PathBuf {
+        sibling(&self.config.out, "", "json")
+    }
+
+    fn writer_options(&self) -> WriterOptions {
+        WriterOptions {
+            env_args: Some(self.env_args.clone()),
+            compress_obs: true,
+            valid_fraction: self.config.valid_fraction,
+            split_seed: self.generator.spec().generation.seed,
+        }
+    }
+
+    /// Opens the writers: fresh ones, or (with `resume`) those of the interrupted run, checked to
+    /// describe the same dataset. Returns them with the progress to go on from.
+    fn open_writers(&self) -> Result<(DatasetWriter, Option<DatasetWriter>, Progress), PipelineError> {
+        let out = &self.config.out;
+        let failed = self.failed_path();
+        let keep_failed = self.generator.spec().generation.keep_failed;
+        let options = self.writer_options();
+        let failed_options = WriterOptions { valid_fraction: None, ..options.clone() };
+        let description =
+            serde_json::to_string(&self.description).map_err(|e| PipelineError::input("", "run description", e.to_string()))?;
+        let partial = DatasetWriter::partial_path(out);
+        if self.config.resume {
+            let stored = DatasetWriter::partial_root_attrs(out, &[RUN_ATTR, PROGRESS_ATTR])?;
+            let file = partial.display().to_string();
+            let (Some(stored_run), Some(progress)) = (&stored[0], &stored[1]) else {
+                return Err(PipelineError::input(
+                    file,
+                    RUN_ATTR,
+                    "this file holds no run description; it was not written by a resumable run",
+                ));
+            };
+            let stored_run: serde_json::Value =
+                serde_json::from_str(stored_run).map_err(|e| PipelineError::input(file.clone(), RUN_ATTR, e.to_string()))?;
+            let ours: serde_json::Value = serde_json::to_value(&self.description).unwrap_or_default();
+            if stored_run != ours {
+                let differing: Vec<String> = ours
+                    .as_object()
+                    .map(|o| o.iter().filter(|(k, v)| stored_run.get(*k) != Some(*v)).map(|(k, _)| k.clone()).collect())
+                    .unwrap_or_default();
+                return Err(PipelineError::input(
+                    file,
+                    RUN_ATTR,
+                    format!(
+                        "the interrupted run made a different dataset ({} differ); resume with the arguments it was started with, or pass --overwrite to start over",
+                        differing.join(", ")
+                    ),
+                ));
+            }
+            let progress: Progress =
+                serde_json::from_str(progress).map_err(|e| PipelineError::input(file, PROGRESS_ATTR, e.to_string()))?;
+            let next = progress.next_attempt as u64;
+            let writer = DatasetWriter::resume(out, options, next)?;
+            let failed_writer = if keep_failed {
+                Some(if DatasetWriter::partial_path(&failed).is_file() {
+                    DatasetWriter::resume(&failed, failed_options, next)?
+                } else {
+                    DatasetWriter::create(&failed, failed_options)?
+                })
+            } else {
+                None
+            };
+            return Ok((writer, failed_writer, progress));
+        }
+        let report = self.report_path();
+        let failed_partial = DatasetWriter::partial_path(&failed);
+        let existing: Vec<&Path> = [out.as_path(), partial.as_path(), failed.as_path(), failed_partial.as_path(), report.as_path()]
+            .into_iter()
+            .filter(|p| p.exists())
+            .collect();
+        if let Some(first) = existing.first() {
+            if !self.config.overwrite {
+                let hint = if first == &partial.as_path() {
+                    "an interrupted run left it: pass --resume to continue that run, or --overwrite to start over"
+                } else {
+                    "refusing to replace it; pass --overwrite, or choose another --out"
+                };
+                return Err(PipelineError::input(first.display().to_string(), "--out", format!("exists; {hint}")));
+            }
+            for path in existing {
+                std::fs::remove_file(path).map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
+            }
+        }
+        if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| PipelineError::Fs { file: dir.display().to_string(), reason: e.to_string() })?;
+        }
+        let mut writer = DatasetWriter::create(out, options)?;
+        let progress = Progress { next_attempt: 0, failures_kept: 0, stats: RunStats::new(self.generator.dataset().demos.len()) };
+        writer.set_root_attr(RUN_ATTR, &description)?;
+        writer.set_root_attr(PROGRESS_ATTR, &serde_json::to_string(&progress).unwrap_or_default())?;
+        let failed_writer = if keep_failed { Some(DatasetWriter::create(&failed, failed_options)?) } else { None };
+        Ok((writer, failed_writer, progress))
+    }
+
+    /// Runs generation: `workers` threads each simulate attempts and compute the observations of
+    /// the ones that will be kept; this thread writes them in attempt order, commits the progress
+    /// after each, and reports every step to `on_event`. Setting `cancel` stops after the attempts
+    /// already decided; the outputs are then finished as complete, valid datasets.
+    ///
+    /// An error (or a killed process) leaves `<out>.partial`, which a run with `resume` continues:
+    /// the finished dataset then equals an uninterrupted run's.
+    ///
+    /// # Errors
+    /// [`PipelineError`] for outputs that exist, fatal simulator errors and write failures.
+    pub fn run(&self, cancel: &AtomicBool, mut on_event: impl FnMut(&Event)) -> Result<Report, PipelineError> {
+        let (mut writer, mut failed_writer, progress) = self.open_writers()?;
+        let settings = &self.generator.spec().generation;
+        let resumed_from = progress.next_attempt;
+        let mut failures_kept = progress.failures_kept;
+        on_event(&Event::Started(RunInfo {
+            task: self.task.name().to_owned(),
+            variant: self.variant.clone(),
+            source: self.source_path.clone(),
+            num_sources: self.generator.dataset().demos.len(),
+            workers: self.config.workers,
+            seed: settings.seed,
+            target: settings.num_trials,
+            guarantee: settings.guarantee,
+            resumed_from,
+        }));
+        let mut envs: Vec<SimEnv> =
+            (0..self.config.workers).map(|_| SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task))).collect();
+        let keep_failed = settings.keep_failed;
+        // On the workers: observations and the episode's model_file of every attempt that may be kept.
+        let finish = |env: &mut SimEnv, attempt: &Attempt| -> Result<Option<(BTreeMap<String, Observation>, String)>, EngineError> {
+            if !attempt.success && !keep_failed {
+                return Ok(None);
+            }
+            let initial = initial_object_poses(&attempt.trajectory.object_poses);
+            env.place_fixed_objects(&initial);
+            let obs = env
+                .observations_for_states(&attempt.trajectory.states)
+                .map_err(|e| EngineError::Env { attempt: attempt.index, source: e })?;
+            let xml = self
+                .scene
+                .xml_with_fixed_objects(&self.scene_xml, &initial)
+                .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;
+            Ok(Some((obs, xml)))
+        };
+        let started = Instant::now();
+        let mut write_error: Option<PipelineError> = None;
+        let control = RunControl { start: progress.next_attempt, stats: Some(progress.stats), cancel: Some(cancel) };
+        let result = mimicgen_engine::run_with(&self.generator, &mut envs, control, finish, |attempt, payload, stats| {
+            let step = (|| -> Result<Outcome, PipelineError> {
+                let target = if attempt.success {
+                    Some((&mut writer, true))
+                } else if keep_failed && failures_kept < settings.max_num_failures {
+                    failures_kept += 1;
+                    failed_writer.as_mut().map(|w| (w, false))
+                } else {
+                    None
+                };
+                let outcome = match (target, payload) {
+                    (Some((w, success)), Some((obs, xml))) => {
+                        let demo = w.append_attempt(&attempt, obs, Some(xml))?;
+                        if success { Outcome::Written { demo } } else { Outcome::KeptFailed { demo } }
+                    }
+                    _ => Outcome::Discarded,
+                };
+                let progress = Progress {
+                    next_attempt: usize::try_from(attempt.index).unwrap_or(usize::MAX) + 1,
+                    failures_kept,
+                    stats: stats.clone(),
+                };
+                writer.set_root_attr(PROGRESS_ATTR, &serde_json::to_string(&progress).unwrap_or_default())?;
+                Ok(outcome)
+            })();
+            match step {
+                Ok(outcome) => {
+                    let elapsed_s = started.elapsed().as_secs_f64();
+                    on_event(&Event::Attempt(Box::new(AttemptEvent { attempt, outcome, stats: stats.clone(), elapsed_s })));
+                    ControlFlow::Continue(())
+                }
+                Err(e) => {
+                    write_error = Some(e);
+                    ControlFlow::Break(Ok(()))
+                }
+            }
+        });
+        if let Some(e) = write_error {
+            return Err(e);
+        }
+        let stats = result.map_err(|e| PipelineError::engine(self.source_path.display().to_string(), e))?;
+        let cancelled = cancel.load(std::sync::atomic::Ordering::Relaxed)
+            && !(settings.guarantee && stats.successes >= settings.num_trials)
+            && stats.attempts < settings.attempt_cap();
+        let written = writer.finish()?;
+        let failed_written = failed_writer.map(DatasetWriter::finish).transpose()?;
+        let wall = started.elapsed().as_secs_f64();
+        #[allow(clippy::cast_precision_loss)]
+        let session_attempts = stats.attempts.saturating_sub(resumed_from) as f64;
+        let report = Report {
+            task: self.task.name().to_owned(),
+            variant: self.variant.clone(),
+            seed: settings.seed,
+            workers: self.config.workers,
+            source: self.source_path.display().to_string(),
+            output: written.display().to_string(),
+            failed_output: failed_written.map(|p| p.display().to_string()),
+            attempts: stats.attempts,
+            successes: stats.successes,
+            generation_rate: stats.rate(),
+            wall_time_s: wall,
+            attempts_per_s: if wall > 0.0 { session_attempts / wall } else { 0.0 },
+            per_source_demo: stats
+                .per_source_demo
+                .iter()
+                .enumerate()
+                .map(|(demo, d)| DemoReport { demo, attempts: d.attempts, successes: d.successes })
+                .collect(),
+            peak_rss_mib: crate::memory::peak_rss_mib(),
+            failures: stats
+                .failures
+                .iter()
+                .map(|f| FailureReport { subtask: f.subtask, reason: f.reason.to_string(), count: f.count })
+                .collect(),
+            cancelled,
+            resumed_from,
+            early_abort: settings.early_abort,
+        };
+        let report_path = self.report_path();
+        let text = serde_json::to_string_pretty(&report).unwrap_or_default();
+        std::fs::write(&report_path, text)
+            .map_err(|e| PipelineError::Fs { file: report_path.display().to_string(), reason: e.to_string() })?;
+        on_event(&Event::Finished(Box::new(report.clone())));
+        Ok(report)
+    }
+}

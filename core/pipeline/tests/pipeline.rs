@@ -1,0 +1,188 @@
+//! The pipeline end to end on the MuJoCo backend: workers, observations, outputs, cancel, inputs.
+#![allow(clippy::unwrap_used)] // tests fail loudly by design
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use mimicgen_engine::TaskSpec;
+use mimicgen_engine::segment::Segmentation;
+use mimicgen_io::RobomimicDataset;
+use mimicgen_io::tree::{Array, Node};
+use mimicgen_pipeline::{Event, Outcome, Pipeline, PipelineError, RunConfig};
+
+fn data(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+fn config(out: &Path, attempts: usize, workers: usize) -> RunConfig {
+    RunConfig { num_demos: Some(attempts), workers, out: out.to_path_buf(), seed: Some(3), ..RunConfig::default() }
+}
+
+fn run(config: &RunConfig) -> Result<(mimicgen_pipeline::Report, Vec<Event>), PipelineError> {
+    let pipeline = Pipeline::prepare(config)?;
+    let mut events = Vec::new();
+    let report = pipeline.run(&AtomicBool::new(false), |e| events.push(e.clone()))?;
+    Ok((report, events))
+}
+
+/// Every `file="..."` path of an MJCF string.
+fn file_paths(xml: &str) -> Vec<&str> {
+    xml.split("file=\"").skip(1).filter_map(|rest| rest.split('"').next()).collect()
+}
+
+#[test]
+fn workers_compute_observations_and_the_dataset_does_not_depend_on_their_number() {
+    let dir = tempfile::tempdir().unwrap();
+    let one = dir.path().join("one.hdf5");
+    let two = dir.path().join("two.hdf5");
+    let mut with_failed = config(&one, 6, 1);
+    with_failed.keep_failed = true;
+    let (report, events) = run(&with_failed).unwrap();
+    let (report2, _) = run(&RunConfig { keep_failed: true, ..config(&two, 6, 2) }).unwrap();
+    assert_eq!((report.attempts, report.successes), (report2.attempts, report2.successes));
+    assert!(report.successes >= 4, "{report:?}");
+    assert!(matches!(events.first(), Some(Event::Started(_))) && matches!(events.last(), Some(Event::Finished(_))));
+    let attempts: Vec<_> = events.iter().filter_map(|e| if let Event::Attempt(a) = e { Some(a) } else { None }).collect();
+    assert_eq!(attempts.iter().map(|a| a.attempt.index).collect::<Vec<_>>(), (0..6).collect::<Vec<_>>());
+    assert_eq!(attempts.iter().filter(|a| matches!(a.outcome, Outcome::Written { .. })).count(), report.successes);
+    let a = RobomimicDataset::open(&one).unwrap();
+    let b = RobomimicDataset::open(&two).unwrap();
+    assert_eq!(a.demo_names().len(), report.successes);
+    assert_eq!(a.data(), b.data(), "1 and 2 workers wrote different data");
+    let demo = a.demo("demo_0").unwrap();
+    for key in ["obs/robot0_eef_pos", "obs/object", "obs/robot0_joint_pos", "states", "actions"] {
+        assert!(demo.dataset_at(key).is_some(), "demo_0 lacks {key}");
+    }
+    // No asset path we write may have a `mimicgen` component: MimicGen's envs would re-point it
+    // into their own package and fail to load the robot's meshes.
+    let failed = RobomimicDataset::open(dir.path().join("one_failed.hdf5")).unwrap();
+    for file in [&a, &failed] {
+        for name in file.demo_names() {
+            let xml = file.demo(name).unwrap().attrs["model_file"].as_str().unwrap().to_owned();
+            let paths = file_paths(&xml);
+            assert!(paths.len() > 10, "{name}: {} asset paths", paths.len());
+            for path in paths {
+                assert!(!path.split('/').any(|c| c == "mimicgen"), "{name}: {path}");
+            }
+        }
+    }
+    // The outputs say which controller generation used.
+    let env_args: serde_json::Value = serde_json::from_str(a.env_args().unwrap()).unwrap();
+    assert_eq!(env_args["env_name"], "Stack_D0");
+    assert_eq!(env_args["env_kwargs"]["controller_configs"]["kp"], 150);
+}
+
+#[test]
+fn existing_outputs_are_never_replaced_silently() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("d.hdf5");
+    run(&config(&out, 1, 1)).unwrap();
+    let err = run(&config(&out, 1, 1)).unwrap_err();
+    assert!(err.is_user_error() && err.to_string().contains("--overwrite"), "{err}");
+    run(&RunConfig { overwrite: true, ..config(&out, 2, 1) }).unwrap();
+    assert_eq!(RobomimicDataset::open(&out).unwrap().demo_names().len(), {
+        let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("d.json")).unwrap()).unwrap();
+        usize::try_from(r["successes"].as_u64().unwrap()).unwrap()
+    });
+    // A run with no .partial to resume says so.
+    let err = run(&RunConfig { resume: true, ..config(&dir.path().join("none.hdf5"), 1, 1) }).unwrap_err();
+    assert!(err.to_string().contains("no interrupted run"), "{err}");
+}
+
+#[test]
+fn cancel_stops_cleanly_with_a_valid_dataset() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("c.hdf5");
+    let pipeline = Pipeline::prepare(&config(&out, 40, 2)).unwrap();
+    let cancel = AtomicBool::new(false);
+    let mut seen = 0;
+    let report = pipeline
+        .run(&cancel, |e| {
+            if let Event::Attempt(_) = e {
+                seen += 1;
+                if seen == 3 {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+            }
+        })
+        .unwrap();
+    assert!(report.cancelled);
+    assert_eq!(report.attempts, 3);
+    let file = RobomimicDataset::open(&out).unwrap();
+    assert_eq!(file.demo_names().len(), report.successes);
+    assert!(!mimicgen_io::DatasetWriter::partial_path(&out).exists());
+}
+
+#[test]
+fn bad_inputs_name_the_file_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.hdf5");
+    let err = Pipeline::prepare(&RunConfig { valid_fraction: Some(1.5), ..config(&out, 1, 1) }).unwrap_err();
+    assert!(err.to_string().contains("--valid-fraction"), "{err}");
+    // A NaN gripper action in a source file.
+    let source = mimicgen_pipeline::bundled::source_demos("stack").unwrap();
+    let mut file = RobomimicDataset::open(&source).unwrap();
+    let Some(Node::Group(demo)) = file.root.members.get_mut("data").and_then(|d| match d {
+        Node::Group(g) => g.members.get_mut("demo_3"),
+        Node::Dataset(_) => None,
+    }) else {
+        panic!("no demo_3")
+    };
+    let Some(Node::Group(info)) = demo.members.get_mut("datagen_info") else { panic!("no datagen_info") };
+    let Some(Node::Dataset(grip)) = info.members.get_mut("gripper_action") else { panic!("no gripper_action") };
+    let mut values = grip.array.values.to_f64().unwrap();
+    values[7] = f64::NAN;
+    grip.array = Array::f64(grip.array.shape.clone(), values);
+    let bad = dir.path().join("nan_source.hdf5");
+    file.write(&bad).unwrap();
+    let err = Pipeline::prepare(&RunConfig { source: Some(bad), ..config(&out, 1, 1) }).unwrap_err().to_string();
+    assert!(err.contains("nan_source.hdf5") && err.contains("demo_3") && err.contains("gripper_action"), "{err}");
+}
+
+#[test]
+fn a_mimicgen_config_selects_its_env_and_the_reference_sources_pass_the_controller_check() {
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data("../engine/tests/data/config_D0.json")).unwrap()).unwrap();
+    json["experiment"]["task"]["name"] = "Stack_D1".into();
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("config_D1.json");
+    std::fs::write(&cfg, json.to_string()).unwrap();
+    let source = data("../io/tests/data/source_D0_prepared.hdf5");
+    let base = RunConfig { config: Some(cfg.clone()), source: Some(source.clone()), ..config(&dir.path().join("o.hdf5"), 1, 1) };
+    let pipeline = Pipeline::prepare(&base).unwrap();
+    assert_eq!((pipeline.task().name(), pipeline.variant()), ("stack", "D1"));
+    let env_args: serde_json::Value = serde_json::from_str(pipeline.env_args()).unwrap();
+    assert_eq!(env_args["env_name"], "Stack_D1");
+    // Explicit arguments win over the inputs; a different task is a contradiction.
+    let explicit = Pipeline::prepare(&RunConfig { variant: Some("D0".into()), ..base.clone() }).unwrap();
+    assert_eq!(explicit.variant(), "D0");
+    let err = Pipeline::prepare(&RunConfig { task: Some("square".into()), ..base }).unwrap_err().to_string();
+    assert!(err.contains("config_D1.json") && err.contains("square"), "{err}");
+}
+
+/// MimicGen's `parse_source_dataset`, written out from its numpy: the end of subtask `i` is
+/// `t + 2` for the first `t` with `signal[t + 1] != signal[t]` and `t + 1 >= previous end`.
+fn reference_spans(signals: &[&[i64]], len: usize) -> Vec<(usize, usize)> {
+    let mut spans = Vec::new();
+    let mut prev = 0;
+    for signal in signals {
+        let end_ind = (0..signal.len() - 1).find(|&t| signal[t + 1] != signal[t] && t + 1 >= prev).unwrap() + 1;
+        spans.push((prev, end_ind + 1));
+        prev = end_ind + 1;
+    }
+    spans.push((prev, len));
+    spans
+}
+
+#[test]
+fn nominal_segments_equal_the_references_on_its_own_source_file() {
+    let spec = TaskSpec::load(&data("../engine/tests/data/config_D0.json")).unwrap();
+    let sources = mimicgen_io::read_source_dataset(data("../io/tests/data/source_D0_prepared.hdf5"), &spec.source).unwrap();
+    assert_eq!(sources.demos.len(), 10);
+    let segmentation = Segmentation::new(&sources.demos, &spec).unwrap();
+    let names: Vec<&str> = spec.subtasks.iter().filter_map(|s| s.term_signal.as_deref()).collect();
+    for (d, demo) in sources.demos.iter().enumerate() {
+        let signals: Vec<&[i64]> = names.iter().map(|n| demo.subtask_term_signals[*n].as_slice()).collect();
+        assert_eq!(segmentation.nominal_spans(d), reference_spans(&signals, demo.len()), "{}", demo.name);
+    }
+}
