@@ -31,7 +31,10 @@ env = robosuite.make("Stack", robots=["Panda"], has_renderer=False, has_offscree
                      use_camera_obs=False, ignore_done=True, hard_reset=False,
                      controller_configs=robosuite.load_controller_config(default_controller="OSC_POSE"))
 env.reset()
-env.step(np.zeros(env.action_dim))
+env.reset_from_xml_string(env.edit_model_xml(env.sim.model.get_xml()))
+for t in range(3):
+    env.step(np.full(env.action_dim, 0.1 * (-1) ** t))
+env._check_success()
 env.close()
 print(f"setup_robosuite: robosuite {robosuite.__version__} steps a Stack env")
 PY

@@ -22,6 +22,9 @@ pub const RUN_ATTR: &str = "mimicgen_run";
 /// each attempt: attempts before its `next_attempt` are decided and their demos written).
 pub const PROGRESS_ATTR: &str = "mimicgen_progress";
 
+/// What a worker hands back with an attempt that may be kept: its observations and `model_file`.
+type KeptPayload = (BTreeMap<String, Observation>, String);
+
 /// What a run was asked to make; a resumed run must describe the same dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 struct RunDescription {
@@ -470,7 +473,7 @@ impl Pipeline {
             (0..self.config.workers).map(|_| SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task))).collect();
         let keep_failed = settings.keep_failed;
         // On the workers: observations and the episode's model_file of every attempt that may be kept.
-        let finish = |env: &mut SimEnv, attempt: &Attempt| -> Result<Option<(BTreeMap<String, Observation>, String)>, EngineError> {
+        let finish = |env: &mut SimEnv, attempt: &Attempt| -> Result<Option<KeptPayload>, EngineError> {
             if !attempt.success && !keep_failed {
                 return Ok(None);
             }

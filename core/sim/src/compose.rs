@@ -221,9 +221,50 @@ pub fn place_body(xml: &str, name: &str, world_from_body: &mimicgen_engine::pose
     )
 }
 
+/// `xml` with robosuite's `<size njmax=".." nconmax=".."/>` replaced by an arena of
+/// `memory` (MuJoCo's syntax, `"32M"`): MuJoCo 3 turns njmax/nconmax 5000 into a 1.3 GB arena per
+/// `MjData`, of which resetting touches hundreds of MB. Our scenes make a few dozen contacts; the
+/// arena's size does not change the physics, only where MuJoCo would run out of room.
+#[must_use]
+pub fn with_arena(xml: &str, memory: &str) -> String {
+    let Some(start) = xml.find("<size") else { return xml.to_owned() };
+    let Some(len) = xml[start..].find('>') else { return xml.to_owned() };
+    let tag = &xml[start..=start + len];
+    let mut kept = String::from("<size");
+    for (name, value) in attributes(tag) {
+        if !matches!(name, "njmax" | "nconmax" | "memory" | "nstack") {
+            kept.push_str(&format!(" {name}=\"{value}\""));
+        }
+    }
+    kept.push_str(&format!(" memory=\"{memory}\""));
+    kept.push_str(if tag.ends_with("/>") { "/>" } else { ">" });
+    format!("{}{kept}{}", &xml[..start], &xml[start + len + 1..])
+}
+
+/// The `name="value"` pairs of one XML tag, in order.
+fn attributes(tag: &str) -> Vec<(&str, &str)> {
+    let mut out = Vec::new();
+    let mut rest = tag;
+    while let Some(eq) = rest.find("=\"") {
+        let name = rest[..eq].rsplit(|c: char| c.is_whitespace()).next().unwrap_or("");
+        let after = &rest[eq + 2..];
+        let Some(end) = after.find('"') else { break };
+        out.push((name, &after[..end]));
+        rest = &after[end + 1..];
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn robosuite_contact_limits_become_an_arena() {
+        let xml = r#"<mujoco><size njmax="5000" nconmax="5000" nkey="2"/><worldbody/></mujoco>"#;
+        assert_eq!(with_arena(xml, "32M"), r#"<mujoco><size nkey="2" memory="32M"/><worldbody/></mujoco>"#);
+        assert_eq!(with_arena("<mujoco/>", "32M"), "<mujoco/>");
+    }
     use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
 
     #[test]

@@ -92,7 +92,9 @@ fn open_loop_action_replay_tracks_the_reference() {
         max * 1e3
     );
     assert!(median < 0.005, "median eef error {median} m");
-    assert!(successes >= 15, "{successes} of {} replays succeeded", names.len());
+    // BENCHMARKS.md reports 19 of 20; the replay is deterministic, so a loss of 10 points (two
+    // replays) means the physics or the controller changed.
+    assert!(successes >= 18, "{successes} of {} replays succeeded (BENCHMARKS.md: 19)", names.len());
 }
 
 #[test]
