@@ -13,3 +13,11 @@ echo "== cargo fmt --check"; cargo fmt --all --check
 echo "== cargo clippy";      cargo clippy --workspace --all-targets --quiet -- -D warnings
 echo "== cargo doc";         RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 echo "== cargo test";        cargo test --workspace
+# robosuite itself must load and replay what we write: 20 generated Stack D0 demos, replayed open
+# loop in robosuite 1.4.1's own Stack env (MuJoCo 2.3.2) from their model_file and first state.
+echo "== robosuite replay"
+bash scripts/setup_robosuite.sh
+replay_dir="$(mktemp -d)"
+trap 'rm -rf "$replay_dir"' EXIT
+"$CARGO_TARGET_DIR/debug/mimicgen" generate --num-demos 24 --seed 1 --workers 2 --out "$replay_dir/stack_d0.hdf5" >/dev/null
+"$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/stack_d0.hdf5" --num 20 --min-success 17

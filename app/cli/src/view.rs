@@ -1,7 +1,6 @@
 //! `mimicgen view` and the `--rerun*` options of `mimicgen generate`: Rerun recordings.
 
 use std::path::PathBuf;
-use std::sync::Arc;
 
 use anyhow::{Context as _, bail};
 use mimicgen_engine::spec::SourceSelection;
@@ -72,7 +71,7 @@ impl RerunArgs {
             std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         }
         let rec = sink.open(app_id)?;
-        Ok(Some(RunLogger::new(rec, Arc::clone(&scene.model), self.config())?.with_fixed_objects(scene.fixed_objects())))
+        Ok(Some(RunLogger::new(rec, scene, self.config())?))
     }
 }
 
@@ -130,8 +129,7 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         (None, None) => Sink::Spawn,
     };
     let rec = sink.open("mimicgen")?;
-    let mut logger = RunLogger::new(rec, Arc::clone(&scene.model), LogConfig { scene: SceneLevel::All, scene_stride: args.stride.max(1) })?
-        .with_fixed_objects(scene.fixed_objects());
+    let mut logger = RunLogger::new(rec, &scene, LogConfig { scene: SceneLevel::All, scene_stride: args.stride.max(1) })?;
     let selected = sources.demos.iter().enumerate().filter(|(i, _)| args.demo.is_none_or(|d| d == *i));
     logger.log_demos(selected)?;
     logger.finish()?;

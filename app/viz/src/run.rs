@@ -1,10 +1,8 @@
 //! A generation run (or a dataset) streamed to one recording.
 
-use std::sync::Arc;
-
 use mimicgen_engine::demo::initial_object_poses;
 use mimicgen_engine::{Attempt, RunStats, SourceDemo};
-use mujoco_rs::prelude::MjModel;
+use mimicgen_sim::Scene;
 use rerun::RecordingStream;
 
 use crate::record::{self, timelines};
@@ -53,19 +51,11 @@ impl RunLogger {
     ///
     /// # Errors
     /// [`VizError::Rerun`] from the stream.
-    pub fn new(rec: RecordingStream, model: Arc<MjModel>, config: LogConfig) -> Result<Self, VizError> {
-        let scene = SceneLogger::new(model, "world/scene");
+    pub fn new(rec: RecordingStream, scene: &Scene, config: LogConfig) -> Result<Self, VizError> {
+        let scene = SceneLogger::new(scene, "world/scene");
         rec.log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP()).map_err(|e| VizError::rerun("world", &e))?;
         scene.log_static(&rec)?;
         Ok(Self { rec, scene, config, source_names: Vec::new(), frame: 0, demos_cleared: false })
-    }
-
-    /// Declares the scene's objects that are fixed in the world but placed per episode (pegs):
-    /// `(object name, mocap index)`; each demo and attempt is drawn with them where it had them.
-    #[must_use]
-    pub fn with_fixed_objects(mut self, fixed: Vec<(String, usize)>) -> Self {
-        self.scene.set_fixed_objects(fixed);
-        self
     }
 
     /// The recording.

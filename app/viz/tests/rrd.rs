@@ -34,8 +34,8 @@ fn three_attempts_read_back_with_the_viewer_cli() {
     let rrd = dir.path().join("run.rrd");
     let rec = Sink::Save(rrd.clone()).open("mimicgen").expect("open recording");
     let config = LogConfig { scene: SceneLevel::All, scene_stride: 2 };
-    let mut logger = RunLogger::new(rec, Arc::clone(&scene.model), config).expect("logger");
-    let num_geoms = mimicgen_viz::SceneLogger::new(Arc::clone(&scene.model), "world/scene").len();
+    let mut logger = RunLogger::new(rec, &scene, config).expect("logger");
+    let num_geoms = mimicgen_viz::SceneLogger::new(&scene, "world/scene").len();
     assert!(num_geoms > 20, "only {num_geoms} visible geoms: robot, gripper, table and cubes expected");
     logger.log_demos(generator.dataset().demos.iter().enumerate()).expect("log sources");
     let mut envs = vec![SimEnv::new(Arc::clone(&scene), Arc::clone(&task))];
@@ -104,7 +104,7 @@ fn pegs_are_drawn_where_each_episode_had_them() {
     env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7)).expect("reset");
     let peg = env.object_pose(1);
     let state = env.state();
-    let mut logger = mimicgen_viz::SceneLogger::new(Arc::clone(&scene.model), "world/scene");
+    let mut logger = mimicgen_viz::SceneLogger::new(&scene, "world/scene");
     let peg_geom = |positions: Vec<(String, [f64; 3])>| {
         positions.into_iter().find(|(path, _)| path.ends_with("peg1_vis")).map(|(_, p)| p).expect("peg drawn")
     };
@@ -112,7 +112,6 @@ fn pegs_are_drawn_where_each_episode_had_them() {
     let default = peg_geom(logger.geom_positions(&state).expect("pose"));
     assert!((default[0] - 0.23).abs() < 1e-9 && (default[1] - 0.1).abs() < 1e-9, "{default:?}");
     // ... and where the episode's object poses have it once it knows the peg is placed per episode.
-    logger.set_fixed_objects(scene.fixed_objects());
     logger.place_fixed_objects(&std::collections::BTreeMap::from([("square_peg".to_owned(), peg)]));
     let placed = peg_geom(logger.geom_positions(&state).expect("pose"));
     let t = peg.translation.vector;

@@ -160,6 +160,9 @@ pub struct Report {
     pub wall_time_s: f64,
     /// Attempts of this session per second.
     pub attempts_per_s: f64,
+    /// Control steps simulated in this session (failed attempts included): the work done,
+    /// independent of the machine's load.
+    pub control_steps: usize,
     /// Per source demo.
     pub per_source_demo: Vec<DemoReport>,
     /// Peak resident memory of the process, MiB.
@@ -490,8 +493,10 @@ impl Pipeline {
         };
         let started = Instant::now();
         let mut write_error: Option<PipelineError> = None;
+        let mut control_steps = 0usize;
         let control = RunControl { start: progress.next_attempt, stats: Some(progress.stats), cancel: Some(cancel) };
         let result = mimicgen_engine::run_with(&self.generator, &mut envs, control, finish, |attempt, payload, stats| {
+            control_steps += attempt.trajectory.len();
             let step = (|| -> Result<Outcome, PipelineError> {
                 let target = if attempt.success {
                     Some((&mut writer, true))
@@ -553,6 +558,7 @@ impl Pipeline {
             generation_rate: stats.rate(),
             wall_time_s: wall,
             attempts_per_s: if wall > 0.0 { session_attempts / wall } else { 0.0 },
+            control_steps,
             per_source_demo: stats
                 .per_source_demo
                 .iter()

@@ -221,6 +221,51 @@ pub fn place_body(xml: &str, name: &str, world_from_body: &mimicgen_engine::pose
     )
 }
 
+/// `xml` with every texture made a tiny flat one: physics never reads textures, and robosuite's
+/// image textures (a 1450 px wood image on six cube faces, a 1181 px ceramic one, and others)
+/// decode to tens of MB that a simulator would hold for nothing. Materials keep their names.
+#[must_use]
+pub fn without_image_textures(xml: &str) -> String {
+    let mut out = String::with_capacity(xml.len());
+    let mut rest = xml;
+    while let Some(start) = rest.find("<texture") {
+        out.push_str(&rest[..start]);
+        let tag_len = rest[start..].find('>').map_or(rest.len() - start, |e| e + 1);
+        let tag = &rest[start..start + tag_len];
+        let mut kept = String::from("<texture");
+        for (name, value) in attributes(tag) {
+            if !matches!(
+                name,
+                "file"
+                    | "fileright"
+                    | "fileleft"
+                    | "fileup"
+                    | "filedown"
+                    | "filefront"
+                    | "fileback"
+                    | "builtin"
+                    | "width"
+                    | "height"
+                    | "gridsize"
+                    | "gridlayout"
+                    | "rgb1"
+                    | "rgb2"
+                    | "mark"
+                    | "markrgb"
+                    | "random"
+            ) {
+                kept.push_str(&format!(" {name}=\"{value}\""));
+            }
+        }
+        kept.push_str(r#" builtin="flat" width="8" height="8" rgb1="0.5 0.5 0.5" rgb2="0.5 0.5 0.5""#);
+        kept.push_str(if tag.ends_with("/>") { "/>" } else { ">" });
+        out.push_str(&kept);
+        rest = &rest[start + tag_len..];
+    }
+    out.push_str(rest);
+    out
+}
+
 /// `xml` with robosuite's `<size njmax=".." nconmax=".."/>` replaced by an arena of
 /// `memory` (MuJoCo's syntax, `"32M"`): MuJoCo 3 turns njmax/nconmax 5000 into a 1.3 GB arena per
 /// `MjData`, of which resetting touches hundreds of MB. Our scenes make a few dozen contacts; the
@@ -258,6 +303,15 @@ fn attributes(tag: &str) -> Vec<(&str, &str)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn image_textures_become_tiny_flat_ones() {
+        let xml = r#"<asset><texture type="cube" name="tex" file="/a/red-wood.png"/><texture type="skybox" builtin="gradient" rgb1="1 1 1" width="256" height="1536"/><material name="m" texture="tex"/></asset>"#;
+        let out = without_image_textures(xml);
+        assert!(!out.contains("file=") && !out.contains("1536") && !out.contains("gradient"), "{out}");
+        assert!(out.contains(r#"<texture type="cube" name="tex" builtin="flat" width="8" height="8""#), "{out}");
+        assert!(out.contains(r#"<material name="m" texture="tex"/>"#), "{out}");
+    }
 
     #[test]
     fn robosuite_contact_limits_become_an_arena() {

@@ -10,12 +10,14 @@
 pub mod assets;
 pub mod compose;
 pub mod env;
+pub mod geometry;
 pub mod osc;
 pub mod registry;
 pub mod scene;
 pub mod task;
 
 pub use env::SimEnv;
+pub use geometry::{GeomPoser, Shape, VisibleGeom};
 pub use scene::Scene;
 pub use task::{Square, Stack, StackThree, Task};
 
@@ -37,6 +39,14 @@ pub enum SimError {
         /// Where the XML came from.
         file: String,
         /// MuJoCo's message.
+        reason: String,
+    },
+    /// A recorded state does not fit the scene.
+    #[error("a state for the scene from {file}: {reason}")]
+    State {
+        /// Where the scene's XML came from.
+        file: String,
+        /// What does not fit.
         reason: String,
     },
     /// A name the task or robot needs is not in the model.
