@@ -84,7 +84,7 @@ impl Scene {
     /// An object body without joints that is not a mocap body yet (robosuite's pegs) is made one,
     /// so that resets can move it while it stays fixed during an episode.
     pub fn compile(xml: &str, origin: &str, objects: &[(&str, &str)], control_freq_hz: f64) -> Result<Self, SimError> {
-        let xml = &crate::compose::with_arena(&crate::compose::without_image_textures(xml), "8M");
+        let xml = &crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M");
         let model = MjModel::from_xml_string(xml).map_err(|e| SimError::Compile { file: origin.to_owned(), reason: format!("{e:?}") })?;
         let mut to_mocap = Vec::new();
         for (_, body_name) in objects {
