@@ -9,6 +9,7 @@ use mimicgen_engine::TaskSpec;
 use mimicgen_io::info::DatasetInfo;
 use mimicgen_io::{DemoReader, ReadOptions};
 
+mod annotate;
 mod bench_io;
 mod bench_sim;
 mod coverage;
@@ -47,6 +48,9 @@ enum Command {
     },
     /// Generate demonstrations in simulation (MuJoCo, robosuite-like Panda + OSC_POSE).
     Generate(generate::GenerateArgs),
+    /// Subtask ends for source demos: proposed from the recording (--auto) or typed (--ends),
+    /// written where MimicGen reads them.
+    Annotate(annotate::AnnotateArgs),
     /// Record scripted source demos of a task (the bundled defaults are made this way).
     Demos(generate::DemosArgs),
     /// List the tasks and their variants.
@@ -179,6 +183,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Demos(args) => {
             generate::demos(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Annotate(args) => {
+            annotate::run(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Coverage(args) => {

@@ -75,3 +75,28 @@ fn square_generates_end_to_end_with_each_demos_peg_in_its_model_file() {
         assert!((pos[0] - peg.x).abs() < 1e-12 && (pos[1] - peg.y).abs() < 1e-12, "{} model_file peg {pos:?} vs {peg:?}", demo.name);
     }
 }
+
+#[test]
+fn annotate_writes_typed_ends_where_mimicgen_reads_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("annotated.hdf5");
+    let source = repo_path("core/io/tests/data/source_D0_prepared.hdf5");
+    let run = mimicgen()
+        .args(["annotate"])
+        .arg(&source)
+        .args(["--ends", "demo_2=30", "--auto", "--out"])
+        .arg(&out)
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("ends typed with --ends") && stdout.contains("within 5 steps"), "{stdout}");
+    let back = mimicgen_io::read_source_dataset(&out, &Default::default()).unwrap();
+    let grasp = &back.demos[2].subtask_term_signals["grasp"];
+    // Step 30 is the subtask's last step: the signal turns on there.
+    assert_eq!((grasp[29], grasp[30]), (0, 1));
+    // The input is never the output.
+    let same = mimicgen().args(["annotate"]).arg(&out).args(["--auto", "--out"]).arg(&out).args(["--overwrite"]).output().unwrap();
+    assert!(!same.status.success());
+}

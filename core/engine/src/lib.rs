@@ -28,6 +28,7 @@ pub mod action;
 pub mod coverage;
 pub mod demo;
 pub mod demonstrator;
+pub mod detect;
 pub mod env;
 pub mod generate;
 pub mod kinematic;

@@ -26,6 +26,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod annotate;
 pub mod bundled;
 mod config;
 mod error;

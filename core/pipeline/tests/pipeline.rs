@@ -202,3 +202,48 @@ fn the_stack_d0_rate_stays_where_benchmarks_reports_it() {
     println!("Stack D0 from the bundled demos: {} of 60 (bound {bound})", report.successes);
     assert!(report.successes >= bound, "{} of 60 succeeded; BENCHMARKS.md reports {REPORTED_RATE}", report.successes);
 }
+
+/// Auto-detected subtask ends against the ends the stored signals give, on the reference's own
+/// source demos (human teleoperation on robosuite) and on our bundled Square demos: the issue's
+/// goal is 90 % of boundaries within 5 steps (BENCHMARKS.md has every task).
+#[test]
+fn detected_subtask_ends_land_within_five_steps_of_the_signals() {
+    use mimicgen_pipeline::annotate;
+    let square = mimicgen_pipeline::bundled::source_demos("square").unwrap();
+    for path in [data("../io/tests/data/source_D0_prepared.hdf5"), square] {
+        let found = annotate::propose(&path, None, None).unwrap();
+        let distances = found.distances();
+        assert_eq!(distances.len(), 10, "{}", path.display());
+        let within = distances.iter().filter(|&&d| d <= 5).count();
+        println!("{}: distances {distances:?}", path.display());
+        assert!(within >= 9, "{}: only {within} of 10 within 5 steps: {distances:?}", path.display());
+        assert!(found.demos.iter().flat_map(|d| &d.proposals).all(|p| p.confidence > 0.0 && !p.reason.is_empty()));
+    }
+}
+
+/// Ends written by `write_annotations` are where MimicGen's annotation script puts them (0 before
+/// the marked step, 1 from it) and read back as the same segments, replacing the old signals.
+#[test]
+fn written_annotations_read_back_as_the_same_segments() {
+    use mimicgen_pipeline::annotate;
+    let source = data("../io/tests/data/source_D0_prepared.hdf5");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("annotated.hdf5");
+    let spec = TaskSpec::load(&data("../engine/tests/data/config_D0.json")).unwrap();
+    let ends = std::collections::BTreeMap::from([("demo_0".to_owned(), vec![40]), ("demo_3".to_owned(), vec![77])]);
+    annotate::write_annotations(&source, &out, &spec, &ends).unwrap();
+    let back = mimicgen_io::read_source_dataset(&out, &spec.source).unwrap();
+    let segmentation = Segmentation::new(&back.demos, &spec).unwrap();
+    assert_eq!(segmentation.nominal_spans(0)[0], (0, 40));
+    assert_eq!(segmentation.nominal_spans(3)[0], (0, 77));
+    let grasp = &back.demos[0].subtask_term_signals["grasp"];
+    assert_eq!((grasp[38], grasp[39], grasp[grasp.len() - 1]), (0, 1, 1));
+    // Other demos are untouched.
+    let original = mimicgen_io::read_source_dataset(&source, &spec.source).unwrap();
+    assert_eq!(back.demos[1], original.demos[1]);
+    // Bad ends name the demo.
+    let err = annotate::write_annotations(&source, &out, &spec, &std::collections::BTreeMap::from([("demo_0".to_owned(), vec![500])]))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("demo_0") && err.contains("500"), "{err}");
+}

@@ -257,3 +257,29 @@ pub fn pose_from_xpos_xmat(xpos: &[f64; 3], xmat: &[f64; 9]) -> Pose {
 pub fn rotation_matrix(rotation: &Rot) -> Matrix3<f64> {
     rotation.to_rotation_matrix().into_inner()
 }
+
+impl Scene {
+    /// The distance between the Panda's fingers (m) at each recorded state (robosuite's
+    /// `[time, qpos, qvel]`): the finger opening that auto-detection of subtask ends reads.
+    ///
+    /// # Errors
+    /// [`SimError::State`] for states too short for this scene.
+    pub fn finger_widths(&self, states: &mimicgen_engine::Rows) -> Result<Vec<f64>, SimError> {
+        let [left, right] = match self.robot.finger_qpos.as_slice() {
+            [l, r] => [*l, *r],
+            other => {
+                return Err(SimError::State {
+                    file: self.origin.clone(),
+                    reason: format!("the gripper has {} finger joints, not 2", other.len()),
+                });
+            }
+        };
+        if states.width() <= 1 + left.max(right) {
+            return Err(SimError::State {
+                file: self.origin.clone(),
+                reason: format!("states have {} values, the fingers are at qpos {left} and {right}", states.width()),
+            });
+        }
+        Ok(states.iter().map(|s| (s[1 + left] - s[1 + right]).abs()).collect())
+    }
+}

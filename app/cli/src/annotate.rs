@@ -1,0 +1,137 @@
+//! `mimicgen annotate`: subtask ends for source demos, proposed from the recording or typed by
+//! hand, written where MimicGen reads them.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use anyhow::{Context as _, bail};
+use mimicgen_pipeline::annotate;
+
+/// Arguments of `mimicgen annotate`.
+#[derive(clap::Args, Debug)]
+#[command(after_help = "\
+Examples:
+  mimicgen annotate sources.hdf5 --auto --out annotated.hdf5                 # propose every end
+  mimicgen annotate sources.hdf5 --ends demo_0=52 --ends demo_3=60 --auto --out annotated.hdf5
+  mimicgen annotate sources.hdf5 --auto                                      # just print the proposals
+  mimicgen annotate core/io/tests/data/source_D0_prepared.hdf5 --auto --json  # compare with the stored signals
+
+A subtask end is the last step of the subtask, as MimicGen's annotation script marks it: the
+subtask's signal is written 0 before that step and 1 from it on, into
+data/<demo>/datagen_info/subtask_term_signals/<term_signal of the spec>, replacing the demo's
+signals as the reference does. --auto proposes the ends from the gripper commands, the finger
+opening and where the gripper is (no privileged signals), each with a confidence and a reason;
+a demo given with --ends keeps what you typed. The task and spec come from --task/--config, else
+from the file's env_args and the bundled spec. Without --out nothing is written.")]
+pub struct AnnotateArgs {
+    /// Source demos (MimicGen source layout, with datagen_info).
+    file: PathBuf,
+    /// Propose the ends of every demo not given with --ends.
+    #[arg(long)]
+    auto: bool,
+    /// `DEMO=S1,S2,...`: the last step of each subtask but the final one, for one demo.
+    #[arg(long, value_name = "DEMO=STEPS")]
+    ends: Vec<String>,
+    /// Task (see `mimicgen tasks`). Default: the file's env_args.
+    #[arg(long)]
+    task: Option<String>,
+    /// Task spec (TOML or MimicGen JSON) whose subtasks and signal names are annotated.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Write the annotated file here (a new file; the input is never changed).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Replace --out if it exists.
+    #[arg(long)]
+    overwrite: bool,
+    /// Print JSON (proposals, stored-signal ends and the distance summary).
+    #[arg(long)]
+    json: bool,
+}
+
+fn parse_ends(specs: &[String]) -> anyhow::Result<BTreeMap<String, Vec<usize>>> {
+    let mut out = BTreeMap::new();
+    for spec in specs {
+        let (demo, steps) = spec.split_once('=').with_context(|| format!("--ends {spec:?}: expected DEMO=S1,S2,..."))?;
+        let steps: Vec<usize> = steps
+            .split(',')
+            .map(|s| s.trim().parse::<usize>().with_context(|| format!("--ends {spec:?}: {s:?} is not a step")))
+            .collect::<anyhow::Result<_>>()?;
+        // MimicGen marks the last step of a subtask; the engine's ends are exclusive.
+        out.insert(demo.trim().to_owned(), steps.into_iter().map(|s| s + 1).collect());
+    }
+    Ok(out)
+}
+
+/// Runs `mimicgen annotate`.
+///
+/// # Errors
+/// Unreadable input, bad --ends, or a failure to write.
+pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
+    if !args.auto && args.ends.is_empty() {
+        bail!("nothing to do: pass --auto, or --ends DEMO=S1,S2,... (see --help)");
+    }
+    if let Some(out) = &args.out {
+        if out.exists() && !args.overwrite {
+            bail!("{}: exists; pass --overwrite or choose another --out", out.display());
+        }
+        if out.canonicalize().ok() == args.file.canonicalize().ok() && out.exists() {
+            bail!("{}: --out is the input file; write a new file", out.display());
+        }
+    }
+    let mut ends = parse_ends(&args.ends)?;
+    let found = annotate::propose(&args.file, args.task.as_deref(), args.config.as_deref())?;
+    let mut distances = Vec::new();
+    for demo in &found.demos {
+        let typed = ends.get(&demo.demo).cloned();
+        if typed.is_none() && args.auto {
+            ends.insert(demo.demo.clone(), demo.proposals.iter().map(|p| p.end).collect());
+        }
+        if !args.json {
+            println!("{} ({} steps){}", demo.demo, demo.len, if typed.is_some() { ": ends typed with --ends" } else { "" });
+            for (i, p) in demo.proposals.iter().enumerate() {
+                let stored = demo.signal_ends.as_ref().and_then(|e| e.get(i));
+                println!(
+                    "  subtask {} ends at step {} (confidence {:.1}){}: {}",
+                    p.subtask,
+                    p.end - 1,
+                    p.confidence,
+                    stored.map_or_else(String::new, |&e| format!(", stored signal: step {}", e - 1)),
+                    p.reason
+                );
+            }
+        }
+        if let Some(stored) = &demo.signal_ends {
+            distances.extend(demo.proposals.iter().zip(stored).map(|(p, &e)| p.end.abs_diff(e)));
+        }
+    }
+    distances.sort_unstable();
+    #[allow(clippy::cast_precision_loss)]
+    let summary = (!distances.is_empty()).then(|| {
+        let at = |q: f64| distances[((distances.len() - 1) as f64 * q).round() as usize];
+        serde_json::json!({
+            "boundaries": distances.len(),
+            "median_steps": at(0.5),
+            "p90_steps": at(0.9),
+            "worst_steps": distances[distances.len() - 1],
+            "within_5_steps": distances.iter().filter(|&&d| d <= 5).count() as f64 / distances.len() as f64,
+        })
+    });
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&serde_json::json!({"demos": found.demos, "distance_to_stored_signals": summary}))?);
+    } else if let Some(s) = &summary {
+        println!(
+            "against the stored signals: {} boundaries, median {} steps off, 90th percentile {}, worst {}, {:.0} % within 5 steps",
+            s["boundaries"],
+            s["median_steps"],
+            s["p90_steps"],
+            s["worst_steps"],
+            100.0 * s["within_5_steps"].as_f64().unwrap_or_default()
+        );
+    }
+    if let Some(out) = &args.out {
+        annotate::write_annotations(&args.file, out, &found.spec, &ends)?;
+        eprintln!("wrote {} with the subtask ends of {} demo(s)", out.display(), ends.len());
+    }
+    Ok(())
+}

@@ -1,0 +1,184 @@
+//! Subtask ends for source demos: proposed from the recording (no privileged signals), or typed by
+//! hand, and written where MimicGen reads them (`datagen_info/subtask_term_signals/<name>`, 0
+//! before the step that ends the subtask, 1 from it on, as its annotation script writes them).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use mimicgen_engine::TaskSpec;
+use mimicgen_engine::detect::{Proposal, propose_subtask_ends, signal_for_end};
+use mimicgen_engine::segment::subtask_end_from_signal;
+use mimicgen_engine::spec::SourceSelection;
+use mimicgen_io::RobomimicDataset;
+use mimicgen_io::tree::{Array, Dataset, Group, Node};
+use mimicgen_sim::{Scene, registry};
+use serde::Serialize;
+
+use crate::PipelineError;
+use crate::config::resolve_task;
+
+/// One demo's proposed subtask ends, beside the ends its stored signals give (if any).
+#[derive(Debug, Clone, Serialize)]
+pub struct DemoAnnotation {
+    /// The demo's name.
+    pub demo: String,
+    /// Its length in steps.
+    pub len: usize,
+    /// The proposals, one per subtask but the last.
+    #[serde(serialize_with = "proposals")]
+    pub proposals: Vec<Proposal>,
+    /// The ends the file's own signals give (exclusive), when it has them all.
+    pub signal_ends: Option<Vec<usize>>,
+}
+
+fn proposals<S: serde::Serializer>(p: &[Proposal], s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeSeq as _;
+    let mut seq = s.serialize_seq(Some(p.len()))?;
+    for q in p {
+        seq.serialize_element(&serde_json::json!({"subtask": q.subtask, "end": q.end, "confidence": q.confidence, "reason": q.reason}))?;
+    }
+    seq.end()
+}
+
+/// A source file read for annotation: its task's spec and its demos' proposals.
+#[derive(Debug)]
+pub struct Annotations {
+    /// The spec whose subtasks are annotated (its `term_signal` names are written).
+    pub spec: TaskSpec,
+    /// Per demo, in file order.
+    pub demos: Vec<DemoAnnotation>,
+}
+
+impl Annotations {
+    /// Distances in steps between proposed and signal-derived ends, over every boundary of every
+    /// demo that has signals.
+    #[must_use]
+    pub fn distances(&self) -> Vec<usize> {
+        self.demos
+            .iter()
+            .filter_map(|d| d.signal_ends.as_ref().map(|ends| (d, ends)))
+            .flat_map(|(d, ends)| d.proposals.iter().zip(ends).map(|(p, &e)| p.end.abs_diff(e)))
+            .collect()
+    }
+}
+
+/// Reads `path` (MimicGen source layout), works out its task (`task`, else its `env_args`) and
+/// spec (`config`, else the task's bundled one), and proposes every demo's subtask ends from its
+/// gripper commands, finger openings (from the stored states and the scene) and object poses.
+///
+/// # Errors
+/// [`PipelineError`] naming the file and field for unreadable files, unknown tasks, or demos whose
+/// gripper commands cannot be read.
+pub fn propose(path: &Path, task: Option<&str>, config: Option<&Path>) -> Result<Annotations, PipelineError> {
+    let file = RobomimicDataset::open(path)?;
+    let label = path.display().to_string();
+    let spec_from_file = config.map(|c| TaskSpec::load(c).map_err(|e| PipelineError::engine(c.display().to_string(), e))).transpose()?;
+    let (task, _) = resolve_task(task, None, spec_from_file.as_ref().zip(config), file.env_args().map(|a| (a, path)))?;
+    let spec = match spec_from_file {
+        Some(spec) => spec,
+        None => {
+            TaskSpec::from_toml_str(registry::default_spec_toml(task.name()).unwrap_or_default(), &format!("bundled {} spec", task.name()))
+                .map_err(|e| PipelineError::engine("bundled spec", e))?
+        }
+    };
+    let sources = file.to_source_dataset(&SourceSelection::default())?;
+    let scene = match sources.demos.first().and_then(|d| d.sim.model_xml.as_deref()) {
+        Some(xml) => Scene::from_model_file(xml, &format!("{label} (model_file)"), task.as_ref())?,
+        None => Scene::for_task(task.as_ref())?,
+    };
+    let signal_names: Vec<&str> =
+        spec.subtasks.iter().take(spec.subtasks.len().saturating_sub(1)).filter_map(|s| s.term_signal.as_deref()).collect();
+    let mut demos = Vec::with_capacity(sources.demos.len());
+    for demo in &sources.demos {
+        let widths = if demo.sim.states.is_empty() { None } else { Some(scene.finger_widths(&demo.sim.states)?) };
+        let proposals = propose_subtask_ends(demo, &spec, widths.as_deref()).map_err(|e| PipelineError::engine(label.clone(), e))?;
+        let signal_ends = (signal_names.len() + 1 == spec.subtasks.len())
+            .then(|| {
+                let mut start = 0;
+                signal_names
+                    .iter()
+                    .map(|name| {
+                        let end = subtask_end_from_signal(demo.subtask_term_signals.get(*name)?, start)?;
+                        start = end;
+                        Some(end)
+                    })
+                    .collect::<Option<Vec<usize>>>()
+            })
+            .flatten();
+        demos.push(DemoAnnotation { demo: demo.name.clone(), len: demo.len(), proposals, signal_ends });
+    }
+    Ok(Annotations { spec, demos })
+}
+
+/// Writes `input` to `out` with each demo of `ends` given the subtask-end signals of those ends
+/// (exclusive, one per subtask but the last), named by the spec's `term_signal`s. As MimicGen's
+/// annotation script does, a demo's `subtask_term_signals` group is replaced by the annotated
+/// signals. Demos not in `ends` are copied unchanged.
+///
+/// # Errors
+/// [`PipelineError::Input`] for an unknown demo, a wrong number of ends, ends out of order or
+/// out of the demo, or a spec subtask without a `term_signal`; I/O errors naming the file.
+pub fn write_annotations(input: &Path, out: &Path, spec: &TaskSpec, ends: &BTreeMap<String, Vec<usize>>) -> Result<(), PipelineError> {
+    let mut file = RobomimicDataset::open(input)?;
+    let label = input.display().to_string();
+    let names: Vec<String> = spec
+        .subtasks
+        .iter()
+        .take(spec.subtasks.len().saturating_sub(1))
+        .enumerate()
+        .map(|(i, s)| {
+            s.term_signal.clone().ok_or_else(|| {
+                PipelineError::input(
+                    String::new(),
+                    format!("subtask[{i}].term_signal"),
+                    "the spec names no signal to write this subtask's end to",
+                )
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    for (demo, demo_ends) in ends {
+        let len = file.demo_len(demo);
+        let field = format!("data/{demo}");
+        if file.demo(demo).is_none() {
+            return Err(PipelineError::input(label.clone(), field, "no such demo"));
+        }
+        if demo_ends.len() != names.len() {
+            return Err(PipelineError::input(
+                label.clone(),
+                field,
+                format!("{} subtask ends given, the task has {} subtasks and so needs {}", demo_ends.len(), names.len() + 1, names.len()),
+            ));
+        }
+        let mut previous = 0;
+        for &end in demo_ends {
+            if end <= previous + 1 || end >= len {
+                return Err(PipelineError::input(
+                    label.clone(),
+                    field,
+                    format!("subtask end {end} must come after {} and before the demo's {len} steps", previous + 1),
+                ));
+            }
+            previous = end;
+        }
+        let Some(Node::Group(data)) = file.root.members.get_mut("data") else {
+            return Err(PipelineError::input(label.clone(), "data", "missing"));
+        };
+        let Some(Node::Group(group)) = data.members.get_mut(demo) else {
+            return Err(PipelineError::input(label.clone(), field, "not a group"));
+        };
+        let Some(Node::Group(info)) = group.members.get_mut("datagen_info") else {
+            return Err(PipelineError::input(
+                label.clone(),
+                format!("{field}/datagen_info"),
+                "missing: prepare the file first (`mimicgen prepare`)",
+            ));
+        };
+        let mut signals = Group::default();
+        for (name, &end) in names.iter().zip(demo_ends) {
+            signals.members.insert(name.clone(), Node::Dataset(Dataset::new(Array::i64(vec![len], signal_for_end(end, len)))));
+        }
+        info.members.insert("subtask_term_signals".to_owned(), Node::Group(signals));
+    }
+    file.write(out)?;
+    Ok(())
+}
