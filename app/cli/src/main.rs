@@ -51,6 +51,11 @@ enum Command {
     /// Subtask ends for source demos: proposed from the recording (--auto) or typed (--ends),
     /// written where MimicGen reads them.
     Annotate(annotate::AnnotateArgs),
+    /// The inspection app: source demos, their timelines, subtask ends by hand or proposed.
+    App {
+        /// Source demos to open (default: the bundled Stack D0 demos).
+        file: Option<PathBuf>,
+    },
     /// Record scripted source demos of a task (the bundled defaults are made this way).
     Demos(generate::DemosArgs),
     /// List the tasks and their variants.
@@ -183,6 +188,16 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Demos(args) => {
             generate::demos(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::App { file } => {
+            let file = match file {
+                Some(f) => f,
+                None => mimicgen_pipeline::bundled::source_demos("stack")?,
+            };
+            mimicgen_gui::run(Some(file)).map_err(|e| {
+                anyhow::anyhow!("cannot open the app's window ({e}); without a display, use the batch commands (`mimicgen generate`, `mimicgen annotate`)")
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Annotate(args) => {

@@ -179,12 +179,12 @@ mod tests {
         let closes_at = 3;
         let rows: Vec<f64> = (0..n).map(|t| if t >= closes_at { 1.0 } else { -1.0 }).collect();
         demo.gripper_actions = crate::Rows::from_vec(1, rows, "gripper").unwrap();
-        // Open 80 mm, closing 9 mm a step from step 4, blocked by a 41 mm object at step 8.
-        let width: Vec<f64> = (0..n).map(|t| if t < 3 { 0.080 } else { (0.080 - 0.009 * (t - 3) as f64).max(0.041) }).collect();
+        // Open 80 mm, closing 13 mm a step from step 4, blocked by a 41 mm object from step 6.
+        let width: Vec<f64> = (0..n).map(|t| if t < 3 { 0.080 } else { (0.080 - 0.013 * (t - 3) as f64).max(0.041) }).collect();
         let p = propose_subtask_ends(&demo, &spec(), Some(&width)).unwrap();
         assert_eq!(p.len(), 1);
-        assert_eq!(p[0].end, 9, "{p:?}");
-        assert!(p[0].confidence > 0.8 && p[0].reason.contains("stopped at step 8"), "{p:?}");
+        assert_eq!(p[0].end, 7, "{p:?}");
+        assert!(p[0].confidence > 0.8 && p[0].reason.contains("stopped at step 6"), "{p:?}");
         let fallback = propose_subtask_ends(&demo, &spec(), None).unwrap();
         assert_eq!(fallback[0].end, (closes_at + CLOSE_STEPS).min(n - 1));
         assert!(fallback[0].confidence < p[0].confidence);

@@ -29,6 +29,9 @@ pub struct DemoAnnotation {
     pub proposals: Vec<Proposal>,
     /// The ends the file's own signals give (exclusive), when it has them all.
     pub signal_ends: Option<Vec<usize>>,
+    /// The distance between the fingers at every step (m), read from the stored states.
+    #[serde(skip)]
+    pub finger_width_m: Option<Vec<f64>>,
 }
 
 fn proposals<S: serde::Serializer>(p: &[Proposal], s: S) -> Result<S::Ok, S::Error> {
@@ -47,6 +50,8 @@ pub struct Annotations {
     pub spec: TaskSpec,
     /// Per demo, in file order.
     pub demos: Vec<DemoAnnotation>,
+    /// The demos as read (poses, gripper actions, signals).
+    pub sources: mimicgen_engine::SourceDataset,
 }
 
 impl Annotations {
@@ -105,9 +110,9 @@ pub fn propose(path: &Path, task: Option<&str>, config: Option<&Path>) -> Result
                     .collect::<Option<Vec<usize>>>()
             })
             .flatten();
-        demos.push(DemoAnnotation { demo: demo.name.clone(), len: demo.len(), proposals, signal_ends });
+        demos.push(DemoAnnotation { demo: demo.name.clone(), len: demo.len(), proposals, signal_ends, finger_width_m: widths });
     }
-    Ok(Annotations { spec, demos })
+    Ok(Annotations { spec, demos, sources })
 }
 
 /// Writes `input` to `out` with each demo of `ends` given the subtask-end signals of those ends
@@ -119,8 +124,6 @@ pub fn propose(path: &Path, task: Option<&str>, config: Option<&Path>) -> Result
 /// [`PipelineError::Input`] for an unknown demo, a wrong number of ends, ends out of order or
 /// out of the demo, or a spec subtask without a `term_signal`; I/O errors naming the file.
 pub fn write_annotations(input: &Path, out: &Path, spec: &TaskSpec, ends: &BTreeMap<String, Vec<usize>>) -> Result<(), PipelineError> {
-    let mut file = RobomimicDataset::open(input)?;
-    let label = input.display().to_string();
     let names: Vec<String> = spec
         .subtasks
         .iter()
@@ -136,6 +139,16 @@ pub fn write_annotations(input: &Path, out: &Path, spec: &TaskSpec, ends: &BTree
             })
         })
         .collect::<Result<_, _>>()?;
+    write_signals(input, out, &names, ends)
+}
+
+/// [`write_annotations`] with the signal names given (one per subtask but the last).
+///
+/// # Errors
+/// As [`write_annotations`].
+pub fn write_signals(input: &Path, out: &Path, names: &[String], ends: &BTreeMap<String, Vec<usize>>) -> Result<(), PipelineError> {
+    let mut file = RobomimicDataset::open(input)?;
+    let label = input.display().to_string();
     for (demo, demo_ends) in ends {
         let len = file.demo_len(demo);
         let field = format!("data/{demo}");

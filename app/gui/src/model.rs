@@ -1,0 +1,241 @@
+//! The app's state and the one place that changes it: [`AppModel::apply`] takes a [`Command`] from
+//! the UI (or a test) and returns the backend request it needs, if any; [`AppModel::on_reply`]
+//! takes the backend's answers. Nothing here draws, reads files or waits.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use crate::protocol::{LoadedFile, Reply, Request};
+
+/// Everything the user can do.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Command {
+    /// Open a source file.
+    Open(PathBuf),
+    /// Show demo `index`.
+    SelectDemo(usize),
+    /// Put the time cursor at a step.
+    SetCursor(usize),
+    /// Move the time cursor by this many steps.
+    StepCursor(i64),
+    /// Choose which subtask end the keyboard and "set at cursor" move.
+    SelectBoundary(usize),
+    /// Set the end of `subtask` (its last step is `end - 1`) in the shown demo.
+    SetEnd {
+        /// The subtask.
+        subtask: usize,
+        /// The end (exclusive).
+        end: usize,
+    },
+    /// Set the selected boundary so that the step under the cursor is its subtask's last.
+    SetEndAtCursor,
+    /// Replace the shown demo's ends with the proposals.
+    AcceptProposals,
+    /// Replace every demo's ends with the proposals.
+    AcceptAllProposals,
+    /// Undo the last change of ends.
+    Undo,
+    /// Redo what was undone.
+    Redo,
+    /// Write the annotations to a new file.
+    Save(PathBuf),
+    /// Start or stop playing the shown demo.
+    TogglePlay,
+    /// Advance playback by one step (the UI sends it at the control rate while playing).
+    Tick,
+}
+
+/// One change of ends, kept for undo: the demo and its ends before.
+#[derive(Debug, Clone, PartialEq)]
+struct Edit {
+    demo: String,
+    before: Vec<usize>,
+}
+
+/// The app's state.
+#[derive(Debug, Default)]
+pub struct AppModel {
+    /// The open file.
+    pub file: Option<LoadedFile>,
+    /// The demo shown.
+    pub selected: usize,
+    /// The time cursor (a step of the shown demo).
+    pub cursor: usize,
+    /// The subtask end the keyboard moves.
+    pub boundary: usize,
+    /// The annotation: ends (exclusive) per demo.
+    pub ends: BTreeMap<String, Vec<usize>>,
+    /// Whether the annotation has changed since it was opened or saved.
+    pub dirty: bool,
+    /// Playing the shown demo.
+    pub playing: bool,
+    /// What the backend is doing, if anything.
+    pub busy: Option<String>,
+    /// The last thing that went wrong (names file and field), shown until the next success.
+    pub error: Option<String>,
+    /// The last thing that went right.
+    pub status: String,
+    undo: Vec<Edit>,
+    redo: Vec<Edit>,
+}
+
+impl AppModel {
+    /// The demo shown, if a file is open.
+    #[must_use]
+    pub fn demo(&self) -> Option<&crate::protocol::DemoView> {
+        self.file.as_ref().and_then(|f| f.demos.get(self.selected))
+    }
+
+    /// The ends of the shown demo.
+    #[must_use]
+    pub fn demo_ends(&self) -> Vec<usize> {
+        self.demo().and_then(|d| self.ends.get(&d.name)).cloned().unwrap_or_default()
+    }
+
+    /// Whether undo has anything to undo.
+    #[must_use]
+    pub fn can_undo(&self) -> bool {
+        !self.undo.is_empty()
+    }
+
+    /// Whether redo has anything to redo.
+    #[must_use]
+    pub fn can_redo(&self) -> bool {
+        !self.redo.is_empty()
+    }
+
+    fn change_ends(&mut self, demo: &str, ends: Vec<usize>) {
+        let before = self.ends.get(demo).cloned().unwrap_or_default();
+        if before == ends {
+            return;
+        }
+        self.undo.push(Edit { demo: demo.to_owned(), before });
+        self.redo.clear();
+        self.ends.insert(demo.to_owned(), ends);
+        self.dirty = true;
+    }
+
+    /// Applies a command; returns the backend request it needs.
+    pub fn apply(&mut self, command: Command) -> Option<Request> {
+        let len = self.demo().map_or(0, |d| d.len);
+        match command {
+            Command::Open(path) => {
+                self.busy = Some(format!("opening {}", path.display()));
+                return Some(Request::Open { path });
+            }
+            Command::SelectDemo(i) => {
+                if self.file.as_ref().is_some_and(|f| i < f.demos.len()) {
+                    self.selected = i;
+                    self.cursor = self.cursor.min(self.demo().map_or(0, |d| d.len.saturating_sub(1)));
+                    self.playing = false;
+                }
+            }
+            Command::SetCursor(t) => self.cursor = t.min(len.saturating_sub(1)),
+            Command::StepCursor(dt) => {
+                let t = i64::try_from(self.cursor).unwrap_or(i64::MAX).saturating_add(dt).max(0);
+                self.cursor = usize::try_from(t).unwrap_or_default().min(len.saturating_sub(1));
+            }
+            Command::SelectBoundary(b) => {
+                if b < self.demo_ends().len() {
+                    self.boundary = b;
+                }
+            }
+            Command::SetEnd { subtask, end } => {
+                let name = self.demo().map(|d| d.name.clone())?;
+                let mut ends = self.demo_ends();
+                if subtask < ends.len() {
+                    // Keep every segment at least one step long.
+                    let low = if subtask == 0 { 1 } else { ends[subtask - 1] + 1 };
+                    let high = ends.get(subtask + 1).map_or(len.saturating_sub(1), |&e| e - 1);
+                    ends[subtask] = end.clamp(low, high.max(low));
+                    self.change_ends(&name, ends);
+                }
+            }
+            Command::SetEndAtCursor => {
+                let subtask = self.boundary;
+                return self.apply(Command::SetEnd { subtask, end: self.cursor + 1 });
+            }
+            Command::AcceptProposals => {
+                if let Some(d) = self.demo() {
+                    let (name, ends) = (d.name.clone(), d.proposals.iter().map(|p| p.end).collect());
+                    self.change_ends(&name, ends);
+                }
+            }
+            Command::AcceptAllProposals => {
+                let all: Vec<(String, Vec<usize>)> = self
+                    .file
+                    .iter()
+                    .flat_map(|f| &f.demos)
+                    .map(|d| (d.name.clone(), d.proposals.iter().map(|p| p.end).collect()))
+                    .collect();
+                for (name, ends) in all {
+                    self.change_ends(&name, ends);
+                }
+            }
+            Command::Undo => {
+                if let Some(edit) = self.undo.pop() {
+                    let now = self.ends.insert(edit.demo.clone(), edit.before).unwrap_or_default();
+                    self.redo.push(Edit { demo: edit.demo, before: now });
+                    self.dirty = true;
+                }
+            }
+            Command::Redo => {
+                if let Some(edit) = self.redo.pop() {
+                    let now = self.ends.insert(edit.demo.clone(), edit.before).unwrap_or_default();
+                    self.undo.push(Edit { demo: edit.demo, before: now });
+                    self.dirty = true;
+                }
+            }
+            Command::Save(out) => {
+                let file = self.file.as_ref()?;
+                let (source, signal_names) = (file.path.clone(), file.signal_names.clone());
+                if out == source {
+                    self.error = Some(format!("{}: saving over the source file is not allowed; choose a new file", out.display()));
+                    return None;
+                }
+                self.busy = Some(format!("saving {}", out.display()));
+                return Some(Request::Save { source, out, ends: self.ends.clone(), signal_names });
+            }
+            Command::TogglePlay => self.playing = !self.playing && len > 0,
+            Command::Tick => {
+                if self.playing {
+                    if self.cursor + 1 >= len {
+                        self.playing = false;
+                    } else {
+                        self.cursor += 1;
+                    }
+                }
+            }
+        }
+        None
+    }
+
+    /// Takes a backend reply. A failed open keeps the file (and the annotation) that was open.
+    pub fn on_reply(&mut self, reply: Reply) {
+        self.busy = None;
+        match reply {
+            Reply::Opened(file) => {
+                self.ends = file
+                    .demos
+                    .iter()
+                    .map(|d| (d.name.clone(), d.stored_ends.clone().unwrap_or_else(|| d.proposals.iter().map(|p| p.end).collect())))
+                    .collect();
+                self.status = format!("opened {} ({} demos of {})", file.path.display(), file.demos.len(), file.task);
+                self.file = Some(*file);
+                self.selected = 0;
+                self.cursor = 0;
+                self.boundary = 0;
+                self.undo.clear();
+                self.redo.clear();
+                self.dirty = false;
+                self.error = None;
+            }
+            Reply::Saved { out, demos } => {
+                self.status = format!("saved the subtask ends of {demos} demos to {}", out.display());
+                self.dirty = false;
+                self.error = None;
+            }
+            Reply::Failed { what, error } => self.error = Some(format!("{what}: {error}")),
+        }
+    }
+}

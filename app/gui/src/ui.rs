@@ -1,0 +1,264 @@
+//! Drawing: reads the model, returns commands. Nothing here changes state directly.
+
+use egui::{Color32, Key, Modifiers, RichText};
+use egui_plot::{Line, Plot, PlotPoints, Span, VLine};
+
+use crate::model::{AppModel, Command};
+use crate::protocol::DemoView;
+
+/// Colours of subtasks 0, 1, 2, ... (segments and their end markers).
+const SUBTASK_COLORS: [Color32; 6] = [
+    Color32::from_rgb(66, 133, 244),
+    Color32::from_rgb(234, 67, 53),
+    Color32::from_rgb(52, 168, 83),
+    Color32::from_rgb(251, 188, 5),
+    Color32::from_rgb(171, 71, 188),
+    Color32::from_rgb(0, 172, 193),
+];
+
+/// The colour of subtask `k`.
+#[must_use]
+pub fn subtask_color(k: usize) -> Color32 {
+    SUBTASK_COLORS[k % SUBTASK_COLORS.len()]
+}
+
+/// UI-only state that is not part of the model (text fields, a drag in progress).
+#[derive(Debug, Default)]
+pub struct UiState {
+    /// The "open" path field.
+    pub open_path: String,
+    /// The "save as" path field.
+    pub save_path: String,
+    /// A boundary being dragged: (subtask, current x).
+    pub drag: Option<(usize, f64)>,
+    /// Time of the last playback step (s).
+    pub last_tick_s: f64,
+}
+
+/// Keyboard shortcuts, read once per frame.
+pub fn keys(ctx: &egui::Context, commands: &mut Vec<Command>) {
+    if ctx.egui_wants_keyboard_input() {
+        return;
+    }
+    ctx.input_mut(|i| {
+        let step = if i.modifiers.shift { 10 } else { 1 };
+        if i.key_pressed(Key::ArrowRight) {
+            commands.push(Command::StepCursor(step));
+        }
+        if i.key_pressed(Key::ArrowLeft) {
+            commands.push(Command::StepCursor(-step));
+        }
+        if i.consume_key(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z) || i.consume_key(Modifiers::COMMAND, Key::Y) {
+            commands.push(Command::Redo);
+        }
+        if i.consume_key(Modifiers::COMMAND, Key::Z) {
+            commands.push(Command::Undo);
+        }
+        if i.key_pressed(Key::Space) {
+            commands.push(Command::TogglePlay);
+        }
+        if i.key_pressed(Key::E) {
+            commands.push(Command::SetEndAtCursor);
+        }
+        for (k, key) in [Key::Num1, Key::Num2, Key::Num3, Key::Num4, Key::Num5].into_iter().enumerate() {
+            if i.key_pressed(key) {
+                commands.push(Command::SelectBoundary(k));
+            }
+        }
+    });
+}
+
+/// The top bar: open, detect, undo/redo, save, and what is going on.
+pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: &mut Vec<Command>) {
+    ui.horizontal(|ui| {
+        let label = ui.label("Source demos:");
+        ui.add(egui::TextEdit::singleline(&mut state.open_path).desired_width(280.0).hint_text("path/to/source.hdf5"))
+            .labelled_by(label.id);
+        if ui.button("Open").clicked() && !state.open_path.trim().is_empty() {
+            commands.push(Command::Open(state.open_path.trim().into()));
+        }
+        ui.separator();
+        let open = model.file.is_some();
+        if ui
+            .add_enabled(open, egui::Button::new("Auto-detect all"))
+            .on_hover_text("Use the proposed subtask ends for every demo")
+            .clicked()
+        {
+            commands.push(Command::AcceptAllProposals);
+        }
+        if ui.add_enabled(model.can_undo(), egui::Button::new("Undo")).clicked() {
+            commands.push(Command::Undo);
+        }
+        if ui.add_enabled(model.can_redo(), egui::Button::new("Redo")).clicked() {
+            commands.push(Command::Redo);
+        }
+        ui.separator();
+        let label = ui.label("Save to:");
+        ui.add(egui::TextEdit::singleline(&mut state.save_path).desired_width(220.0).hint_text("annotated.hdf5")).labelled_by(label.id);
+        if ui.add_enabled(open && !state.save_path.trim().is_empty(), egui::Button::new("Save as")).clicked() {
+            commands.push(Command::Save(state.save_path.trim().into()));
+        }
+    });
+    ui.horizontal(|ui| {
+        if let Some(busy) = &model.busy {
+            ui.spinner();
+            ui.label(busy);
+        } else if let Some(error) = &model.error {
+            ui.colored_label(Color32::from_rgb(220, 60, 60), format!("Error: {error}"));
+        } else {
+            ui.label(&model.status);
+        }
+        if model.dirty {
+            ui.label(RichText::new("unsaved changes").italics());
+        }
+    });
+}
+
+/// The demo list.
+pub fn demo_list(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>) {
+    let Some(file) = &model.file else {
+        ui.label("Open a MimicGen source file (or drop one here).");
+        return;
+    };
+    ui.heading(format!("{} demos", file.demos.len()));
+    egui::ScrollArea::vertical().show_rows(ui, 18.0, file.demos.len(), |ui, rows| {
+        for i in rows {
+            let d = &file.demos[i];
+            let ends = model.ends.get(&d.name);
+            let edited = ends.is_some_and(|e| d.stored_ends.as_ref() != Some(e));
+            let text = format!("{}  {} steps{}", d.name, d.len, if edited { "  (edited)" } else { "" });
+            if ui.selectable_label(model.selected == i, text).clicked() {
+                commands.push(Command::SelectDemo(i));
+            }
+        }
+    });
+}
+
+fn series(values: impl Iterator<Item = f64>) -> PlotPoints<'static> {
+    #[allow(clippy::cast_precision_loss)] // step indices are small
+    values.enumerate().map(|(t, v)| [t as f64, v]).collect()
+}
+
+/// The boundary editor and the linked timeline plots of the shown demo.
+pub fn timeline(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: &mut Vec<Command>) {
+    let Some(demo) = model.demo() else { return };
+    let ends = model.demo_ends();
+    let file = model.file.as_ref();
+    ui.horizontal(|ui| {
+        ui.heading(&demo.name);
+        ui.label(format!("step {} of {}", model.cursor, demo.len.saturating_sub(1)));
+        if ui.button("◀").on_hover_text("Step back (Left arrow; Shift for 10)").clicked() {
+            commands.push(Command::StepCursor(-1));
+        }
+        if ui.button(if model.playing { "Pause" } else { "Play" }).on_hover_text("Space").clicked() {
+            commands.push(Command::TogglePlay);
+        }
+        if ui.button("▶").on_hover_text("Step forward (Right arrow; Shift for 10)").clicked() {
+            commands.push(Command::StepCursor(1));
+        }
+        if ui.button("Use proposals").on_hover_text("Set this demo's ends to the proposals").clicked() {
+            commands.push(Command::AcceptProposals);
+        }
+    });
+    for (k, &end) in ends.iter().enumerate() {
+        ui.horizontal(|ui| {
+            let signal = file.and_then(|f| f.signal_names.get(k)).map_or("", String::as_str);
+            let object = file.and_then(|f| f.subtask_objects.get(k).cloned().flatten()).unwrap_or_default();
+            let label = RichText::new(format!("subtask {k} ({object}, {signal}) ends at step {}", end - 1)).color(subtask_color(k));
+            if ui.selectable_label(model.boundary == k, label).on_hover_text("Select, then press E to move it to the cursor").clicked() {
+                commands.push(Command::SelectBoundary(k));
+            }
+            if ui.small_button("set at cursor").clicked() {
+                commands.push(Command::SelectBoundary(k));
+                commands.push(Command::SetEndAtCursor);
+            }
+            if let Some(p) = demo.proposals.get(k) {
+                let text = format!("proposed: step {} (confidence {:.1})", p.end - 1, p.confidence);
+                ui.label(text).on_hover_text(&p.reason);
+            }
+            if let Some(stored) = demo.stored_ends.as_ref().and_then(|s| s.get(k)) {
+                ui.label(format!("stored signal: step {}", stored - 1));
+            }
+        });
+    }
+    plots(ui, demo, &ends, model.cursor, state, commands);
+}
+
+fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, state: &mut UiState, commands: &mut Vec<Command>) {
+    #[allow(clippy::cast_precision_loss)]
+    let x = |t: usize| t as f64;
+    let n = demo.len;
+    let height = ((ui.available_height() - 20.0) / 4.0).max(60.0);
+    let mut draw = |ui: &mut egui::Ui, id: &str, lines: Vec<Line<'static>>| {
+        let response = Plot::new(id)
+            .height(height)
+            .link_axis("timeline", [true, false])
+            .link_cursor("timeline", [true, false])
+            .allow_drag(false)
+            .allow_boxed_zoom(false)
+            .allow_scroll(false)
+            .show_x(true)
+            .show(ui, |plot| {
+                let mut start = 0;
+                for (k, &end) in ends.iter().chain(std::iter::once(&n)).enumerate() {
+                    plot.span(Span::new(format!("subtask {k}"), x(start)..=x(end)).fill(subtask_color(k).gamma_multiply(0.08)));
+                    start = end;
+                }
+                for line in lines {
+                    plot.line(line);
+                }
+                for (k, &end) in ends.iter().enumerate() {
+                    let at = match state.drag {
+                        Some((b, pos)) if b == k => pos,
+                        _ => x(end - 1),
+                    };
+                    plot.vline(VLine::new(format!("end of subtask {k}"), at).color(subtask_color(k)).width(2.0));
+                }
+                plot.vline(VLine::new("cursor", x(cursor)).color(Color32::GRAY));
+                (plot.response().clone(), plot.pointer_coordinate())
+            });
+        let (response, pointer) = response.inner;
+        let Some(pointer) = pointer else { return };
+        let step = pointer.x.round().max(0.0);
+        if response.drag_started() {
+            let nearest = ends
+                .iter()
+                .enumerate()
+                .map(|(k, &e)| (k, (x(e - 1) - pointer.x).abs()))
+                .filter(|(_, d)| *d <= 3.0)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            state.drag = nearest.map(|(k, _)| (k, step));
+        } else if response.dragged() {
+            if let Some((k, _)) = state.drag {
+                state.drag = Some((k, step));
+            }
+        } else if response.drag_stopped() {
+            if let Some((k, pos)) = state.drag.take() {
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                commands.push(Command::SetEnd { subtask: k, end: pos as usize + 1 });
+            }
+        } else if response.clicked() {
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            commands.push(Command::SetCursor(step as usize));
+        }
+    };
+    let mut gripper = vec![Line::new("gripper command", series(demo.gripper.iter().copied()))];
+    if let Some(w) = &demo.finger_width_m {
+        gripper.push(Line::new("finger opening (x 10 cm)", series(w.iter().map(|v| v * 10.0))));
+    }
+    draw(ui, "gripper", gripper);
+    draw(ui, "speed", vec![Line::new("end-effector speed (m/s)", series(demo.eef_speed.iter().copied()))]);
+    draw(
+        ui,
+        "distance",
+        demo.distances.iter().map(|(name, d)| Line::new(format!("gripper to {name} (m)"), series(d.iter().copied()))).collect(),
+    );
+    #[allow(clippy::cast_precision_loss)]
+    let signals = demo
+        .signals
+        .iter()
+        .enumerate()
+        .map(|(k, (name, s))| Line::new(format!("signal {name}"), series(s.iter().map(move |&v| v as f64 + 0.02 * k as f64))))
+        .collect();
+    draw(ui, "signals", signals);
+}

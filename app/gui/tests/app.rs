@@ -1,0 +1,120 @@
+//! The app driven through its real UI with egui_kittest (no display): open the reference source
+//! file, select demos, move a subtask end with the keyboard, undo and redo, accept the proposals,
+//! save and read the file back, and see a bad file reported without losing the open one.
+#![allow(clippy::unwrap_used)] // tests fail loudly by design
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable as _;
+use mimicgen_gui::{Command, MimicgenApp};
+
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/io/tests/data/source_D0_prepared.hdf5")
+}
+
+fn harness(file: Option<PathBuf>) -> Harness<'static, MimicgenApp> {
+    let app = MimicgenApp::new(|| {}, file);
+    Harness::builder().with_size(egui::vec2(1280.0, 800.0)).build_ui_state(|ui, app: &mut MimicgenApp| app.show(ui), app)
+}
+
+/// Steps frames until the backend has answered (the UI never blocks on it).
+fn settle(h: &mut Harness<'static, MimicgenApp>) {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        h.step();
+        if h.state().model.busy.is_none() {
+            break;
+        }
+        assert!(Instant::now() < deadline, "the backend did not answer");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.run_steps(2);
+}
+
+#[test]
+fn opens_a_source_file_and_shows_every_demo() {
+    let mut h = harness(Some(fixture()));
+    assert!(h.state().model.busy.is_some(), "opening happens in the background");
+    settle(&mut h);
+    let file = h.state().model.file.as_ref().unwrap();
+    assert_eq!(file.demos.len(), 10);
+    assert_eq!(file.signal_names, vec!["grasp".to_owned()]);
+    h.get_by_label_contains("demo_7").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.selected, 7);
+    // The boundary editor shows the stored signal and the proposal for the shown demo.
+    h.get_by_label_contains("stored signal: step");
+    h.get_by_label_contains("proposed: step");
+}
+
+#[test]
+fn keyboard_moves_a_subtask_end_and_undo_redo_restore_it() {
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    let before = h.state().model.demo_ends();
+    for _ in 0..12 {
+        h.key_press(egui::Key::ArrowRight);
+        h.step();
+    }
+    assert_eq!(h.state().model.cursor, 12);
+    h.key_press(egui::Key::E);
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_ends(), vec![13], "E puts the selected end at the cursor (its last step)");
+    assert!(h.state().model.dirty);
+    h.get_by_label("Undo").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_ends(), before);
+    h.get_by_label("Redo").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_ends(), vec![13]);
+}
+
+#[test]
+fn accepted_proposals_are_saved_where_mimicgen_reads_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("annotated.hdf5");
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    h.state_mut().command(Command::SetEnd { subtask: 0, end: 20 });
+    h.get_by_label("Auto-detect all").click();
+    h.run_steps(2);
+    let expected = h.state().model.ends.clone();
+    assert_ne!(expected["demo_0"], vec![20], "auto-detect replaced the hand-set end");
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Save to:").click();
+    h.run_steps(2);
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Save to:").type_text(&out.display().to_string());
+    h.run_steps(2);
+    assert_eq!(h.state().ui_save_path(), out.display().to_string());
+    h.get_by_label("Save as").click();
+    h.step();
+    settle(&mut h);
+    assert!(h.state().model.error.is_none(), "{:?}", h.state().model.error);
+    assert!(!h.state().model.dirty, "{}", h.state().model.status);
+    // Reload the saved file in the app: its stored signals are the saved ends.
+    h.state_mut().command(Command::Open(out.clone()));
+    settle(&mut h);
+    let reloaded = h.state().model.file.as_ref().unwrap();
+    for demo in &reloaded.demos {
+        assert_eq!(demo.stored_ends.as_ref(), Some(&expected[&demo.name]), "{}", demo.name);
+    }
+}
+
+#[test]
+fn a_bad_file_is_reported_and_the_open_file_and_its_edits_are_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("not_hdf5.hdf5");
+    std::fs::write(&bad, b"this is not an HDF5 file").unwrap();
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    h.state_mut().command(Command::SetEnd { subtask: 0, end: 25 });
+    h.state_mut().command(Command::Open(bad.clone()));
+    settle(&mut h);
+    let model = &h.state().model;
+    let error = model.error.as_deref().unwrap();
+    assert!(error.contains("not_hdf5.hdf5"), "{error}");
+    assert_eq!(model.file.as_ref().unwrap().demos.len(), 10);
+    assert_eq!(model.demo_ends(), vec![25]);
+    h.get_by_label_contains("Error:");
+}
