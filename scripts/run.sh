@@ -1,9 +1,15 @@
 #!/usr/bin/env bash
-# The project's run command (README): set-up, then generation on the bundled default task.
-# Any arguments are passed to `mimicgen generate` (see `mimicgen generate --help`).
+# The project's run command (README): set-up, then the main job on the bundled default task.
+# With no arguments and a display, it opens the app on the bundled Stack D0 source demos; otherwise
+# it runs the headless batch generation, and any arguments go to `mimicgen generate`
+# (see `mimicgen generate --help`).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh
 export MIMICGEN_CACHE="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$MIMICGEN_CACHE/target}"
+if [ $# -eq 0 ] && [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
+  exec cargo run --release --quiet --bin mimicgen -- app
+fi
+[ $# -eq 0 ] && echo "run.sh: no display, so running the headless batch generation (mimicgen generate)" >&2
 exec cargo run --release --quiet --bin mimicgen -- generate "$@"

@@ -1,7 +1,7 @@
 //! Drawing: reads the model, returns commands. Nothing here changes state directly.
 
 use egui::{Color32, Key, Modifiers, RichText};
-use egui_plot::{Line, Plot, PlotPoints, Span, VLine};
+use egui_plot::{Corner, Legend, Line, Plot, PlotPoints, Span, VLine};
 
 use crate::model::{AppModel, Command};
 use crate::protocol::DemoView;
@@ -192,6 +192,8 @@ fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, stat
     let mut draw = |ui: &mut egui::Ui, id: &str, lines: Vec<Line<'static>>| {
         let response = Plot::new(id)
             .height(height)
+            .legend(Legend::default().position(Corner::LeftTop))
+            .y_axis_min_width(36.0)
             .link_axis("timeline", [true, false])
             .link_cursor("timeline", [true, false])
             .allow_drag(false)
@@ -212,9 +214,9 @@ fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, stat
                         Some((b, pos)) if b == k => pos,
                         _ => x(end - 1),
                     };
-                    plot.vline(VLine::new(format!("end of subtask {k}"), at).color(subtask_color(k)).width(2.0));
+                    plot.vline(VLine::new("", at).color(subtask_color(k)).width(2.0));
                 }
-                plot.vline(VLine::new("cursor", x(cursor)).color(Color32::GRAY));
+                plot.vline(VLine::new("", x(cursor)).color(Color32::GRAY));
                 (plot.response().clone(), plot.pointer_coordinate())
             });
         let (response, pointer) = response.inner;
