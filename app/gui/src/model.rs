@@ -144,9 +144,10 @@ impl AppModel {
                 let name = self.demo().map(|d| d.name.clone())?;
                 let mut ends = self.demo_ends();
                 if subtask < ends.len() {
-                    // Keep every segment at least one step long.
-                    let low = if subtask == 0 { 1 } else { ends[subtask - 1] + 1 };
-                    let high = ends.get(subtask + 1).map_or(len.saturating_sub(1), |&e| e - 1);
+                    // Keep every segment at least two steps long, so that each signal is off for
+                    // at least one step before it turns on (what MimicGen's parser needs).
+                    let low = if subtask == 0 { 2 } else { ends[subtask - 1] + 2 };
+                    let high = ends.get(subtask + 1).map_or(len.saturating_sub(1), |&e| e.saturating_sub(2));
                     ends[subtask] = end.clamp(low, high.max(low));
                     self.change_ends(&name, ends);
                 }
@@ -237,5 +238,66 @@ impl AppModel {
             }
             Reply::Failed { what, error } => self.error = Some(format!("{what}: {error}")),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::{DemoView, LoadedFile};
+
+    fn model(len: usize, ends: Vec<usize>) -> AppModel {
+        let demo = DemoView {
+            name: "demo_0".into(),
+            len,
+            gripper: vec![0.0; len],
+            finger_width_m: None,
+            eef_speed: vec![0.0; len],
+            distances: BTreeMap::new(),
+            signals: BTreeMap::new(),
+            stored_ends: Some(ends),
+            proposals: Vec::new(),
+        };
+        let mut m = AppModel::default();
+        m.on_reply(Reply::Opened(Box::new(LoadedFile {
+            path: "f.hdf5".into(),
+            task: "t".into(),
+            signal_names: vec!["a".into(), "b".into()],
+            subtask_objects: Vec::new(),
+            demos: vec![demo],
+        })));
+        m
+    }
+
+    #[test]
+    fn ends_stay_ordered_and_leave_every_segment_room_for_its_signal() {
+        let mut m = model(50, vec![10, 30]);
+        m.apply(Command::SetEnd { subtask: 0, end: 0 });
+        assert_eq!(m.demo_ends(), vec![2, 30]);
+        m.apply(Command::SetEnd { subtask: 0, end: 45 });
+        assert_eq!(m.demo_ends(), vec![28, 30]);
+        m.apply(Command::SetEnd { subtask: 1, end: 80 });
+        assert_eq!(m.demo_ends(), vec![28, 49]);
+        m.apply(Command::Undo);
+        m.apply(Command::Undo);
+        assert_eq!(m.demo_ends(), vec![2, 30]);
+        m.apply(Command::Redo);
+        assert_eq!(m.demo_ends(), vec![28, 30]);
+        // A new change clears what could be redone.
+        m.apply(Command::SetEnd { subtask: 1, end: 40 });
+        assert!(!m.can_redo());
+    }
+
+    #[test]
+    fn saving_over_the_source_is_refused_and_playback_stops_at_the_end() {
+        let mut m = model(5, vec![2]);
+        assert_eq!(m.apply(Command::Save("f.hdf5".into())), None);
+        assert!(m.error.as_deref().is_some_and(|e| e.contains("f.hdf5")));
+        assert!(matches!(m.apply(Command::Save("g.hdf5".into())), Some(Request::Save { .. })));
+        m.apply(Command::TogglePlay);
+        for _ in 0..10 {
+            m.apply(Command::Tick);
+        }
+        assert_eq!((m.cursor, m.playing), (4, false));
     }
 }
