@@ -81,7 +81,6 @@ pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
     }
     let mut ends = parse_ends(&args.ends)?;
     let found = annotate::propose(&args.file, args.task.as_deref(), args.config.as_deref())?;
-    let mut distances = Vec::new();
     for demo in &found.demos {
         let typed = ends.get(&demo.demo).cloned();
         if typed.is_none() && args.auto {
@@ -101,10 +100,8 @@ pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
                 );
             }
         }
-        if let Some(stored) = &demo.signal_ends {
-            distances.extend(demo.proposals.iter().zip(stored).map(|(p, &e)| p.end.abs_diff(e)));
-        }
     }
+    let mut distances = found.distances();
     distances.sort_unstable();
     #[allow(clippy::cast_precision_loss)]
     let summary = (!distances.is_empty()).then(|| {

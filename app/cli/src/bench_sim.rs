@@ -78,14 +78,14 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
         })?;
         Ok((started.elapsed().as_secs_f64(), attempts))
     };
-    let dir = match &args.dir {
+    let temp = tempfile::tempdir().context("creating a temporary directory")?;
+    let dir_path = match &args.dir {
         Some(d) => {
             std::fs::create_dir_all(d).with_context(|| d.display().to_string())?;
-            None
+            d.clone()
         }
-        None => Some(tempfile_dir()?),
+        None => temp.path().to_path_buf(),
     };
-    let dir_path = args.dir.clone().or_else(|| dir.as_ref().map(|d| d.0.clone())).unwrap_or_default();
     let (e2e_one_s, e2e_one) = end_to_end(args, &dir_path.join("one.hdf5"), 1, false)?;
     let e2e_one_peak = e2e_one.peak_rss_mib;
     let (e2e_two_s, e2e_two) = end_to_end(args, &dir_path.join("two.hdf5"), 2, false)?;
@@ -135,7 +135,6 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
         let diff = env.state().iter().zip(last).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         worst_final_state_diff = worst_final_state_diff.max(diff);
     }
-    drop(dir);
     #[allow(clippy::cast_precision_loss)]
     let report = json!({
         "task": task.name(),
@@ -166,19 +165,4 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
     });
     println!("{}", serde_json::to_string_pretty(&report)?);
     Ok(())
-}
-
-/// A temporary directory removed on drop (no extra dependency for one bench).
-struct TempDir(std::path::PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn tempfile_dir() -> anyhow::Result<TempDir> {
-    let dir = std::env::temp_dir().join(format!("mimicgen-bench-sim-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).with_context(|| dir.display().to_string())?;
-    Ok(TempDir(dir))
 }

@@ -346,13 +346,6 @@ impl DatasetWriter {
         self.h5.flush().map_err(|e| IoError::hdf5(&self.label, "/", name, &e))
     }
 
-    /// A string attribute of the file's root, if set.
-    #[must_use]
-    pub fn root_attr(&self, name: &str) -> Option<String> {
-        let a = self.h5.attr(name).ok()?;
-        tree::read_array(&self.label, "/", name, &a).ok()?.as_str().map(str::to_owned)
-    }
-
     /// Number of demos written so far.
     #[must_use]
     pub fn len(&self) -> usize {

@@ -38,9 +38,3 @@ pub fn source_demos(task: &str) -> Result<PathBuf, PipelineError> {
     std::fs::rename(&tmp, &path).map_err(fs)?;
     Ok(path)
 }
-
-/// Tasks with bundled source demos.
-#[must_use]
-pub fn tasks() -> Vec<&'static str> {
-    FILES.iter().map(|(t, ..)| *t).collect()
-}
