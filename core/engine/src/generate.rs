@@ -21,7 +21,7 @@ use crate::demo::{Rows, SimPayload, SourceDataset, SourceDemo};
 use crate::env::{EnvError, Environment};
 use crate::pose::Pose;
 use crate::segment::{Segmentation, Span};
-use crate::select::{SceneContext, select_source};
+use crate::select::{SceneContext, pick_source, source_distances};
 use crate::spec::TaskSpec;
 use crate::transform::{Waypoint, WaypointKind, subtask_waypoints, transform_segment};
 
@@ -75,6 +75,9 @@ pub struct Failure {
 pub struct SubtaskPlan {
     /// The source demo the segment came from.
     pub src_demo: usize,
+    /// How far each source demo was from the scene by the selection strategy (`None` when the
+    /// source was kept from the previous subtask or the strategy is random).
+    pub source_distances: Option<Vec<f64>>,
     /// The segment's steps in that demo, after this attempt's offsets.
     pub src_span: Span,
     /// The source segment's poses before the transform (first eef pose, then targets).
@@ -200,6 +203,33 @@ impl Generator {
         Ok(Self { spec, dataset, segmentation })
     }
 
+    /// The same generator with hand-set subtask ends (exclusive, one per subtask but the last)
+    /// for the demos `ends` names, in place of their signals.
+    ///
+    /// # Errors
+    /// [`EngineError::UnknownName`] for a demo that does not exist, [`EngineError::Segmentation`]
+    /// for ends that do not fit the demo.
+    pub fn with_subtask_ends(&self, ends: &BTreeMap<String, Vec<usize>>) -> Result<Self, EngineError> {
+        let mut dataset = self.dataset.clone();
+        for (name, demo_ends) in ends {
+            let demo = dataset.demos.iter_mut().find(|d| &d.name == name).ok_or_else(|| EngineError::UnknownName {
+                field: "subtask ends".to_owned(),
+                name: name.clone(),
+                available: self.dataset.demos.iter().map(|d| d.name.clone()).collect(),
+            })?;
+            demo.manual_subtask_ends = Some(demo_ends.clone());
+        }
+        let segmentation = Segmentation::new(&dataset.demos, &self.spec)?;
+        Ok(Self { spec: self.spec.clone(), dataset, segmentation })
+    }
+
+    /// The same generator drawing from run seed `seed`.
+    #[must_use]
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.spec.generation.seed = seed;
+        self
+    }
+
     /// The task spec.
     #[must_use]
     pub fn spec(&self) -> &TaskSpec {
@@ -224,6 +254,18 @@ impl Generator {
     /// # Errors
     /// Only [`EnvError::Fatal`] problems; a failed attempt is an `Ok` record with `success == false`.
     pub fn attempt<E: Environment + ?Sized>(&self, env: &mut E, index: u64) -> Result<Attempt, EngineError> {
+        self.attempt_with(env, index, &[])
+    }
+
+    /// [`Generator::attempt`] with the source demo of subtask `k` forced to `sources[k]` where that
+    /// is `Some`. The selection still draws its random numbers, so the scene, the segment offsets
+    /// and the action noise are those of attempt `index` of a run: with no overrides this is that
+    /// attempt exactly.
+    ///
+    /// # Errors
+    /// As [`Generator::attempt`], and [`EngineError::Config`] for an override past the last demo.
+    pub fn attempt_with<E: Environment + ?Sized>(&self, env: &mut E, index: u64, sources: &[Option<usize>]) -> Result<Attempt, EngineError> {
+        self.check_overrides(sources)?;
         let settings = &self.spec.generation;
         let mut rng = attempt_rng(settings.seed, index);
         let fatal = |e: EnvError| EngineError::Env { attempt: index, source: e };
@@ -250,78 +292,27 @@ impl Generator {
         attempt.initial_state = env.state();
         attempt.trajectory = Trajectory::new(attempt.initial_state.len(), env.action_dim());
         let spans = self.segmentation.draw_spans(&mut rng);
-        let demos = &self.dataset.demos;
         let mut selected: Option<usize> = None;
         let mut last_target: Option<Pose> = None;
         for (subtask_index, subtask) in self.spec.subtasks.iter().enumerate() {
-            let is_first = subtask_index == 0;
-            let world_from_eef = env.eef_pose();
-            let objects = env.object_poses();
-            let world_from_obj_new = match &subtask.object_ref {
-                Some(name) => Some(*objects.get(name).ok_or_else(|| {
-                    fatal(EnvError::Fatal {
-                        reason: format!(
-                            "environment reports no pose for object {name:?} (subtask {subtask_index}); it has {:?}",
-                            objects.keys().collect::<Vec<_>>()
-                        ),
-                    })
-                })?),
-                None => None,
+            let here = PlanInput {
+                subtask: subtask_index,
+                world_from_eef: env.eef_pose(),
+                objects: env.object_poses(),
+                last_target,
+                selected,
+                forced: sources.get(subtask_index).copied().flatten(),
             };
-            let demo_index = match selected {
-                Some(d) if !settings.select_src_per_subtask => d,
-                _ => {
-                    let scene = SceneContext { world_from_eef: &world_from_eef, world_from_obj: world_from_obj_new.as_ref() };
-                    select_source(&subtask.selection, demos, &spans, subtask_index, subtask.object_ref.as_deref(), scene, &mut rng)
-                }
-            };
-            selected = Some(demo_index);
-            attempt.src_demo_per_subtask.push(demo_index);
-            let demo = &demos[demo_index];
-            let (start, end) = spans[demo_index][subtask_index];
-            let mut source_poses = Vec::with_capacity(end - start + 1);
-            let mut gripper: Vec<Vec<f64>> = Vec::with_capacity(end - start + 1);
-            if is_first || settings.transform_first_robot_pose {
-                source_poses.push(demo.eef_poses[start]);
-                gripper.push(demo.gripper_actions.row(start).to_vec());
-            }
-            source_poses.extend_from_slice(&demo.target_poses[start..end]);
-            gripper.extend((start..end).map(|t| demo.gripper_actions.row(t).to_vec()));
-            let world_from_obj_src = subtask.object_ref.as_ref().map(|name| demo.object_poses[name][start]);
-            let transformed = match (&world_from_obj_new, &world_from_obj_src) {
-                (Some(new), Some(src)) => transform_segment(new, src, &source_poses),
-                _ => source_poses.clone(),
-            };
-            let interp_start = match last_target {
-                Some(pose) if settings.interpolate_from_last_target_pose && !is_first => pose,
-                _ => world_from_eef,
-            };
-            let interp_noise = if subtask.apply_noise_during_interpolation { subtask.action_noise } else { 0.0 };
-            let waypoints = subtask_waypoints(
-                &interp_start,
-                &transformed,
-                &gripper,
-                subtask.num_interpolation_steps,
-                subtask.num_fixed_steps,
-                subtask.action_noise,
-                interp_noise,
-            );
+            let (plan, waypoints) = self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
+            selected = Some(plan.src_demo);
             last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);
-            attempt.plans.push(SubtaskPlan {
-                src_demo: demo_index,
-                src_span: (start, end),
-                source_poses,
-                world_from_obj_src,
-                world_from_obj_new,
-                transformed_poses: transformed,
-                waypoints: waypoints.iter().map(|(w, k)| (w.pose, *k)).collect(),
-                first_step: attempt.trajectory.len(),
-            });
+            attempt.src_demo_per_subtask.push(plan.src_demo);
+            let labels = StepLabels { src_demo: plan.src_demo, subtask: subtask_index, kind: WaypointKind::Transformed };
+            attempt.plans.push(SubtaskPlan { first_step: attempt.trajectory.len(), ..plan });
             let mut signal_seen = false;
             let signal = if subtask_index + 1 < self.spec.subtasks.len() { subtask.term_signal.as_deref() } else { None };
             for (waypoint, kind) in &waypoints {
-                let labels = StepLabels { src_demo: demo_index, subtask: subtask_index, kind: *kind };
-                let signals = match execute_step(env, waypoint, labels, &mut attempt.trajectory, &mut rng) {
+                let signals = match execute_step(env, waypoint, StepLabels { kind: *kind, ..labels }, &mut attempt.trajectory, &mut rng) {
                     Ok(signals) => signals,
                     Err(e) => {
                         attempt.failure = Some(unstable(e, subtask_index)?);
@@ -349,6 +340,154 @@ impl Generator {
         }
         Ok(attempt)
     }
+
+    /// Plans attempt `index` without executing it: samples its scene (the same as the attempt's)
+    /// and, for every subtask, ranks and picks the source demo (or takes `sources[k]`), transforms
+    /// its segment into the scene and bridges to it. Objects are taken to stay where the scene put
+    /// them and each subtask to start where the previous one's last target is, so later subtasks
+    /// are what the attempt would plan if execution went as planned (with per-subtask random
+    /// selection the attempt may pick differently, since execution draws noise in between).
+    ///
+    /// # Errors
+    /// As [`Generator::attempt_with`]; a scene the simulator rejects is [`EngineError::Env`].
+    pub fn plan<E: Environment + ?Sized>(&self, env: &mut E, index: u64, sources: &[Option<usize>]) -> Result<Plan, EngineError> {
+        self.check_overrides(sources)?;
+        let mut rng = attempt_rng(self.spec.generation.seed, index);
+        let fatal = |e: EnvError| EngineError::Env { attempt: index, source: e };
+        env.reset(&mut rng).map_err(fatal)?;
+        let objects = env.object_poses();
+        let world_from_eef = env.eef_pose();
+        let spans = self.segmentation.draw_spans(&mut rng);
+        let mut plan = Plan { index, world_from_eef, initial_object_poses: objects.clone(), subtasks: Vec::new() };
+        let (mut selected, mut last_target) = (None, None);
+        for subtask in 0..self.spec.subtasks.len() {
+            let here = PlanInput {
+                subtask,
+                world_from_eef: last_target.unwrap_or(world_from_eef),
+                objects: objects.clone(),
+                last_target,
+                selected,
+                forced: sources.get(subtask).copied().flatten(),
+            };
+            let (mut planned, waypoints) = self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
+            planned.first_step = plan.subtasks.iter().map(|s| s.waypoints.len()).sum();
+            selected = Some(planned.src_demo);
+            last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);
+            plan.subtasks.push(planned);
+        }
+        Ok(plan)
+    }
+
+    fn check_overrides(&self, sources: &[Option<usize>]) -> Result<(), EngineError> {
+        let num = self.dataset.demos.len();
+        match sources.iter().enumerate().find_map(|(k, s)| s.filter(|&d| d >= num).map(|d| (k, d))) {
+            Some((k, d)) => Err(EngineError::Config {
+                file: String::new(),
+                field: format!("sources[{k}]"),
+                reason: format!("source demo {d} does not exist (the dataset has {num})"),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Selects, transforms and bridges one subtask's segment (the part of an attempt before
+    /// execution). Draws the selection's random numbers even when the source is forced.
+    fn plan_subtask<R: Rng + ?Sized>(
+        &self,
+        here: &PlanInput,
+        spans: &[Vec<Span>],
+        rng: &mut R,
+    ) -> Result<(SubtaskPlan, Vec<(Waypoint, WaypointKind)>), String> {
+        let settings = &self.spec.generation;
+        let subtask = &self.spec.subtasks[here.subtask];
+        let is_first = here.subtask == 0;
+        let demos = &self.dataset.demos;
+        let world_from_obj_new = match &subtask.object_ref {
+            Some(name) => Some(*here.objects.get(name).ok_or_else(|| {
+                format!(
+                    "environment reports no pose for object {name:?} (subtask {}); it has {:?}",
+                    here.subtask,
+                    here.objects.keys().collect::<Vec<_>>()
+                )
+            })?),
+            None => None,
+        };
+        let (demo_index, distances) = match here.selected {
+            Some(d) if !settings.select_src_per_subtask => (d, None),
+            _ => {
+                let scene = SceneContext { world_from_eef: &here.world_from_eef, world_from_obj: world_from_obj_new.as_ref() };
+                let distances = source_distances(&subtask.selection, demos, spans, here.subtask, subtask.object_ref.as_deref(), scene);
+                (pick_source(&subtask.selection, distances.as_deref(), demos.len(), rng), distances)
+            }
+        };
+        let demo_index = here.forced.unwrap_or(demo_index);
+        let demo = &demos[demo_index];
+        let (start, end) = spans[demo_index][here.subtask];
+        let mut source_poses = Vec::with_capacity(end - start + 1);
+        let mut gripper: Vec<Vec<f64>> = Vec::with_capacity(end - start + 1);
+        if is_first || settings.transform_first_robot_pose {
+            source_poses.push(demo.eef_poses[start]);
+            gripper.push(demo.gripper_actions.row(start).to_vec());
+        }
+        source_poses.extend_from_slice(&demo.target_poses[start..end]);
+        gripper.extend((start..end).map(|t| demo.gripper_actions.row(t).to_vec()));
+        let world_from_obj_src = subtask.object_ref.as_ref().map(|name| demo.object_poses[name][start]);
+        let transformed = match (&world_from_obj_new, &world_from_obj_src) {
+            (Some(new), Some(src)) => transform_segment(new, src, &source_poses),
+            _ => source_poses.clone(),
+        };
+        let interp_start = match here.last_target {
+            Some(pose) if settings.interpolate_from_last_target_pose && !is_first => pose,
+            _ => here.world_from_eef,
+        };
+        let interp_noise = if subtask.apply_noise_during_interpolation { subtask.action_noise } else { 0.0 };
+        let waypoints = subtask_waypoints(
+            &interp_start,
+            &transformed,
+            &gripper,
+            subtask.num_interpolation_steps,
+            subtask.num_fixed_steps,
+            subtask.action_noise,
+            interp_noise,
+        );
+        let plan = SubtaskPlan {
+            src_demo: demo_index,
+            src_span: (start, end),
+            source_distances: distances,
+            source_poses,
+            world_from_obj_src,
+            world_from_obj_new,
+            transformed_poses: transformed,
+            waypoints: waypoints.iter().map(|(w, k)| (w.pose, *k)).collect(),
+            first_step: 0,
+        };
+        Ok((plan, waypoints))
+    }
+}
+
+/// Where one subtask is planned from.
+struct PlanInput {
+    subtask: usize,
+    world_from_eef: Pose,
+    objects: BTreeMap<String, Pose>,
+    last_target: Option<Pose>,
+    /// The source demo of the previous subtask.
+    selected: Option<usize>,
+    /// A source demo the caller chose.
+    forced: Option<usize>,
+}
+
+/// An attempt planned but not executed ([`Generator::plan`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// The attempt index (its random stream).
+    pub index: u64,
+    /// `world_from_eef` in the sampled scene before the first action.
+    pub world_from_eef: Pose,
+    /// Object poses of the sampled scene.
+    pub initial_object_poses: BTreeMap<String, Pose>,
+    /// Per-subtask plans; `first_step` counts planned waypoints.
+    pub subtasks: Vec<SubtaskPlan>,
 }
 
 /// Labels attached to every recorded step.

@@ -16,9 +16,58 @@ pub struct SceneContext<'a> {
     pub world_from_obj: Option<&'a Pose>,
 }
 
-/// Picks a demo index for `subtask`. `spans[d][subtask]` is demo `d`'s segment this attempt and
-/// `object` the subtask's reference object. Ties in distance keep dataset order, so the choice
+/// How far each source demo's segment for `subtask` is from the new scene, as the strategy
+/// measures it (`None` for [`SelectionStrategy::Random`], which measures nothing). `spans[d][subtask]`
+/// is demo `d`'s segment this attempt and `object` the subtask's reference object; a demo without
+/// that object is infinitely far.
+#[must_use]
+pub fn source_distances(
+    strategy: &SelectionStrategy,
+    demos: &[SourceDemo],
+    spans: &[Vec<Span>],
+    subtask: usize,
+    object: Option<&str>,
+    scene: SceneContext<'_>,
+) -> Option<Vec<f64>> {
+    let src_object_pose = |d: usize| object.and_then(|name| demos[d].object_poses.get(name)).map(|poses| poses[spans[d][subtask].0]);
+    match strategy {
+        SelectionStrategy::Random => None,
+        SelectionStrategy::NearestNeighborObject { .. } => {
+            let world_from_obj = scene.world_from_obj?;
+            Some(
+                (0..demos.len())
+                    .map(|d| src_object_pose(d).map_or(f64::INFINITY, |src| pose_distance(world_from_obj, &src, strategy.weights())))
+                    .collect(),
+            )
+        }
+        SelectionStrategy::NearestNeighborRobotDistance { .. } => Some(
+            (0..demos.len())
+                .map(|d| {
+                    let world_from_eef_src = demos[d].eef_poses[spans[d][subtask].0];
+                    let start = match (scene.world_from_obj, src_object_pose(d)) {
+                        (Some(world_from_obj_new), Some(world_from_obj_src)) => {
+                            world_from_obj_new * world_from_obj_src.inverse() * world_from_eef_src
+                        }
+                        _ => world_from_eef_src,
+                    };
+                    pose_distance(scene.world_from_eef, &start, strategy.weights())
+                })
+                .collect(),
+        ),
+    }
+}
+
+/// Picks a demo index given the strategy's [`source_distances`] (uniformly among the `nn_k`
+/// nearest, ties in dataset order; uniformly among all demos without distances), so the choice
 /// depends only on the inputs and `rng`.
+pub fn pick_source<R: Rng + ?Sized>(strategy: &SelectionStrategy, distances: Option<&[f64]>, num_demos: usize, rng: &mut R) -> usize {
+    match distances {
+        Some(distances) => nearest_k_pick(distances, strategy_k(strategy), rng),
+        None => rng.random_range(0..num_demos),
+    }
+}
+
+/// Picks a demo index for `subtask`: [`source_distances`] then [`pick_source`].
 pub fn select_source<R: Rng + ?Sized>(
     strategy: &SelectionStrategy,
     demos: &[SourceDemo],
@@ -28,29 +77,8 @@ pub fn select_source<R: Rng + ?Sized>(
     scene: SceneContext<'_>,
     rng: &mut R,
 ) -> usize {
-    let src_object_pose = |d: usize| object.and_then(|name| demos[d].object_poses.get(name)).map(|poses| poses[spans[d][subtask].0]);
-    let distances: Vec<f64> = match strategy {
-        SelectionStrategy::Random => return rng.random_range(0..demos.len()),
-        SelectionStrategy::NearestNeighborObject { .. } => {
-            let Some(world_from_obj) = scene.world_from_obj else { return rng.random_range(0..demos.len()) };
-            (0..demos.len())
-                .map(|d| src_object_pose(d).map_or(f64::INFINITY, |src| pose_distance(world_from_obj, &src, strategy.weights())))
-                .collect()
-        }
-        SelectionStrategy::NearestNeighborRobotDistance { .. } => (0..demos.len())
-            .map(|d| {
-                let world_from_eef_src = demos[d].eef_poses[spans[d][subtask].0];
-                let start = match (scene.world_from_obj, src_object_pose(d)) {
-                    (Some(world_from_obj_new), Some(world_from_obj_src)) => {
-                        world_from_obj_new * world_from_obj_src.inverse() * world_from_eef_src
-                    }
-                    _ => world_from_eef_src,
-                };
-                pose_distance(scene.world_from_eef, &start, strategy.weights())
-            })
-            .collect(),
-    };
-    nearest_k_pick(&distances, strategy_k(strategy), rng)
+    let distances = source_distances(strategy, demos, spans, subtask, object, scene);
+    pick_source(strategy, distances.as_deref(), demos.len(), rng)
 }
 
 fn strategy_k(strategy: &SelectionStrategy) -> usize {

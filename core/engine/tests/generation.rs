@@ -258,3 +258,31 @@ fn later_subtasks_keep_each_pose_with_its_own_gripper_action() {
         }
     }
 }
+
+#[test]
+fn a_plan_is_the_attempt_before_execution_and_forced_sources_keep_the_scene() {
+    let g = generator(kinematic::pick_place_spec(10, 4));
+    let mut env = PickPlace::new(0.15);
+    for index in 0..6 {
+        let attempt = g.attempt(&mut env, index).unwrap();
+        let plan = g.plan(&mut env, index, &[]).unwrap();
+        // Same scene, same source, same first subtask (nothing has executed before it).
+        assert_eq!(plan.initial_object_poses, attempt.initial_object_poses);
+        assert_eq!(plan.subtasks[0].src_demo, attempt.plans[0].src_demo);
+        assert_eq!(plan.subtasks[0].transformed_poses, attempt.plans[0].transformed_poses);
+        assert_eq!(plan.subtasks[0].waypoints, attempt.plans[0].waypoints);
+        // The nearest-neighbour ranking is reported and the pick is among the nn_k nearest.
+        let distances = plan.subtasks[0].source_distances.as_ref().unwrap();
+        assert_eq!(distances.len(), g.dataset().demos.len());
+        let nearer = distances.iter().filter(|&&d| d < distances[plan.subtasks[0].src_demo]).count();
+        assert!(nearer < 3, "picked the {}th nearest", nearer + 1);
+        // Forcing another source keeps the scene and uses that demo where it is forced.
+        let other = (attempt.plans[0].src_demo + 1) % g.dataset().demos.len();
+        let forced = g.attempt_with(&mut env, index, &[Some(other), None]).unwrap();
+        assert_eq!(forced.initial_object_poses, attempt.initial_object_poses);
+        assert_eq!(forced.src_demo_per_subtask[0], other);
+        assert_ne!(forced.plans[0].transformed_poses, attempt.plans[0].transformed_poses);
+    }
+    let err = g.plan(&mut env, 0, &[Some(99)]).unwrap_err().to_string();
+    assert!(err.contains("sources[0]") && err.contains("99"), "{err}");
+}

@@ -247,3 +247,49 @@ fn written_annotations_read_back_as_the_same_segments() {
         .to_string();
     assert!(err.contains("demo_0") && err.contains("500"), "{err}");
 }
+
+/// "Try it" in the app is the attempt a run makes: same seed and index, same actions step for
+/// step; the plan's first subtask is that attempt's; hand-set ends equal to the signals' change
+/// nothing, other ends change the segment the attempt executes.
+#[test]
+fn a_tried_attempt_is_the_attempt_a_run_makes() {
+    use mimicgen_pipeline::preview::Previewer;
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = config(&dir.path().join("run.hdf5"), 3, 1);
+    let (_, events) = run(&cfg).unwrap();
+    let attempts: Vec<_> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Attempt(a) => Some(a.attempt.clone()),
+            _ => None,
+        })
+        .collect();
+    let mut preview = Previewer::new(&cfg).unwrap();
+    let signal_ends: std::collections::BTreeMap<String, Vec<usize>> = preview
+        .generator()
+        .dataset()
+        .demos
+        .iter()
+        .enumerate()
+        .map(|(d, demo)| (demo.name.clone(), vec![preview.generator().segmentation().nominal_spans(d)[0].1]))
+        .collect();
+    preview.configure(&signal_ends, 3).unwrap();
+    for ran in &attempts {
+        let tried = preview.try_attempt(ran.index, &[]).unwrap();
+        assert_eq!(tried.trajectory.actions, ran.trajectory.actions, "attempt {}", ran.index);
+        assert_eq!(tried.success, ran.success);
+        let plan = preview.plan(ran.index, &[]).unwrap();
+        assert_eq!(plan.subtasks[0].waypoints, ran.plans[0].waypoints);
+    }
+    let demo = attempts[0].plans[0].src_demo;
+    let mut moved = signal_ends.clone();
+    let name = preview.generator().dataset().demos[demo].name.clone();
+    moved.insert(name.clone(), vec![signal_ends[&name][0] - 12]);
+    preview.configure(&moved, 3).unwrap();
+    let plan = preview.plan(attempts[0].index, &[Some(demo)]).unwrap();
+    assert_eq!(plan.subtasks[0].src_span.1 + 12, attempts[0].plans[0].src_span.1);
+    // Ends that do not fit name the demo.
+    let bad = std::collections::BTreeMap::from([(name.clone(), vec![100_000])]);
+    let err = preview.configure(&bad, 3).unwrap_err().to_string();
+    assert!(err.contains(&name), "{err}");
+}

@@ -1,0 +1,80 @@
+//! Previewing attempts before a run: the scene attempt `index` of a run would draw, the source
+//! segments it would pick (with the selection's ranking), transformed and bridged, and "try it":
+//! that attempt executed in simulation. What the app's preview screen shows, from the same
+//! generator `generate` runs, so a previewed attempt is the one a run with that seed makes.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use mimicgen_engine::{Attempt, Generator, Plan};
+use mimicgen_sim::SimEnv;
+
+use crate::{Pipeline, PipelineError, RunConfig};
+
+/// A prepared source file with one simulator, ready to plan and try attempts.
+pub struct Previewer {
+    pipeline: Pipeline,
+    generator: Generator,
+    env: SimEnv,
+}
+
+impl std::fmt::Debug for Previewer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Previewer").field("pipeline", &self.pipeline).finish_non_exhaustive()
+    }
+}
+
+impl Previewer {
+    /// Prepares `config` as a run would (task, variant, spec, sources, scene) and builds one
+    /// simulator.
+    ///
+    /// # Errors
+    /// As [`Pipeline::prepare`].
+    pub fn new(config: &RunConfig) -> Result<Self, PipelineError> {
+        let pipeline = Pipeline::prepare(config)?;
+        let env = SimEnv::new(Arc::clone(pipeline.scene()), Arc::clone(pipeline.task()));
+        let generator = pipeline.generator().clone();
+        Ok(Self { pipeline, generator, env })
+    }
+
+    /// The pipeline behind it (task, variant, source path).
+    #[must_use]
+    pub fn pipeline(&self) -> &Pipeline {
+        &self.pipeline
+    }
+
+    /// The generator plans and attempts come from (with the ends and seed last set).
+    #[must_use]
+    pub fn generator(&self) -> &Generator {
+        &self.generator
+    }
+
+    /// Uses hand-set subtask ends (exclusive, per demo name) instead of the file's signals, and
+    /// run seed `seed`.
+    ///
+    /// # Errors
+    /// [`PipelineError::Engine`] naming the demo whose ends do not fit.
+    pub fn configure(&mut self, ends: &BTreeMap<String, Vec<usize>>, seed: u64) -> Result<(), PipelineError> {
+        let label = self.pipeline.source_path().display().to_string();
+        self.generator = self.pipeline.generator().with_subtask_ends(ends).map_err(|e| PipelineError::engine(label, e))?.with_seed(seed);
+        Ok(())
+    }
+
+    /// Plans attempt `index` (see [`Generator::plan`]); `sources[k]` forces subtask `k`'s demo.
+    ///
+    /// # Errors
+    /// [`PipelineError::Engine`] for a forced demo that does not exist or a scene the simulator
+    /// rejects.
+    pub fn plan(&mut self, index: u64, sources: &[Option<usize>]) -> Result<Plan, PipelineError> {
+        self.generator.plan(&mut self.env, index, sources).map_err(|e| PipelineError::engine("preview", e))
+    }
+
+    /// Executes attempt `index` (see [`Generator::attempt_with`]): with no forced sources, the
+    /// attempt a run with this seed makes, step for step.
+    ///
+    /// # Errors
+    /// As [`Previewer::plan`].
+    pub fn try_attempt(&mut self, index: u64, sources: &[Option<usize>]) -> Result<Attempt, PipelineError> {
+        self.generator.attempt_with(&mut self.env, index, sources).map_err(|e| PipelineError::engine("try it", e))
+    }
+}
