@@ -1,12 +1,20 @@
-//! The backend: a named worker thread that reads, detects and writes, and replies over a channel.
+//! The backend: a named worker thread that reads, detects, writes, plans and tries attempts, and
+//! replies over a channel.
 //! The UI never waits on it; it asks for a repaint when a reply is ready.
 
-use std::path::Path;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::sync::mpsc::{Receiver, Sender, channel};
 
-use mimicgen_pipeline::annotate;
+use mimicgen_engine::transform::WaypointKind;
+use mimicgen_engine::{Attempt, Plan, Pose};
+use mimicgen_pipeline::preview::Previewer;
+use mimicgen_pipeline::{RunConfig, annotate};
 
-use crate::protocol::{DemoView, LoadedFile, ProposalView, Reply, Request};
+use crate::protocol::{
+    DemoView, ExecutedView, LoadedFile, ObjectView, Point, PreviewRequest, PreviewView, ProposalView, RankView, Reply, Request,
+    SubtaskPreview,
+};
 
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
 const CONTROL_HZ: f64 = 20.0;
@@ -57,18 +65,113 @@ pub fn open(path: &Path) -> Result<LoadedFile, mimicgen_pipeline::PipelineError>
     })
 }
 
-/// Answers one request.
-#[must_use]
-pub fn handle(request: Request) -> Reply {
-    match request {
-        Request::Open { path } => match open(&path) {
-            Ok(file) => Reply::Opened(Box::new(file)),
-            Err(e) => Reply::Failed { what: format!("opening {}", path.display()), error: e.to_string() },
-        },
-        Request::Save { source, out, ends, signal_names } => match annotate::write_signals(&source, &out, &signal_names, &ends) {
-            Ok(()) => Reply::Saved { out, demos: ends.len() },
-            Err(e) => Reply::Failed { what: format!("saving {}", out.display()), error: e.to_string() },
-        },
+fn point(pose: &Pose) -> Point {
+    let t = pose.translation.vector;
+    [t.x, t.y, t.z]
+}
+
+fn objects(poses: &BTreeMap<String, Pose>) -> Vec<ObjectView> {
+    poses.iter().map(|(name, p)| ObjectView { name: name.clone(), position: point(p), yaw: p.rotation.euler_angles().2 }).collect()
+}
+
+/// Turns a plan (and an executed attempt) into what the preview screen draws.
+fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) -> PreviewView {
+    let demos = &previewer.generator().dataset().demos;
+    let spec = previewer.generator().spec();
+    let subtasks = plan
+        .subtasks
+        .iter()
+        .zip(&spec.subtasks)
+        .map(|(s, subtask)| {
+            let mut ranking: Vec<RankView> = s
+                .source_distances
+                .iter()
+                .flatten()
+                .enumerate()
+                .map(|(demo, &distance)| RankView { demo, name: demos[demo].name.clone(), distance })
+                .collect();
+            ranking.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.demo.cmp(&b.demo)));
+            let bridge = s.waypoints.iter().take_while(|(_, k)| *k == WaypointKind::Interpolation).map(|(p, _)| point(p)).collect();
+            SubtaskPreview {
+                object: subtask.object_ref.clone(),
+                src_demo: s.src_demo,
+                src_demo_name: demos[s.src_demo].name.clone(),
+                src_span: s.src_span,
+                ranking,
+                source_path: s.source_poses.iter().map(point).collect(),
+                source_object: s.world_from_obj_src.as_ref().map(point),
+                bridge,
+                transformed: s.transformed_poses.iter().map(point).collect(),
+            }
+        })
+        .collect();
+    let executed = executed.map(|a| ExecutedView {
+        success: a.success,
+        failure: a.failure.as_ref().map(|f| format!("subtask {}: {}", f.subtask, f.reason)),
+        path: a.trajectory.eef_poses.iter().map(point).collect(),
+        planned: a.plans.iter().flat_map(|p| p.waypoints.iter().map(|(w, _)| point(w))).collect(),
+        subtask_of_step: a.trajectory.subtask_labels.clone(),
+        sources: a.src_demo_per_subtask.clone(),
+        final_objects: objects(&a.trajectory.object_poses.iter().filter_map(|(n, p)| Some((n.clone(), *p.last()?))).collect()),
+    });
+    PreviewView {
+        task: previewer.pipeline().task().name().to_owned(),
+        variant: previewer.pipeline().variant().to_owned(),
+        seed: spec.generation.seed,
+        index: plan.index,
+        eef: point(&plan.world_from_eef),
+        objects: objects(&plan.initial_object_poses),
+        subtasks,
+        executed,
+    }
+}
+
+/// The backend's state: the previewer of the last previewed file, kept so that moving through
+/// scenes does not recompile the scene.
+#[derive(Debug, Default)]
+pub struct Worker {
+    previewer: Option<(PathBuf, Previewer)>,
+}
+
+impl Worker {
+    fn preview(&mut self, request: &PreviewRequest) -> Result<PreviewView, mimicgen_pipeline::PipelineError> {
+        let previewer = match &mut self.previewer {
+            Some((path, previewer)) if *path == request.source => previewer,
+            slot => {
+                let config = RunConfig { source: Some(request.source.clone()), ..RunConfig::default() };
+                &mut slot.insert((request.source.clone(), Previewer::new(&config)?)).1
+            }
+        };
+        previewer.configure(&request.ends, request.seed)?;
+        let plan = previewer.plan(request.index, &request.sources)?;
+        let executed = if request.execute { Some(previewer.try_attempt(request.index, &request.sources)?) } else { None };
+        Ok(preview_view(previewer, &plan, executed.as_ref()))
+    }
+
+    /// Answers one request.
+    pub fn handle(&mut self, request: Request) -> Reply {
+        match request {
+            Request::Open { path } => match open(&path) {
+                Ok(file) => Reply::Opened(Box::new(file)),
+                Err(e) => Reply::Failed { what: format!("opening {}", path.display()), error: e.to_string() },
+            },
+            Request::Save { source, out, ends, signal_names } => match annotate::write_signals(&source, &out, &signal_names, &ends) {
+                Ok(()) => Reply::Saved { out, demos: ends.len() },
+                Err(e) => Reply::Failed { what: format!("saving {}", out.display()), error: e.to_string() },
+            },
+            Request::Preview(request) => match self.preview(&request) {
+                Ok(view) => Reply::Previewed(Box::new(view)),
+                Err(e) => Reply::Failed {
+                    what: format!(
+                        "{} attempt {} of {}",
+                        if request.execute { "trying" } else { "previewing" },
+                        request.index,
+                        request.source.display()
+                    ),
+                    error: e.to_string(),
+                },
+            },
+        }
     }
 }
 
@@ -90,8 +193,9 @@ impl Backend {
         let (outbox, replies) = channel::<Reply>();
         let failed = outbox.clone();
         let spawned = std::thread::Builder::new().name("mimicgen-gui-backend".to_owned()).spawn(move || {
+            let mut worker = Worker::default();
             for request in inbox {
-                if outbox.send(handle(request)).is_err() {
+                if outbox.send(worker.handle(request)).is_err() {
                     break;
                 }
                 repaint();

@@ -7,7 +7,8 @@
 //! [`AppModel::apply`] changes, from [`Command`]s the UI (or a test) sends; a backend thread that
 //! does every file read, detection and write and answers with serializable [`protocol::Reply`]s;
 //! drawing that reads the model and returns commands. A frame never waits on disk.
-//! Not built yet: the 3D view (Rerun), scene preview and "try it" (see the issue tracker).
+//! The preview screen plans an attempt over a new scene and tries it in simulation
+//! ([`preview_ui`]). Not built yet: the 3D view (Rerun).
 //!
 //! ```no_run
 //! mimicgen_gui::run(Some("core/io/tests/data/source_D0_prepared.hdf5".into())).ok();
@@ -15,12 +16,13 @@
 
 pub mod backend;
 pub mod model;
+pub mod preview_ui;
 pub mod protocol;
 pub mod ui;
 
 use std::path::PathBuf;
 
-pub use model::{AppModel, Command};
+pub use model::{AppModel, Command, Screen};
 
 use crate::backend::Backend;
 use crate::ui::UiState;
@@ -85,8 +87,16 @@ impl MimicgenApp {
             ctx.request_repaint_after(std::time::Duration::from_millis(50));
         }
         egui::Panel::top("top").show(ui, |ui| ui::top_bar(ui, &self.model, &mut self.ui, &mut commands));
-        egui::Panel::left("demos").default_size(220.0).show(ui, |ui| ui::demo_list(ui, &self.model, &mut commands));
-        egui::CentralPanel::default().show(ui, |ui| ui::timeline(ui, &self.model, &mut self.ui, &mut commands));
+        match self.model.screen {
+            Screen::Annotate => {
+                egui::Panel::left("demos").default_size(220.0).show(ui, |ui| ui::demo_list(ui, &self.model, &mut commands));
+                egui::CentralPanel::default().show(ui, |ui| ui::timeline(ui, &self.model, &mut self.ui, &mut commands));
+            }
+            Screen::Preview => {
+                egui::Panel::left("preview").default_size(300.0).show(ui, |ui| preview_ui::controls(ui, &self.model, &mut commands));
+                egui::CentralPanel::default().show(ui, |ui| preview_ui::views(ui, &self.model));
+            }
+        }
         for command in commands {
             self.command(command);
         }

@@ -5,7 +5,36 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use crate::protocol::{LoadedFile, Reply, Request};
+use crate::protocol::{LoadedFile, PreviewRequest, PreviewView, Reply, Request};
+
+/// The app's screens.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Screen {
+    /// Demo timelines and subtask ends.
+    #[default]
+    Annotate,
+    /// A transformed attempt over a new scene, and "try it".
+    Preview,
+}
+
+/// What the preview screen shows and asks for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PreviewState {
+    /// Run seed (the one `mimicgen generate --seed` takes).
+    pub seed: u64,
+    /// Attempt index: which of the run's scenes.
+    pub index: u64,
+    /// The source demo forced per subtask (`None`: the selection strategy picks).
+    pub sources: Vec<Option<usize>>,
+    /// The last preview the backend sent.
+    pub view: Option<PreviewView>,
+}
+
+impl Default for PreviewState {
+    fn default() -> Self {
+        Self { seed: 1, index: 0, sources: Vec::new(), view: None }
+    }
+}
 
 /// Everything the user can do.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,6 +72,23 @@ pub enum Command {
     TogglePlay,
     /// Advance playback by one step (the UI sends it at the control rate while playing).
     Tick,
+    /// Show a screen (the preview screen asks for a fresh preview).
+    Show(Screen),
+    /// Preview the scenes of a run with this seed.
+    SetPreviewSeed(u64),
+    /// Preview attempt `index` of the run.
+    SetPreviewIndex(u64),
+    /// Preview the next attempt's scene.
+    NextScene,
+    /// Force the source demo of a subtask (`None`: let the selection strategy pick).
+    SetPreviewSource {
+        /// The subtask.
+        subtask: usize,
+        /// The demo index.
+        demo: Option<usize>,
+    },
+    /// Execute the previewed attempt in simulation.
+    TryIt,
 }
 
 /// One change of ends, kept for undo: the demo and its ends before.
@@ -75,6 +121,12 @@ pub struct AppModel {
     pub error: Option<String>,
     /// The last thing that went right.
     pub status: String,
+    /// The screen shown.
+    pub screen: Screen,
+    /// The preview screen's state.
+    pub preview: PreviewState,
+    /// Requests sent and not yet answered.
+    pub in_flight: usize,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
 }
@@ -117,6 +169,30 @@ impl AppModel {
 
     /// Applies a command; returns the backend request it needs.
     pub fn apply(&mut self, command: Command) -> Option<Request> {
+        let request = self.apply_command(command);
+        if request.is_some() {
+            self.in_flight += 1;
+        }
+        request
+    }
+
+    /// The preview request for the current state, if a file is open.
+    fn preview_request(&mut self, execute: bool) -> Option<Request> {
+        let file = self.file.as_ref()?;
+        self.preview.sources.resize(file.subtask_objects.len(), None);
+        let p = &self.preview;
+        self.busy = Some(format!("{} attempt {} (seed {})", if execute { "trying" } else { "planning" }, p.index, p.seed));
+        Some(Request::Preview(PreviewRequest {
+            source: file.path.clone(),
+            ends: self.ends.clone(),
+            seed: p.seed,
+            index: p.index,
+            sources: p.sources.clone(),
+            execute,
+        }))
+    }
+
+    fn apply_command(&mut self, command: Command) -> Option<Request> {
         let len = self.demo().map_or(0, |d| d.len);
         match command {
             Command::Open(path) => {
@@ -154,7 +230,7 @@ impl AppModel {
             }
             Command::SetEndAtCursor => {
                 let subtask = self.boundary;
-                return self.apply(Command::SetEnd { subtask, end: self.cursor + 1 });
+                return self.apply_command(Command::SetEnd { subtask, end: self.cursor + 1 });
             }
             Command::AcceptProposals => {
                 if let Some(d) = self.demo() {
@@ -207,13 +283,44 @@ impl AppModel {
                     }
                 }
             }
+            Command::Show(screen) => {
+                self.screen = screen;
+                self.playing = false;
+                if screen == Screen::Preview {
+                    return self.preview_request(false);
+                }
+            }
+            Command::SetPreviewSeed(seed) => {
+                self.preview.seed = seed;
+                return self.preview_request(false);
+            }
+            Command::SetPreviewIndex(index) => {
+                self.preview.index = index;
+                return self.preview_request(false);
+            }
+            Command::NextScene => {
+                self.preview.index = self.preview.index.saturating_add(1);
+                return self.preview_request(false);
+            }
+            Command::SetPreviewSource { subtask, demo } => {
+                let num_demos = self.file.as_ref().map_or(0, |f| f.demos.len());
+                if subtask < self.file.as_ref().map_or(0, |f| f.subtask_objects.len()) && demo.is_none_or(|d| d < num_demos) {
+                    self.preview.sources.resize(subtask + 1, None);
+                    self.preview.sources[subtask] = demo;
+                    return self.preview_request(false);
+                }
+            }
+            Command::TryIt => return self.preview_request(true),
         }
         None
     }
 
     /// Takes a backend reply. A failed open keeps the file (and the annotation) that was open.
     pub fn on_reply(&mut self, reply: Reply) {
-        self.busy = None;
+        self.in_flight = self.in_flight.saturating_sub(1);
+        if self.in_flight == 0 {
+            self.busy = None;
+        }
         match reply {
             Reply::Opened(file) => {
                 self.ends = file
@@ -230,10 +337,22 @@ impl AppModel {
                 self.redo.clear();
                 self.dirty = false;
                 self.error = None;
+                self.preview.sources.clear();
+                self.preview.view = None;
             }
             Reply::Saved { out, demos } => {
                 self.status = format!("saved the subtask ends of {demos} demos to {}", out.display());
                 self.dirty = false;
+                self.error = None;
+            }
+            Reply::Previewed(view) => {
+                self.status = match &view.executed {
+                    Some(e) if e.success => format!("attempt {} (seed {}) succeeded in {} steps", view.index, view.seed, e.path.len()),
+                    Some(e) => format!("attempt {} (seed {}) failed: {}", view.index, view.seed, e.failure.as_deref().unwrap_or("")),
+                    None => format!("planned attempt {} (seed {}) of {} {}", view.index, view.seed, view.task, view.variant),
+                };
+                // Replies arrive in request order: a plan asked for after a "try it" replaces it.
+                self.preview.view = Some(*view);
                 self.error = None;
             }
             Reply::Failed { what, error } => self.error = Some(format!("{what}: {error}")),
@@ -263,7 +382,7 @@ mod tests {
             path: "f.hdf5".into(),
             task: "t".into(),
             signal_names: vec!["a".into(), "b".into()],
-            subtask_objects: Vec::new(),
+            subtask_objects: vec![Some("a".into()), Some("b".into())],
             demos: vec![demo],
         })));
         m
@@ -286,6 +405,24 @@ mod tests {
         // A new change clears what could be redone.
         m.apply(Command::SetEnd { subtask: 1, end: 40 });
         assert!(!m.can_redo());
+    }
+
+    #[test]
+    fn preview_commands_ask_for_the_scene_sources_and_ends_shown() {
+        let mut m = model(50, vec![10]);
+        m.apply(Command::SetEnd { subtask: 0, end: 20 });
+        let Some(Request::Preview(p)) = m.apply(Command::Show(Screen::Preview)) else { panic!("no preview asked") };
+        assert_eq!((p.seed, p.index, p.execute, p.ends["demo_0"].clone()), (1, 0, false, vec![20]));
+        let Some(Request::Preview(p)) = m.apply(Command::NextScene) else { panic!("no preview asked") };
+        assert_eq!(p.index, 1);
+        assert_eq!(m.apply(Command::SetPreviewSource { subtask: 0, demo: Some(3) }), None, "there is one demo");
+        let Some(Request::Preview(p)) = m.apply(Command::SetPreviewSource { subtask: 1, demo: Some(0) }) else { panic!() };
+        assert_eq!(p.sources, vec![None, Some(0)]);
+        let Some(Request::Preview(p)) = m.apply(Command::TryIt) else { panic!("no try asked") };
+        assert!(p.execute);
+        assert_eq!(m.in_flight, 4);
+        m.on_reply(Reply::Failed { what: "w".into(), error: "e".into() });
+        assert!(m.busy.is_some(), "busy until every request is answered");
     }
 
     #[test]

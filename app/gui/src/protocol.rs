@@ -25,6 +25,26 @@ pub enum Request {
         /// The signal each subtask end is written to.
         signal_names: Vec<String>,
     },
+    /// Plan attempt `index` of a run seeded `seed` over `source` with these ends, and with
+    /// `execute` also run it in simulation ("try it").
+    Preview(PreviewRequest),
+}
+
+/// What a preview is of.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PreviewRequest {
+    /// The source demos.
+    pub source: PathBuf,
+    /// Subtask ends (exclusive) per demo, as annotated.
+    pub ends: BTreeMap<String, Vec<usize>>,
+    /// Run seed.
+    pub seed: u64,
+    /// Attempt index (its scene and random draws).
+    pub index: u64,
+    /// The source demo forced for each subtask (`None`: the selection strategy picks).
+    pub sources: Vec<Option<usize>>,
+    /// Also execute the attempt.
+    pub execute: bool,
 }
 
 /// A reply from the backend.
@@ -39,6 +59,8 @@ pub enum Reply {
         /// How many demos carry annotations.
         demos: usize,
     },
+    /// A preview (and, if asked, its execution) is ready.
+    Previewed(Box<PreviewView>),
     /// A request failed; `error` names the file and field.
     Failed {
         /// What was being done.
@@ -95,4 +117,93 @@ pub struct DemoView {
     pub stored_ends: Option<Vec<usize>>,
     /// Proposed ends.
     pub proposals: Vec<ProposalView>,
+}
+
+/// A position in the world frame (m).
+pub type Point = [f64; 3];
+
+/// An object of a previewed scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObjectView {
+    /// Its name.
+    pub name: String,
+    /// Its position.
+    pub position: Point,
+    /// Its rotation about the vertical (rad).
+    pub yaw: f64,
+}
+
+/// One source demo in the selection's ranking.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RankView {
+    /// Demo index.
+    pub demo: usize,
+    /// Its name.
+    pub name: String,
+    /// The strategy's distance to the new scene.
+    pub distance: f64,
+}
+
+/// One subtask of a previewed attempt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubtaskPreview {
+    /// The object the segment is relative to.
+    pub object: Option<String>,
+    /// The source demo used.
+    pub src_demo: usize,
+    /// Its name.
+    pub src_demo_name: String,
+    /// The segment's steps in that demo (after this attempt's offsets).
+    pub src_span: (usize, usize),
+    /// Every demo by the strategy's distance, nearest first (empty when the source was kept from
+    /// the previous subtask or the strategy is random).
+    pub ranking: Vec<RankView>,
+    /// The source segment's end-effector targets, in the source scene.
+    pub source_path: Vec<Point>,
+    /// The reference object in the source scene at the segment start.
+    pub source_object: Option<Point>,
+    /// The interpolation bridge (from the previous target to the transformed segment).
+    pub bridge: Vec<Point>,
+    /// The transformed segment.
+    pub transformed: Vec<Point>,
+}
+
+/// A previewed attempt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PreviewView {
+    /// Task.
+    pub task: String,
+    /// Variant the scene was drawn from.
+    pub variant: String,
+    /// Run seed.
+    pub seed: u64,
+    /// Attempt index.
+    pub index: u64,
+    /// The end effector before the first action.
+    pub eef: Point,
+    /// The scene's objects.
+    pub objects: Vec<ObjectView>,
+    /// Per subtask.
+    pub subtasks: Vec<SubtaskPreview>,
+    /// The attempt as executed, when asked for.
+    pub executed: Option<ExecutedView>,
+}
+
+/// An executed attempt ("try it").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExecutedView {
+    /// Whether the task was achieved.
+    pub success: bool,
+    /// Where and why it failed.
+    pub failure: Option<String>,
+    /// The end effector at every step.
+    pub path: Vec<Point>,
+    /// The targets the attempt planned (its own, subtask by subtask as it went).
+    pub planned: Vec<Point>,
+    /// The subtask of every step.
+    pub subtask_of_step: Vec<usize>,
+    /// The source demo each subtask used.
+    pub sources: Vec<usize>,
+    /// The objects where the attempt ended.
+    pub final_objects: Vec<ObjectView>,
 }

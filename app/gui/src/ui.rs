@@ -3,7 +3,7 @@
 use egui::{Color32, Key, Modifiers, RichText};
 use egui_plot::{Corner, Legend, Line, Plot, PlotPoints, Span, VLine};
 
-use crate::model::{AppModel, Command};
+use crate::model::{AppModel, Command, Screen};
 use crate::protocol::DemoView;
 
 /// Colours of subtasks 0, 1, 2, ... (segments and their end markers).
@@ -71,6 +71,14 @@ pub fn keys(ctx: &egui::Context, commands: &mut Vec<Command>) {
 /// The top bar: open, detect, undo/redo, save, and what is going on.
 pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: &mut Vec<Command>) {
     ui.horizontal(|ui| {
+        for (screen, name) in [(Screen::Annotate, "Annotate"), (Screen::Preview, "Preview")] {
+            if ui.add_enabled(model.file.is_some(), egui::Button::selectable(model.screen == screen, name)).clicked()
+                && model.screen != screen
+            {
+                commands.push(Command::Show(screen));
+            }
+        }
+        ui.separator();
         let label = ui.label("Source demos:");
         ui.add(egui::TextEdit::singleline(&mut state.open_path).desired_width(280.0).hint_text("path/to/source.hdf5"))
             .labelled_by(label.id);
@@ -134,6 +142,13 @@ pub fn demo_list(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command
     });
 }
 
+/// The id of timeline plot `name` (`gripper`, `speed`, `distance`, `signals`), where egui_plot
+/// keeps its transform (tests find screen positions of steps through it).
+#[must_use]
+pub fn timeline_plot_id(name: &str) -> egui::Id {
+    egui::Id::new(("timeline", name))
+}
+
 fn series(values: impl Iterator<Item = f64>) -> PlotPoints<'static> {
     #[allow(clippy::cast_precision_loss)] // step indices are small
     values.enumerate().map(|(t, v)| [t as f64, v]).collect()
@@ -191,6 +206,7 @@ fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, stat
     let height = ((ui.available_height() - 20.0) / 4.0).max(60.0);
     let mut draw = |ui: &mut egui::Ui, id: &str, lines: Vec<Line<'static>>| {
         let response = Plot::new(id)
+            .id(timeline_plot_id(id))
             .height(height)
             .legend(Legend::default().position(Corner::LeftTop))
             .y_axis_min_width(36.0)
@@ -220,6 +236,14 @@ fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, stat
                 (plot.response().clone(), plot.pointer_coordinate())
             });
         let (response, pointer) = response.inner;
+        // A release ends the drag wherever the pointer is (even outside the plot, or gone).
+        if response.drag_stopped() {
+            if let Some((k, pos)) = state.drag.take() {
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                commands.push(Command::SetEnd { subtask: k, end: pos as usize + 1 });
+            }
+            return;
+        }
         let Some(pointer) = pointer else { return };
         let step = pointer.x.round().max(0.0);
         if response.drag_started() {
@@ -233,11 +257,6 @@ fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, stat
         } else if response.dragged() {
             if let Some((k, _)) = state.drag {
                 state.drag = Some((k, step));
-            }
-        } else if response.drag_stopped() {
-            if let Some((k, pos)) = state.drag.take() {
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-                commands.push(Command::SetEnd { subtask: k, end: pos as usize + 1 });
             }
         } else if response.clicked() {
             #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]

@@ -118,3 +118,70 @@ fn a_bad_file_is_reported_and_the_open_file_and_its_edits_are_kept() {
     assert_eq!(model.demo_ends(), vec![25]);
     h.get_by_label_contains("Error:");
 }
+
+#[test]
+fn dragging_a_boundary_marker_moves_the_subtask_end() {
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    let end = h.state().model.demo_ends()[0];
+    let memory = egui_plot::PlotMemory::load(&h.ctx, mimicgen_gui::ui::timeline_plot_id("gripper")).unwrap();
+    #[allow(clippy::cast_precision_loss)]
+    let at = |step: usize| memory.transform().position_from_point(&egui_plot::PlotPoint::new(step as f64, 0.0));
+    let (from, to) = (at(end - 1), at(end - 16));
+    h.hover_at(from);
+    h.step();
+    h.drag_at(from);
+    h.step();
+    for i in 1..=8 {
+        h.hover_at(from + (to - from) * (i as f32 / 8.0));
+        h.step();
+    }
+    // egui_plot reports the pointer of the frame before: hold still one frame before releasing,
+    // as a hand does.
+    h.step();
+    h.drop_at(to);
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_ends(), vec![end - 15], "the marker was dropped 15 steps earlier");
+    h.get_by_label("Undo").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_ends(), vec![end]);
+}
+
+#[test]
+fn previews_a_new_scene_and_tries_the_attempt_in_simulation() {
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    h.get_by_label("Preview").click();
+    h.step();
+    settle(&mut h);
+    let first = h.state().model.preview.view.clone().unwrap();
+    assert_eq!((first.seed, first.index), (1, 0));
+    assert_eq!(first.subtasks.len(), 2);
+    assert_eq!(first.subtasks[0].ranking.len(), 10, "nearest-neighbour ranking over every source demo");
+    assert!(first.subtasks[0].ranking.windows(2).all(|w| w[0].distance <= w[1].distance));
+    h.get_by_label_contains("Subtask 0 (relative to cubeA)");
+    // A new scene: the next attempt's, with the objects elsewhere.
+    h.get_by_label("New scene").click();
+    h.step();
+    settle(&mut h);
+    let second = h.state().model.preview.view.clone().unwrap();
+    assert_eq!(second.index, 1);
+    assert_ne!(second.objects, first.objects);
+    // Forcing a source demo changes the transformed segment, not the scene.
+    let other = (second.subtasks[0].src_demo + 1) % 10;
+    h.state_mut().command(Command::SetPreviewSource { subtask: 0, demo: Some(other) });
+    settle(&mut h);
+    let forced = h.state().model.preview.view.clone().unwrap();
+    assert_eq!(forced.objects, second.objects);
+    assert_eq!(forced.subtasks[0].src_demo, other);
+    // Try it: the attempt runs in MuJoCo and comes back with its executed path and outcome.
+    h.get_by_label("Try it").click();
+    h.step();
+    settle(&mut h);
+    let tried = h.state().model.preview.view.clone().unwrap();
+    let executed = tried.executed.as_ref().unwrap();
+    assert_eq!(executed.sources[0], other);
+    assert!(executed.path.len() > 50);
+    assert_eq!(executed.success, executed.failure.is_none());
+    h.get_by_label_contains("Tried: ");
+}

@@ -264,7 +264,12 @@ impl Generator {
     ///
     /// # Errors
     /// As [`Generator::attempt`], and [`EngineError::Config`] for an override past the last demo.
-    pub fn attempt_with<E: Environment + ?Sized>(&self, env: &mut E, index: u64, sources: &[Option<usize>]) -> Result<Attempt, EngineError> {
+    pub fn attempt_with<E: Environment + ?Sized>(
+        &self,
+        env: &mut E,
+        index: u64,
+        sources: &[Option<usize>],
+    ) -> Result<Attempt, EngineError> {
         self.check_overrides(sources)?;
         let settings = &self.spec.generation;
         let mut rng = attempt_rng(settings.seed, index);
@@ -369,7 +374,8 @@ impl Generator {
                 selected,
                 forced: sources.get(subtask).copied().flatten(),
             };
-            let (mut planned, waypoints) = self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
+            let (mut planned, waypoints) =
+                self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
             planned.first_step = plan.subtasks.iter().map(|s| s.waypoints.len()).sum();
             selected = Some(planned.src_demo);
             last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);

@@ -1,0 +1,175 @@
+//! The preview screen: a new scene from the run's reset distribution, the source demo picked for
+//! every subtask (with the selection's ranking), the transformed segments and interpolation
+//! bridges seen from above and from the side, the source segments beside them, and the executed
+//! path after "try it". Reads the model, returns commands.
+
+use egui::{Color32, RichText};
+use egui_plot::{Corner, Legend, Line, LineStyle, MarkerShape, Plot, PlotPoint, PlotPoints, Points, Text};
+
+use crate::model::{AppModel, Command};
+use crate::protocol::{Point, PreviewView};
+use crate::ui::subtask_color;
+
+/// Colour of the executed path.
+const EXECUTED: Color32 = Color32::from_rgb(40, 40, 40);
+
+/// The controls: seed, scene, source per subtask with its ranking, "try it" and its outcome.
+pub fn controls(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>) {
+    let Some(file) = &model.file else {
+        ui.label("Open a source file first.");
+        return;
+    };
+    let p = &model.preview;
+    ui.heading("Scene");
+    egui::Grid::new("scene").num_columns(2).show(ui, |ui| {
+        ui.label("Run seed");
+        let mut seed = p.seed;
+        if ui.add(egui::DragValue::new(&mut seed)).on_hover_text("mimicgen generate --seed").changed() {
+            commands.push(Command::SetPreviewSeed(seed));
+        }
+        ui.end_row();
+        ui.label("Attempt");
+        let mut index = p.index;
+        if ui.add(egui::DragValue::new(&mut index)).on_hover_text("Attempt k of the run: its scene, offsets and noise").changed() {
+            commands.push(Command::SetPreviewIndex(index));
+        }
+        ui.end_row();
+    });
+    ui.horizontal(|ui| {
+        if ui.button("New scene").on_hover_text("The next attempt's scene from the variant's reset distribution").clicked() {
+            commands.push(Command::NextScene);
+        }
+        if ui.button("Try it").on_hover_text("Execute this attempt in MuJoCo, exactly as generate would").clicked() {
+            commands.push(Command::TryIt);
+        }
+    });
+    let Some(view) = &p.view else { return };
+    ui.label(format!("{} {}: attempt {} of seed {}", view.task, view.variant, view.index, view.seed));
+    if let Some(e) = &view.executed {
+        let (text, color) = if e.success {
+            (format!("Tried: success in {} steps", e.path.len()), Color32::from_rgb(30, 140, 60))
+        } else {
+            (format!("Tried: failed ({})", e.failure.as_deref().unwrap_or("")), Color32::from_rgb(200, 50, 50))
+        };
+        ui.label(RichText::new(text).color(color).strong());
+    }
+    ui.separator();
+    egui::ScrollArea::vertical().show(ui, |ui| {
+        for (k, s) in view.subtasks.iter().enumerate() {
+            let object = s.object.as_deref().unwrap_or("no object");
+            ui.label(RichText::new(format!("Subtask {k} (relative to {object})")).color(subtask_color(k)).strong());
+            let forced = p.sources.get(k).copied().flatten();
+            let chosen = match forced {
+                Some(d) => file.demos.get(d).map_or_else(String::new, |d| d.name.clone()),
+                None => format!("selection picks ({})", s.src_demo_name),
+            };
+            egui::ComboBox::from_id_salt(("source", k)).selected_text(chosen).show_ui(ui, |ui| {
+                if ui.selectable_label(forced.is_none(), "selection picks").clicked() {
+                    commands.push(Command::SetPreviewSource { subtask: k, demo: None });
+                }
+                for (d, demo) in file.demos.iter().enumerate() {
+                    if ui.selectable_label(forced == Some(d), &demo.name).clicked() {
+                        commands.push(Command::SetPreviewSource { subtask: k, demo: Some(d) });
+                    }
+                }
+            });
+            ui.label(format!("segment: steps {}..{} of {}", s.src_span.0, s.src_span.1, s.src_demo_name));
+            if s.ranking.is_empty() {
+                ui.label(RichText::new("no ranking (source kept from the previous subtask, or random selection)").italics());
+            } else {
+                egui::Grid::new(("ranking", k)).striped(true).num_columns(3).show(ui, |ui| {
+                    ui.label("rank");
+                    ui.label("demo");
+                    ui.label("distance");
+                    ui.end_row();
+                    for (rank, r) in s.ranking.iter().enumerate().take(10) {
+                        let text = |t: String| if r.demo == s.src_demo { RichText::new(t).strong() } else { RichText::new(t) };
+                        ui.label(text(format!("{}", rank + 1)));
+                        ui.label(text(r.name.clone()));
+                        ui.label(text(format!("{:.3}", r.distance)));
+                        ui.end_row();
+                    }
+                });
+            }
+            ui.add_space(6.0);
+        }
+    });
+}
+
+fn xy(points: &[Point], axes: (usize, usize)) -> PlotPoints<'static> {
+    points.iter().map(|p| [p[axes.0], p[axes.1]]).collect()
+}
+
+/// One view of the scene: `axes` picks the plotted coordinates ((0, 1) from above, (0, 2) from
+/// the side).
+fn view_plot(ui: &mut egui::Ui, id: &str, view: &PreviewView, axes: (usize, usize), width: f32) {
+    let names = ["x (m)", "y (m)", "z (m)"];
+    Plot::new(id)
+        .width(width)
+        .data_aspect(1.0)
+        .legend(Legend::default().position(Corner::LeftTop))
+        .x_axis_label(names[axes.0])
+        .y_axis_label(names[axes.1])
+        .show(ui, |plot| {
+            for (k, s) in view.subtasks.iter().enumerate() {
+                let color = subtask_color(k);
+                plot.line(
+                    Line::new(format!("source segment {k} ({})", s.src_demo_name), xy(&s.source_path, axes))
+                        .color(color.gamma_multiply(0.35))
+                        .style(LineStyle::dotted_dense()),
+                );
+                plot.line(Line::new(format!("bridge {k}"), xy(&s.bridge, axes)).color(color).style(LineStyle::dashed_dense()).width(1.5));
+                plot.line(Line::new(format!("transformed {k}"), xy(&s.transformed, axes)).color(color).width(2.5));
+                if let Some(o) = s.source_object {
+                    plot.points(
+                        Points::new(format!("source segment {k} ({})", s.src_demo_name), PlotPoints::new(vec![[o[axes.0], o[axes.1]]]))
+                            .shape(MarkerShape::Square)
+                            .filled(false)
+                            .radius(6.0)
+                            .color(color.gamma_multiply(0.5)),
+                    );
+                }
+            }
+            if let Some(e) = &view.executed {
+                plot.line(Line::new("executed", xy(&e.path, axes)).color(EXECUTED).width(1.5));
+                for o in &e.final_objects {
+                    plot.points(
+                        Points::new("executed", PlotPoints::new(vec![[o.position[axes.0], o.position[axes.1]]]))
+                            .shape(MarkerShape::Diamond)
+                            .radius(5.0)
+                            .color(EXECUTED),
+                    );
+                }
+            }
+            plot.points(
+                Points::new("gripper start", PlotPoints::new(vec![[view.eef[axes.0], view.eef[axes.1]]]))
+                    .shape(MarkerShape::Circle)
+                    .radius(5.0)
+                    .color(Color32::GRAY),
+            );
+            for o in &view.objects {
+                let at = [o.position[axes.0], o.position[axes.1]];
+                plot.points(
+                    Points::new("objects", PlotPoints::new(vec![at]))
+                        .shape(MarkerShape::Square)
+                        .radius(7.0)
+                        .color(Color32::from_rgb(120, 90, 60)),
+                );
+                plot.text(Text::new("objects", PlotPoint::new(at[0], at[1]), format!("  {}", o.name)).anchor(egui::Align2::LEFT_CENTER));
+            }
+        });
+}
+
+/// The scene from above and from the side.
+pub fn views(ui: &mut egui::Ui, model: &AppModel) {
+    let Some(view) = &model.preview.view else {
+        ui.label("Planning the first scene...");
+        return;
+    };
+    ui.label("Solid: transformed segments; dashed: interpolation bridges; dotted: the source segments in their own scene; dark: the executed path (after Try it).");
+    let width = (ui.available_width() - 12.0) / 2.0;
+    ui.horizontal(|ui| {
+        view_plot(ui, "top", view, (0, 1), width);
+        view_plot(ui, "side", view, (0, 2), width);
+    });
+}
