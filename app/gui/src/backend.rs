@@ -7,13 +7,15 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{Receiver, Sender, channel};
 
 use mimicgen_engine::transform::WaypointKind;
-use mimicgen_engine::{Attempt, Plan, Pose};
+use mimicgen_engine::{Attempt, Plan, Pose, RunStats};
+use mimicgen_pipeline::annotate::Annotations;
 use mimicgen_pipeline::preview::Previewer;
 use mimicgen_pipeline::{RunConfig, annotate};
+use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
 use crate::protocol::{
     DemoView, ExecutedView, LoadedFile, ObjectView, Point, PreviewRequest, PreviewView, ProposalView, RankView, Reply, Request,
-    SubtaskPreview,
+    SubtaskPreview, ViewerSink,
 };
 
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
@@ -23,7 +25,7 @@ const CONTROL_HZ: f64 = 20.0;
 ///
 /// # Errors
 /// The pipeline's error, whole (it names the file and field).
-pub fn open(path: &Path) -> Result<LoadedFile, mimicgen_pipeline::PipelineError> {
+pub fn open(path: &Path) -> Result<(LoadedFile, Annotations), mimicgen_pipeline::PipelineError> {
     let found = annotate::propose(path, None, None)?;
     let spec = &found.spec;
     let demos = found
@@ -56,13 +58,14 @@ pub fn open(path: &Path) -> Result<LoadedFile, mimicgen_pipeline::PipelineError>
         })
         .collect();
     let last = spec.subtasks.len().saturating_sub(1);
-    Ok(LoadedFile {
+    let file = LoadedFile {
         path: path.to_path_buf(),
         task: spec.name.clone(),
         signal_names: spec.subtasks.iter().take(last).map(|s| s.term_signal.clone().unwrap_or_default()).collect(),
         subtask_objects: spec.subtasks.iter().map(|s| s.object_ref.clone()).collect(),
         demos,
-    })
+    };
+    Ok((file, found))
 }
 
 fn point(pose: &Pose) -> Point {
@@ -123,17 +126,63 @@ fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) 
         objects: objects(&plan.initial_object_poses),
         subtasks,
         executed,
+        failure_3d: None,
     }
 }
 
-/// The backend's state: the previewer of the last previewed file, kept so that moving through
-/// scenes does not recompile the scene.
+/// The backend's state: the open file's demos and scene (for the 3D view), the previewer of the
+/// last previewed file (kept so that moving through scenes does not recompile the scene), and the
+/// Rerun stream once the 3D view is open.
 #[derive(Debug, Default)]
 pub struct Worker {
+    loaded: Option<Annotations>,
     previewer: Option<(PathBuf, Previewer)>,
+    viewer: Option<(ViewerSink, RunLogger)>,
+}
+
+fn viz_error(e: &mimicgen_viz::VizError) -> String {
+    e.to_string()
 }
 
 impl Worker {
+    fn open_3d(&mut self, sink: ViewerSink, demo: usize) -> Result<String, String> {
+        let loaded = self.loaded.as_ref().ok_or("open a file first")?;
+        let to = match &sink {
+            ViewerSink::Spawn => Sink::Spawn,
+            ViewerSink::Connect(url) => Sink::Connect(url.clone()),
+            ViewerSink::Save(path) => Sink::Save(path.clone()),
+        };
+        let rec = to.open("mimicgen").map_err(|e| viz_error(&e))?;
+        let config = LogConfig { scene: SceneLevel::All, scene_stride: 1 };
+        let logger = RunLogger::new(rec, &loaded.scene, config).map_err(|e| viz_error(&e))?;
+        let said = match &sink {
+            ViewerSink::Spawn => "the Rerun viewer".to_owned(),
+            ViewerSink::Connect(url) => url.clone(),
+            ViewerSink::Save(path) => path.display().to_string(),
+        };
+        self.viewer = Some((sink, logger));
+        self.show_3d(demo)?;
+        Ok(said)
+    }
+
+    fn show_3d(&mut self, demo: usize) -> Result<String, String> {
+        let (Some(loaded), Some((_, logger))) = (&self.loaded, &mut self.viewer) else { return Err("the 3D view is not open".to_owned()) };
+        let source = loaded.sources.demos.get(demo).ok_or_else(|| format!("there is no demo {demo}"))?;
+        logger.log_demos([(demo, source)]).map_err(|e| viz_error(&e))?;
+        logger.stream().flush_blocking().map_err(|e| e.to_string())?;
+        Ok(format!("{} in 3D", source.name))
+    }
+
+    /// Logs a tried attempt to the 3D view, if it is open.
+    fn show_attempt_3d(&mut self, attempt: &Attempt) -> Result<(), String> {
+        let Some((_, logger)) = &mut self.viewer else { return Ok(()) };
+        let num_demos = self.loaded.as_ref().map_or(0, |l| l.sources.demos.len());
+        let mut stats = RunStats::new(num_demos);
+        stats.record(attempt);
+        logger.log_attempt(attempt, &stats).map_err(|e| viz_error(&e))?;
+        logger.stream().flush_blocking().map_err(|e| e.to_string())
+    }
+
     fn preview(&mut self, request: &PreviewRequest) -> Result<PreviewView, mimicgen_pipeline::PipelineError> {
         let previewer = match &mut self.previewer {
             Some((path, previewer)) if *path == request.source => previewer,
@@ -145,19 +194,38 @@ impl Worker {
         previewer.configure(&request.ends, request.seed)?;
         let plan = previewer.plan(request.index, &request.sources)?;
         let executed = if request.execute { Some(previewer.try_attempt(request.index, &request.sources)?) } else { None };
-        Ok(preview_view(previewer, &plan, executed.as_ref()))
+        let view = preview_view(previewer, &plan, executed.as_ref());
+        if let Some(attempt) = &executed
+            && let Err(e) = self.show_attempt_3d(attempt)
+        {
+            return Ok(PreviewView { failure_3d: Some(e), ..view });
+        }
+        Ok(view)
     }
 
     /// Answers one request.
     pub fn handle(&mut self, request: Request) -> Reply {
         match request {
             Request::Open { path } => match open(&path) {
-                Ok(file) => Reply::Opened(Box::new(file)),
+                Ok((file, found)) => {
+                    self.loaded = Some(found);
+                    // The stream's static scene is the old file's: a new file needs a new stream.
+                    self.viewer = None;
+                    Reply::Opened(Box::new(file))
+                }
                 Err(e) => Reply::Failed { what: format!("opening {}", path.display()), error: e.to_string() },
             },
             Request::Save { source, out, ends, signal_names } => match annotate::write_signals(&source, &out, &signal_names, &ends) {
                 Ok(()) => Reply::Saved { out, demos: ends.len() },
                 Err(e) => Reply::Failed { what: format!("saving {}", out.display()), error: e.to_string() },
+            },
+            Request::Open3d { sink, demo } => match self.open_3d(sink, demo) {
+                Ok(to) => Reply::Streaming { to },
+                Err(error) => Reply::Failed { what: "opening the 3D view".to_owned(), error },
+            },
+            Request::Show3d { demo } => match self.show_3d(demo) {
+                Ok(what) => Reply::Shown3d { what },
+                Err(error) => Reply::Failed { what: format!("showing demo {demo} in 3D"), error },
             },
             Request::Preview(request) => match self.preview(&request) {
                 Ok(view) => Reply::Previewed(Box::new(view)),

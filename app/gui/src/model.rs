@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use crate::protocol::{LoadedFile, PreviewRequest, PreviewView, Reply, Request};
+use crate::protocol::{LoadedFile, PreviewRequest, PreviewView, Reply, Request, ViewerSink};
 
 /// The app's screens.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -89,6 +89,8 @@ pub enum Command {
     },
     /// Execute the previewed attempt in simulation.
     TryIt,
+    /// Stream the shown demo, and every demo shown and attempt tried after, to Rerun.
+    Open3d(ViewerSink),
 }
 
 /// One change of ends, kept for undo: the demo and its ends before.
@@ -127,6 +129,8 @@ pub struct AppModel {
     pub preview: PreviewState,
     /// Requests sent and not yet answered.
     pub in_flight: usize,
+    /// Where the 3D view streams, once open.
+    pub viewer: Option<String>,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
 }
@@ -200,10 +204,14 @@ impl AppModel {
                 return Some(Request::Open { path });
             }
             Command::SelectDemo(i) => {
-                if self.file.as_ref().is_some_and(|f| i < f.demos.len()) {
+                if self.file.as_ref().is_some_and(|f| i < f.demos.len()) && i != self.selected {
                     self.selected = i;
                     self.cursor = self.cursor.min(self.demo().map_or(0, |d| d.len.saturating_sub(1)));
                     self.playing = false;
+                    if self.viewer.is_some() {
+                        self.busy = Some("sending the demo to the 3D view".to_owned());
+                        return Some(Request::Show3d { demo: i });
+                    }
                 }
             }
             Command::SetCursor(t) => self.cursor = t.min(len.saturating_sub(1)),
@@ -311,6 +319,11 @@ impl AppModel {
                 }
             }
             Command::TryIt => return self.preview_request(true),
+            Command::Open3d(sink) => {
+                self.file.as_ref()?;
+                self.busy = Some("opening the 3D view".to_owned());
+                return Some(Request::Open3d { sink, demo: self.selected });
+            }
         }
         None
     }
@@ -339,7 +352,14 @@ impl AppModel {
                 self.error = None;
                 self.preview.sources.clear();
                 self.preview.view = None;
+                self.viewer = None;
             }
+            Reply::Streaming { to } => {
+                self.status = format!("3D view: streaming to {to}");
+                self.viewer = Some(to);
+                self.error = None;
+            }
+            Reply::Shown3d { what } => self.status = format!("showing {what}"),
             Reply::Saved { out, demos } => {
                 self.status = format!("saved the subtask ends of {demos} demos to {}", out.display());
                 self.dirty = false;
@@ -352,8 +372,8 @@ impl AppModel {
                     None => format!("planned attempt {} (seed {}) of {} {}", view.index, view.seed, view.task, view.variant),
                 };
                 // Replies arrive in request order: a plan asked for after a "try it" replaces it.
+                self.error = view.failure_3d.as_ref().map(|e| format!("sending the attempt to the 3D view: {e}"));
                 self.preview.view = Some(*view);
-                self.error = None;
             }
             Reply::Failed { what, error } => self.error = Some(format!("{what}: {error}")),
         }

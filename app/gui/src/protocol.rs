@@ -28,6 +28,29 @@ pub enum Request {
     /// Plan attempt `index` of a run seeded `seed` over `source` with these ends, and with
     /// `execute` also run it in simulation ("try it").
     Preview(PreviewRequest),
+    /// Start streaming to Rerun: demo `demo` now, then every demo shown and attempt tried.
+    Open3d {
+        /// Where.
+        sink: ViewerSink,
+        /// The demo shown.
+        demo: usize,
+    },
+    /// Show demo `demo` (index in the open file) in the 3D view.
+    Show3d {
+        /// The demo.
+        demo: usize,
+    },
+}
+
+/// Where the 3D view streams.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ViewerSink {
+    /// Start the Rerun viewer from the `rerun-sdk` wheel the setup installs.
+    Spawn,
+    /// A running viewer at this gRPC URL.
+    Connect(String),
+    /// A `.rrd` file.
+    Save(PathBuf),
 }
 
 /// What a preview is of.
@@ -58,6 +81,16 @@ pub enum Reply {
         out: PathBuf,
         /// How many demos carry annotations.
         demos: usize,
+    },
+    /// The 3D view streams to `to`.
+    Streaming {
+        /// Where (in words).
+        to: String,
+    },
+    /// Something was sent to the 3D view.
+    Shown3d {
+        /// What.
+        what: String,
     },
     /// A preview (and, if asked, its execution) is ready.
     Previewed(Box<PreviewView>),
@@ -187,6 +220,8 @@ pub struct PreviewView {
     pub subtasks: Vec<SubtaskPreview>,
     /// The attempt as executed, when asked for.
     pub executed: Option<ExecutedView>,
+    /// Why the executed attempt could not be sent to the 3D view, if it could not.
+    pub failure_3d: Option<String>,
 }
 
 /// An executed attempt ("try it").

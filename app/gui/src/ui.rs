@@ -101,6 +101,21 @@ pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, command
             commands.push(Command::Redo);
         }
         ui.separator();
+        match &model.viewer {
+            Some(to) => {
+                ui.label("3D: Rerun").on_hover_text(format!("Streaming the shown demo and every tried attempt to {to}"));
+            }
+            None => {
+                if ui
+                    .add_enabled(open, egui::Button::new("3D view"))
+                    .on_hover_text("Start the Rerun viewer and stream the shown demo (and every attempt you try) to it")
+                    .clicked()
+                {
+                    commands.push(Command::Open3d(crate::protocol::ViewerSink::Spawn));
+                }
+            }
+        }
+        ui.separator();
         let label = ui.label("Save to:");
         ui.add(egui::TextEdit::singleline(&mut state.save_path).desired_width(220.0).hint_text("annotated.hdf5")).labelled_by(label.id);
         if ui.add_enabled(open && !state.save_path.trim().is_empty(), egui::Button::new("Save as")).clicked() {

@@ -24,7 +24,7 @@ fn settle(h: &mut Harness<'static, MimicgenApp>) {
     let deadline = Instant::now() + Duration::from_secs(60);
     loop {
         h.step();
-        if h.state().model.busy.is_none() {
+        if h.state().model.in_flight == 0 {
             break;
         }
         assert!(Instant::now() < deadline, "the backend did not answer");
@@ -184,4 +184,38 @@ fn previews_a_new_scene_and_tries_the_attempt_in_simulation() {
     assert!(executed.path.len() > 50);
     assert_eq!(executed.success, executed.failure.is_none());
     h.get_by_label_contains("Tried: ");
+}
+
+/// The 3D view gets the shown demo and every tried attempt; here it streams to a `.rrd` file, read
+/// back with the viewer's own CLI.
+#[test]
+fn the_3d_view_streams_the_shown_demo_and_tried_attempts_to_rerun() {
+    let dir = tempfile::tempdir().unwrap();
+    let rrd = dir.path().join("app.rrd");
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    h.state_mut().command(Command::Open3d(mimicgen_gui::protocol::ViewerSink::Save(rrd.clone())));
+    settle(&mut h);
+    assert!(h.state().model.viewer.is_some(), "{:?}", h.state().model.error);
+    h.get_by_label_contains("demo_4").click();
+    h.step();
+    settle(&mut h);
+    assert_eq!(h.state().model.status, "showing demo_4 in 3D");
+    h.get_by_label("Preview").click();
+    h.step();
+    settle(&mut h);
+    h.get_by_label("Try it").click();
+    h.step();
+    settle(&mut h);
+    assert!(h.state().model.error.is_none(), "{:?}", h.state().model.error);
+    let bin = mimicgen_viz::viewer_path();
+    assert!(bin.is_file(), "no Rerun viewer at {} (run scripts/setup.sh)", bin.display());
+    let out = std::process::Command::new(&bin).args(["rrd", "print", "-vv"]).arg(&rrd).output().unwrap();
+    let print = String::from_utf8_lossy(&out.stdout);
+    for entity in
+        ["/world/scene/", "/world/demo/eef_path/subtask_0", "/world/attempt/executed_path", "/world/attempt/subtask_1/transformed_segment"]
+    {
+        assert!(print.contains(entity), "{entity} missing from the recording");
+    }
+    assert!(print.contains("LineStrips3D:show_labels"), "labels are hidden in the view (hover shows them)");
 }

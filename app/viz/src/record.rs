@@ -1,4 +1,5 @@
-//! Source demos, attempts and run statistics as Rerun entities.
+//! Source demos, attempts and run statistics as Rerun entities. Labels are kept on every entity
+//! (hover or select it to read them) but not drawn in the view, where they piled up.
 
 use std::collections::BTreeMap;
 
@@ -66,7 +67,7 @@ fn frame_arrows<'a>(poses: impl IntoIterator<Item = (String, &'a Pose)>) -> reru
             labels.push(if axis == 0 { label.clone() } else { String::new() });
         }
     }
-    rerun::Arrows3D::from_vectors(vectors).with_origins(origins).with_colors(colors).with_labels(labels)
+    rerun::Arrows3D::from_vectors(vectors).with_origins(origins).with_colors(colors).with_labels(labels).with_show_labels(false)
 }
 
 /// Subtask ends read from the signals, spec-free, as the engine's segmentation reads them
@@ -113,7 +114,10 @@ pub fn log_demo(rec: &RecordingStream, root: &str, demo: &SourceDemo, demo_index
         let strip: Vec<[f32; 3]> = demo.eef_poses[start.min(n)..(end + 1).min(n)].iter().map(point).collect();
         rec.log(
             format!("{root}/eef_path/subtask_{k}"),
-            &rerun::LineStrips3D::new([strip]).with_colors([subtask_color(k)]).with_labels([format!("{} subtask {k}", demo.name)]),
+            &rerun::LineStrips3D::new([strip])
+                .with_colors([subtask_color(k)])
+                .with_labels([format!("{} subtask {k}", demo.name)])
+                .with_show_labels(false),
         )
         .map_err(|e| err("eef_path", &e))?;
         start = end;
@@ -124,7 +128,8 @@ pub fn log_demo(rec: &RecordingStream, root: &str, demo: &SourceDemo, demo_index
         &rerun::Points3D::new(marks.iter().map(|(t, _)| point(&demo.eef_poses[*t])))
             .with_radii([0.008])
             .with_colors(marks.iter().enumerate().map(|(k, _)| subtask_color(k)))
-            .with_labels(marks.iter().map(|(t, s)| format!("{s} ends subtask at step {t}"))),
+            .with_labels(marks.iter().map(|(t, s)| format!("{s} ends subtask at step {t}")))
+            .with_show_labels(false),
     )
     .map_err(|e| err("subtask_ends", &e))?;
     let frames: Vec<(String, &Pose)> = marks
@@ -175,19 +180,18 @@ pub fn log_attempt(rec: &RecordingStream, attempt: &Attempt, source_names: &[Str
         let strip = |poses: &mut dyn Iterator<Item = &Pose>| -> Vec<[f32; 3]> { poses.map(point).collect() };
         rec.log(
             format!("{sub}/source_segment"),
-            &rerun::LineStrips3D::new([strip(&mut plan.source_poses.iter())]).with_colors([rgb(SOURCE_COLOR)]).with_labels([format!(
-                "source {} steps {}..{}",
-                name_of(plan.src_demo),
-                plan.src_span.0,
-                plan.src_span.1
-            )]),
+            &rerun::LineStrips3D::new([strip(&mut plan.source_poses.iter())])
+                .with_colors([rgb(SOURCE_COLOR)])
+                .with_labels([format!("source {} steps {}..{}", name_of(plan.src_demo), plan.src_span.0, plan.src_span.1)])
+                .with_show_labels(false),
         )
         .map_err(|e| err("source_segment", &e))?;
         rec.log(
             format!("{sub}/transformed_segment"),
             &rerun::LineStrips3D::new([strip(&mut plan.transformed_poses.iter())])
                 .with_colors([rgb(TRANSFORMED_COLOR)])
-                .with_labels([format!("subtask {s} transformed")]),
+                .with_labels([format!("subtask {s} transformed")])
+                .with_show_labels(false),
         )
         .map_err(|e| err("transformed_segment", &e))?;
         let mut interp: Vec<[f32; 3]> =
@@ -197,7 +201,10 @@ pub fn log_attempt(rec: &RecordingStream, attempt: &Attempt, source_names: &[Str
         }
         rec.log(
             format!("{sub}/interpolation_segment"),
-            &rerun::LineStrips3D::new([interp]).with_colors([rgb(INTERPOLATION_COLOR)]).with_labels([format!("subtask {s} interpolation")]),
+            &rerun::LineStrips3D::new([interp])
+                .with_colors([rgb(INTERPOLATION_COLOR)])
+                .with_labels([format!("subtask {s} interpolation")])
+                .with_show_labels(false),
         )
         .map_err(|e| err("interpolation_segment", &e))?;
         let mut frames = Vec::new();
@@ -220,7 +227,7 @@ pub fn log_attempt(rec: &RecordingStream, attempt: &Attempt, source_names: &[Str
     };
     rec.log(
         format!("{root}/executed_path"),
-        &rerun::LineStrips3D::new([executed.clone()]).with_colors([outcome_color]).with_labels([outcome.clone()]),
+        &rerun::LineStrips3D::new([executed.clone()]).with_colors([outcome_color]).with_labels([outcome.clone()]).with_show_labels(false),
     )
     .map_err(|e| err("executed_path", &e))?;
     rec.log(

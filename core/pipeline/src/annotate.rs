@@ -52,6 +52,8 @@ pub struct Annotations {
     pub demos: Vec<DemoAnnotation>,
     /// The demos as read (poses, gripper actions, signals).
     pub sources: mimicgen_engine::SourceDataset,
+    /// The scene the demos were recorded in (from their `model_file`, else the task's).
+    pub scene: Scene,
 }
 
 impl Annotations {
@@ -112,7 +114,7 @@ pub fn propose(path: &Path, task: Option<&str>, config: Option<&Path>) -> Result
             .flatten();
         demos.push(DemoAnnotation { demo: demo.name.clone(), len: demo.len(), proposals, signal_ends, finger_width_m: widths });
     }
-    Ok(Annotations { spec, demos, sources })
+    Ok(Annotations { spec, demos, sources, scene })
 }
 
 /// Writes `input` to `out` with each demo of `ends` given the subtask-end signals of those ends
