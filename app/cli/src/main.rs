@@ -10,6 +10,7 @@ use mimicgen_io::info::DatasetInfo;
 use mimicgen_io::{DemoReader, ReadOptions};
 
 mod annotate;
+mod bench_app;
 mod bench_io;
 mod bench_sim;
 mod coverage;
@@ -68,6 +69,8 @@ enum Command {
     Prepare(prepare::PrepareArgs),
     /// Measure generation against bare physics stepping and across worker counts.
     BenchSim(bench_sim::BenchSimArgs),
+    /// Measure the app's frame time with a file loaded, and the time until it is browsable.
+    BenchApp(bench_app::BenchAppArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
     Info {
         /// The dataset.
@@ -214,6 +217,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::BenchSim(args) => {
             bench_sim::run(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::BenchApp(args) => {
+            bench_app::run(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::View(args) => {

@@ -8,9 +8,10 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 
 use mimicgen_engine::transform::WaypointKind;
 use mimicgen_engine::{Attempt, Plan, Pose, RunStats};
+use mimicgen_io::IoError;
 use mimicgen_pipeline::annotate::Annotations;
 use mimicgen_pipeline::preview::Previewer;
-use mimicgen_pipeline::{RunConfig, annotate};
+use mimicgen_pipeline::{PipelineError, RunConfig, annotate, prepare};
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
 use crate::protocol::{
@@ -21,12 +22,33 @@ use crate::protocol::{
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
 const CONTROL_HZ: f64 = 20.0;
 
-/// Reads `path` and turns every demo into what the timeline draws.
+/// Reads `path` and turns every demo into what the timeline draws. A plain robomimic file (no
+/// `datagen_info`) is first prepared by replay into the cache (once per version of the file),
+/// reporting each demo to `progress`.
 ///
 /// # Errors
 /// The pipeline's error, whole (it names the file and field).
-pub fn open(path: &Path) -> Result<(LoadedFile, Annotations), mimicgen_pipeline::PipelineError> {
-    let found = annotate::propose(path, None, None)?;
+pub fn open(path: &Path, progress: &dyn Fn(Reply)) -> Result<(LoadedFile, Annotations), PipelineError> {
+    match annotate::propose(path, None, None) {
+        Err(PipelineError::Io(IoError::NotMimicGen { .. })) => {
+            let prepared = prepare::cached_prepared_path(path);
+            if !prepared.is_file() {
+                if let Some(dir) = prepared.parent() {
+                    std::fs::create_dir_all(dir)
+                        .map_err(|e| PipelineError::Fs { file: dir.display().to_string(), reason: e.to_string() })?;
+                }
+                let what = format!("{} has no datagen_info: replaying its demos in MuJoCo", path.display());
+                prepare::prepare(path, &prepared, None, |done, total, _| progress(Reply::Progress { what: what.clone(), done, total }))?;
+            }
+            let found = annotate::propose(&prepared, None, None)?;
+            Ok((loaded_file(&prepared, Some(path), &found), found))
+        }
+        Err(e) => Err(e),
+        Ok(found) => Ok((loaded_file(path, None, &found), found)),
+    }
+}
+
+fn loaded_file(path: &Path, prepared_from: Option<&Path>, found: &Annotations) -> LoadedFile {
     let spec = &found.spec;
     let demos = found
         .demos
@@ -58,14 +80,14 @@ pub fn open(path: &Path) -> Result<(LoadedFile, Annotations), mimicgen_pipeline:
         })
         .collect();
     let last = spec.subtasks.len().saturating_sub(1);
-    let file = LoadedFile {
+    LoadedFile {
         path: path.to_path_buf(),
+        prepared_from: prepared_from.map(Path::to_path_buf),
         task: spec.name.clone(),
         signal_names: spec.subtasks.iter().take(last).map(|s| s.term_signal.clone().unwrap_or_default()).collect(),
         subtask_objects: spec.subtasks.iter().map(|s| s.object_ref.clone()).collect(),
         demos,
-    };
-    Ok((file, found))
+    }
 }
 
 fn point(pose: &Pose) -> Point {
@@ -183,12 +205,12 @@ impl Worker {
         logger.stream().flush_blocking().map_err(|e| e.to_string())
     }
 
-    fn preview(&mut self, request: &PreviewRequest) -> Result<PreviewView, mimicgen_pipeline::PipelineError> {
+    fn preview(&mut self, request: &PreviewRequest) -> Result<PreviewView, PipelineError> {
         let previewer = match &mut self.previewer {
             Some((path, previewer)) if *path == request.source => previewer,
             slot => {
                 let config = RunConfig { source: Some(request.source.clone()), ..RunConfig::default() };
-                &mut slot.insert((request.source.clone(), Previewer::new(&config)?)).1
+                &mut slot.insert((request.source.clone(), Previewer::new(&config, &request.ends)?)).1
             }
         };
         previewer.configure(&request.ends, request.seed)?;
@@ -204,9 +226,9 @@ impl Worker {
     }
 
     /// Answers one request.
-    pub fn handle(&mut self, request: Request) -> Reply {
+    pub fn handle(&mut self, request: Request, progress: &dyn Fn(Reply)) -> Reply {
         match request {
-            Request::Open { path } => match open(&path) {
+            Request::Open { path } => match open(&path, progress) {
                 Ok((file, found)) => {
                     self.loaded = Some(found);
                     // The stream's static scene is the old file's: a new file needs a new stream.
@@ -263,7 +285,12 @@ impl Backend {
         let spawned = std::thread::Builder::new().name("mimicgen-gui-backend".to_owned()).spawn(move || {
             let mut worker = Worker::default();
             for request in inbox {
-                if outbox.send(worker.handle(request)).is_err() {
+                let progress = |reply: Reply| {
+                    let _ = outbox.send(reply);
+                    repaint();
+                };
+                let reply = worker.handle(request, &progress);
+                if outbox.send(reply).is_err() {
                     break;
                 }
                 repaint();

@@ -22,6 +22,7 @@ pub mod ui;
 
 use std::path::PathBuf;
 
+pub use egui;
 pub use model::{AppModel, Command, Screen};
 
 use crate::backend::Backend;

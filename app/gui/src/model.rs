@@ -131,6 +131,8 @@ pub struct AppModel {
     pub in_flight: usize,
     /// Where the 3D view streams, once open.
     pub viewer: Option<String>,
+    /// Progress of a long request: units done and in all.
+    pub progress: Option<(usize, usize)>,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
 }
@@ -330,18 +332,34 @@ impl AppModel {
 
     /// Takes a backend reply. A failed open keeps the file (and the annotation) that was open.
     pub fn on_reply(&mut self, reply: Reply) {
+        if let Reply::Progress { what, done, total } = reply {
+            self.busy = Some(format!("{what} ({done} of {total})"));
+            self.progress = Some((done, total));
+            return;
+        }
+        self.progress = None;
         self.in_flight = self.in_flight.saturating_sub(1);
         if self.in_flight == 0 {
             self.busy = None;
         }
         match reply {
+            Reply::Progress { .. } => {}
             Reply::Opened(file) => {
                 self.ends = file
                     .demos
                     .iter()
                     .map(|d| (d.name.clone(), d.stored_ends.clone().unwrap_or_else(|| d.proposals.iter().map(|p| p.end).collect())))
                     .collect();
-                self.status = format!("opened {} ({} demos of {})", file.path.display(), file.demos.len(), file.task);
+                self.status = match &file.prepared_from {
+                    Some(plain) => format!(
+                        "opened {} ({} demos of {}), prepared by replay into {}",
+                        plain.display(),
+                        file.demos.len(),
+                        file.task,
+                        file.path.display()
+                    ),
+                    None => format!("opened {} ({} demos of {})", file.path.display(), file.demos.len(), file.task),
+                };
                 self.file = Some(*file);
                 self.selected = 0;
                 self.cursor = 0;
@@ -400,6 +418,7 @@ mod tests {
         let mut m = AppModel::default();
         m.on_reply(Reply::Opened(Box::new(LoadedFile {
             path: "f.hdf5".into(),
+            prepared_from: None,
             task: "t".into(),
             signal_names: vec!["a".into(), "b".into()],
             subtask_objects: vec![Some("a".into()), Some("b".into())],

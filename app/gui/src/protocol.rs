@@ -94,6 +94,15 @@ pub enum Reply {
     },
     /// A preview (and, if asked, its execution) is ready.
     Previewed(Box<PreviewView>),
+    /// Progress of a long request (the request's own reply comes after).
+    Progress {
+        /// What is being done.
+        what: String,
+        /// Units done.
+        done: usize,
+        /// Units in all.
+        total: usize,
+    },
     /// A request failed; `error` names the file and field.
     Failed {
         /// What was being done.
@@ -106,8 +115,10 @@ pub enum Reply {
 /// A source file as the UI shows it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LoadedFile {
-    /// The file.
+    /// The file (for a plain robomimic file, the prepared copy the app made of it).
     pub path: PathBuf,
+    /// The plain robomimic file it was prepared from, if it was.
+    pub prepared_from: Option<PathBuf>,
     /// The task it was recorded in.
     pub task: String,
     /// The signal each subtask but the last ends with (the names written on save).

@@ -124,7 +124,15 @@ pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, command
     });
     ui.horizontal(|ui| {
         if let Some(busy) = &model.busy {
-            ui.spinner();
+            match model.progress {
+                #[allow(clippy::cast_precision_loss)]
+                Some((done, total)) if total > 0 => {
+                    ui.add(egui::ProgressBar::new(done as f32 / total as f32).desired_width(160.0).show_percentage());
+                }
+                _ => {
+                    ui.spinner();
+                }
+            }
             ui.label(busy);
         } else if let Some(error) = &model.error {
             ui.colored_label(Color32::from_rgb(220, 60, 60), format!("Error: {error}"));

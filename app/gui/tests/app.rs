@@ -219,3 +219,46 @@ fn the_3d_view_streams_the_shown_demo_and_tried_attempts_to_rerun() {
     }
     assert!(print.contains("LineStrips3D:show_labels"), "labels are hidden in the view (hover shows them)");
 }
+
+/// A plain robomimic file (no `datagen_info`) is prepared by replay in the background, with
+/// progress, then opens like a source file.
+#[test]
+fn a_plain_robomimic_file_is_prepared_in_the_background_with_progress() {
+    use mimicgen_io::tree::Node;
+    let dir = tempfile::tempdir().unwrap();
+    let mut plain = mimicgen_io::RobomimicDataset::open(fixture()).unwrap();
+    let Some(Node::Group(data)) = plain.root.members.get_mut("data") else { panic!("no data group") };
+    data.members.retain(|name, _| ["demo_0", "demo_1", "demo_2"].contains(&name.as_str()));
+    for node in data.members.values_mut() {
+        if let Node::Group(demo) = node {
+            demo.members.remove("datagen_info");
+        }
+    }
+    let path = dir.path().join("plain.hdf5");
+    mimicgen_io::write_tree(&path, &plain.root).unwrap();
+    let mut h = harness(Some(path.clone()));
+    settle(&mut h);
+    let model = &h.state().model;
+    assert!(model.error.is_none(), "{:?}", model.error);
+    let file = model.file.as_ref().unwrap();
+    assert_eq!(file.prepared_from.as_deref(), Some(path.as_path()));
+    assert_eq!(file.demos.len(), 3);
+    // Replayed signals give the same subtask ends as the reference's own datagen_info.
+    assert!(file.demos.iter().all(|d| d.stored_ends.is_some()));
+    assert_eq!(file.path, mimicgen_pipeline::prepare::cached_prepared_path(&path));
+    h.get_by_label_contains("prepared by replay");
+    // The backend reports every replayed demo (a copy under another name is prepared afresh).
+    let copy = dir.path().join("plain_copy.hdf5");
+    std::fs::copy(&path, &copy).unwrap();
+    let progress = std::cell::RefCell::new(Vec::new());
+    mimicgen_gui::backend::open(&copy, &|reply| progress.borrow_mut().push(reply)).unwrap();
+    let done: Vec<(usize, usize)> = progress
+        .into_inner()
+        .into_iter()
+        .filter_map(|r| match r {
+            mimicgen_gui::protocol::Reply::Progress { done, total, .. } => Some((done, total)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(done, vec![(1, 3), (2, 3), (3, 3)]);
+}

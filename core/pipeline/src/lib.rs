@@ -31,6 +31,7 @@ pub mod bundled;
 mod config;
 mod error;
 pub mod memory;
+pub mod prepare;
 pub mod preview;
 mod run;
 

@@ -25,13 +25,13 @@ impl std::fmt::Debug for Previewer {
 }
 
 impl Previewer {
-    /// Prepares `config` as a run would (task, variant, spec, sources, scene) and builds one
-    /// simulator.
+    /// Prepares `config` as a run would (task, variant, spec, sources, scene), with hand-set
+    /// subtask `ends` for the demos it names, and builds one simulator.
     ///
     /// # Errors
-    /// As [`Pipeline::prepare`].
-    pub fn new(config: &RunConfig) -> Result<Self, PipelineError> {
-        let pipeline = Pipeline::prepare(config)?;
+    /// As [`Pipeline::prepare_with_ends`].
+    pub fn new(config: &RunConfig, ends: &BTreeMap<String, Vec<usize>>) -> Result<Self, PipelineError> {
+        let pipeline = Pipeline::prepare_with_ends(config, ends)?;
         let env = SimEnv::new(Arc::clone(pipeline.scene()), Arc::clone(pipeline.task()));
         let generator = pipeline.generator().clone();
         Ok(Self { pipeline, generator, env })

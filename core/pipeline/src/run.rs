@@ -218,6 +218,15 @@ impl Pipeline {
     /// # Errors
     /// [`PipelineError`] naming the file and field at fault.
     pub fn prepare(config: &RunConfig) -> Result<Self, PipelineError> {
+        Self::prepare_with_ends(config, &BTreeMap::new())
+    }
+
+    /// [`Pipeline::prepare`] with hand-set subtask ends (exclusive, per demo name) in place of the
+    /// signals of the demos `ends` names (the app's annotations, before they are saved).
+    ///
+    /// # Errors
+    /// As [`Pipeline::prepare`]; ends naming a demo the file lacks are an input error.
+    pub fn prepare_with_ends(config: &RunConfig, ends: &BTreeMap<String, Vec<usize>>) -> Result<Self, PipelineError> {
         if config.workers == 0 {
             return Err(PipelineError::input("", "--workers", "must be at least 1"));
         }
@@ -278,8 +287,14 @@ impl Pipeline {
         };
         let source_label = source_path.display().to_string();
         check_controller(dataset.env_args(), &source_path)?;
-        let sources = dataset.to_source_dataset(&spec.source)?;
+        let mut sources = dataset.to_source_dataset(&spec.source)?;
         drop(dataset);
+        for (name, demo_ends) in ends {
+            let demo = sources.demos.iter_mut().find(|d| &d.name == name).ok_or_else(|| {
+                PipelineError::input(source_label.clone(), "subtask ends", format!("names demo {name:?}, which the file does not have"))
+            })?;
+            demo.manual_subtask_ends = Some(demo_ends.clone());
+        }
         let model_xml = sources.demos.first().and_then(|d| d.sim.model_xml.clone());
         let (scene, xml) = match model_xml {
             Some(xml) => (Scene::from_model_file(&xml, &format!("{source_label} (model_file)"), task.as_ref())?, xml),

@@ -264,7 +264,7 @@ fn a_tried_attempt_is_the_attempt_a_run_makes() {
             _ => None,
         })
         .collect();
-    let mut preview = Previewer::new(&cfg).unwrap();
+    let mut preview = Previewer::new(&cfg, &std::collections::BTreeMap::new()).unwrap();
     let signal_ends: std::collections::BTreeMap<String, Vec<usize>> = preview
         .generator()
         .dataset()

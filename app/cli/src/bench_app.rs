@@ -1,0 +1,150 @@
+//! `mimicgen bench-app`: the app's own work per frame (layout, plots and tessellation; not GPU
+//! raster) with a file loaded, and the time until a file is browsable. Frames run headless on an
+//! egui context at 1280x800, as the window would run them.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::bail;
+use mimicgen_gui::egui;
+use mimicgen_gui::{Command, MimicgenApp, Screen};
+use serde_json::json;
+
+/// Arguments of `mimicgen bench-app`.
+#[derive(clap::Args, Debug)]
+#[command(after_help = "\
+Examples:
+  mimicgen generate --num-demos 1100 --out /tmp/big/stack.hdf5      # a ~1000-demo dataset
+  mimicgen bench-app /tmp/big/stack.hdf5 --frames 600
+  mimicgen bench-app                                                  # the bundled Stack demos
+
+Prints JSON: seconds until the file is browsable, frame times while it loads (the UI keeps
+drawing), and p50/p95/max of the frame time while browsing (the cursor steps every frame, the
+shown demo changes every 10 frames) and on the preview screen.")]
+pub struct BenchAppArgs {
+    /// The file to open (default: the bundled Stack D0 source demos).
+    file: Option<PathBuf>,
+    /// Frames measured per screen.
+    #[arg(long, default_value_t = 300)]
+    frames: usize,
+}
+
+fn percentile(sorted_ms: &[f64], p: f64) -> f64 {
+    if sorted_ms.is_empty() {
+        return f64::NAN;
+    }
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, clippy::cast_precision_loss)]
+    let i = ((sorted_ms.len() - 1) as f64 * p).round() as usize;
+    sorted_ms[i]
+}
+
+fn summary(mut ms: Vec<f64>) -> serde_json::Value {
+    ms.sort_by(f64::total_cmp);
+    json!({"frames": ms.len(), "p50_ms": percentile(&ms, 0.5), "p95_ms": percentile(&ms, 0.95), "max_ms": ms.last().copied().unwrap_or(f64::NAN)})
+}
+
+/// A headless window: runs the app's frames on an egui context and times each.
+struct Frames {
+    ctx: egui::Context,
+    app: MimicgenApp,
+    started: Instant,
+    /// Vertices tessellated in the last frame (a check that the frame drew what it should).
+    vertices: usize,
+}
+
+impl Frames {
+    /// One frame (with `events`), timed in ms: the app's `show` plus tessellation.
+    fn frame(&mut self, events: Vec<egui::Event>) -> f64 {
+        let input = egui::RawInput {
+            screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(1280.0, 800.0))),
+            time: Some(self.started.elapsed().as_secs_f64()),
+            events,
+            ..egui::RawInput::default()
+        };
+        let t = Instant::now();
+        let out = self.ctx.run_ui(input, |ui| self.app.show(ui));
+        let primitives = self.ctx.tessellate(out.shapes, out.pixels_per_point);
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        self.vertices = primitives
+            .iter()
+            .map(|p| match &p.primitive {
+                egui::epaint::Primitive::Mesh(m) => m.vertices.len(),
+                egui::epaint::Primitive::Callback(_) => 0,
+            })
+            .sum();
+        ms
+    }
+
+    /// Runs frames at ~60 Hz until the backend has answered everything; returns their times.
+    fn until_idle(&mut self, limit: Duration) -> anyhow::Result<Vec<f64>> {
+        let deadline = Instant::now() + limit;
+        let mut ms = Vec::new();
+        loop {
+            ms.push(self.frame(Vec::new()));
+            if self.app.model.in_flight == 0 {
+                return Ok(ms);
+            }
+            if Instant::now() > deadline {
+                bail!("the backend did not answer within {limit:?}");
+            }
+            std::thread::sleep(Duration::from_millis(16));
+        }
+    }
+}
+
+fn key(key: egui::Key) -> Vec<egui::Event> {
+    let press = |pressed| egui::Event::Key { key, physical_key: None, pressed, repeat: false, modifiers: egui::Modifiers::NONE };
+    vec![press(true), press(false)]
+}
+
+/// Runs `mimicgen bench-app`.
+///
+/// # Errors
+/// The file cannot be opened, or the backend does not answer.
+pub fn run(args: &BenchAppArgs) -> anyhow::Result<()> {
+    let file = match &args.file {
+        Some(f) => f.clone(),
+        None => mimicgen_pipeline::bundled::source_demos("stack")?,
+    };
+    let started = Instant::now();
+    let mut frames = Frames { ctx: egui::Context::default(), app: MimicgenApp::new(|| {}, Some(file.clone())), started, vertices: 0 };
+    let loading = frames.until_idle(Duration::from_secs(600))?;
+    let browsable_s = started.elapsed().as_secs_f64();
+    if let Some(e) = &frames.app.model.error {
+        bail!("{e}");
+    }
+    let demos = frames.app.model.file.as_ref().map_or(0, |f| f.demos.len());
+    eprintln!("{} demos browsable after {browsable_s:.2} s; measuring {} frames per screen", demos, args.frames);
+    let check = |frames: &Frames| -> anyhow::Result<()> {
+        match &frames.app.model.error {
+            Some(e) => bail!("{e}"),
+            None => Ok(()),
+        }
+    };
+    let mut browsing = Vec::with_capacity(args.frames);
+    for i in 0..args.frames {
+        if i % 10 == 0 {
+            frames.app.command(Command::SelectDemo((i / 10 * 7) % demos.max(1)));
+        }
+        browsing.push(frames.frame(key(egui::Key::ArrowRight)));
+    }
+    let browsing_vertices = frames.vertices;
+    frames.app.command(Command::Show(Screen::Preview));
+    let planning = frames.until_idle(Duration::from_secs(120))?;
+    check(&frames)?;
+    let preview: Vec<f64> = (0..args.frames).map(|_| frames.frame(Vec::new())).collect();
+    let preview_vertices = frames.vertices;
+    let report = json!({
+        "file": file.display().to_string(),
+        "demos": demos,
+        "browsable_after_s": browsable_s,
+        "while_loading": summary(loading),
+        "browsing": summary(browsing),
+        "browsing_vertices_per_frame": browsing_vertices,
+        "preview_while_planning": summary(planning),
+        "preview": summary(preview),
+        "preview_vertices_per_frame": preview_vertices,
+    });
+    println!("{}", serde_json::to_string_pretty(&report)?);
+    Ok(())
+}

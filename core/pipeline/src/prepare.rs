@@ -1,0 +1,131 @@
+//! Turning a plain robomimic dataset into MimicGen source demos by replaying its recorded states
+//! in the simulator, as the reference's `prepare_src_dataset.py` does: per step the end-effector
+//! pose, the controller target the action implies, the gripper action, every object's pose and the
+//! subtask-end signals (`datagen_info`). Actions, states, rewards, dones and observations are copied.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use mimicgen_engine::Environment as _;
+use mimicgen_engine::demo::Rows;
+use mimicgen_io::tree::Group;
+use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, RobomimicDataset, WriterOptions};
+use mimicgen_sim::{Scene, SimEnv, registry};
+
+use crate::PipelineError;
+
+fn rows(demo: &Group, field: &str, file: &str, name: &str) -> Result<Rows, PipelineError> {
+    let at = format!("data/{name}/{field}");
+    let d = demo.dataset(field).ok_or_else(|| PipelineError::input(file, format!("data/{name}"), format!("has no `{field}`")))?;
+    let width = d.array.shape.get(1).copied().unwrap_or(1);
+    let values = d.array.values.to_f64().ok_or_else(|| PipelineError::input(file, at.clone(), "is not numeric"))?;
+    Rows::from_vec(width, values, &format!("{file}: {at}")).map_err(|e| PipelineError::engine(file, e))
+}
+
+/// Replays every demo of `input` and writes MimicGen source demos to `out`. `task` names the task
+/// when the file's `env_args` do not; `on_demo(done, total, name)` is called after each demo.
+/// Returns the number of demos written.
+///
+/// # Errors
+/// [`PipelineError`] naming the file and field: unreadable input, unknown task, a demo without
+/// `states`, `actions` or `model_file`, a scene that does not compile, a state the simulator
+/// rejects, or a failure to write (the output is then left as an incomplete `.partial`).
+pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl FnMut(usize, usize, &str)) -> Result<usize, PipelineError> {
+    let file = input.display().to_string();
+    let dataset = RobomimicDataset::open(input)?;
+    let env_args = dataset.env_args().map(str::to_owned);
+    let task = match task {
+        Some(name) => registry::task(name, "D0").map_err(|e| PipelineError::input("", "--task", e))?,
+        None => {
+            registry::task_from_env_args(env_args.as_deref())
+                .map_err(|e| PipelineError::input(file.clone(), "data attribute env_args", format!("{e}; pass --task")))?
+                .0
+        }
+    };
+    let mut writer = DatasetWriter::create(out, WriterOptions { env_args, compress_obs: true, valid_fraction: None, split_seed: 0 })?;
+    let mut scenes: BTreeMap<String, Arc<Scene>> = BTreeMap::new();
+    let names = dataset.demo_names().to_vec();
+    for (done, name) in names.iter().enumerate() {
+        let demo = dataset.demo(name).ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "vanished"))?;
+        let xml = demo
+            .attrs
+            .get("model_file")
+            .and_then(|a| a.as_str())
+            .ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "has no model_file attribute"))?;
+        let scene = match scenes.get(xml) {
+            Some(s) => Arc::clone(s),
+            None => {
+                let s = Arc::new(Scene::from_model_file(xml, &format!("{file}: data/{name}/model_file"), task.as_ref())?);
+                scenes.insert(xml.to_owned(), Arc::clone(&s));
+                s
+            }
+        };
+        let mut env = SimEnv::new(scene, Arc::clone(&task));
+        let states = rows(demo, "states", &file, name)?;
+        let actions = rows(demo, "actions", &file, name)?;
+        if states.len() != actions.len() {
+            return Err(PipelineError::input(
+                file.clone(),
+                format!("data/{name}"),
+                format!("{} states but {} actions", states.len(), actions.len()),
+            ));
+        }
+        let mut info = DatagenInfo { gripper_actions: Rows::new(actions.width().saturating_sub(6)), ..DatagenInfo::default() };
+        for (t, (state, action)) in states.iter().zip(actions.iter()).enumerate() {
+            env.reset_to_state(state).map_err(|e| PipelineError::input(file.clone(), format!("data/{name}/states[{t}]"), e.to_string()))?;
+            info.eef_poses.push(env.eef_pose());
+            info.target_poses.push(env.action_to_target_pose(action));
+            info.gripper_actions.push(&action[6.min(action.len())..]).map_err(|e| PipelineError::engine(file.clone(), e))?;
+            for (object, pose) in env.object_poses() {
+                info.object_poses.entry(object).or_default().push(pose);
+            }
+            for (signal, value) in env.subtask_term_signals() {
+                info.subtask_term_signals.entry(signal).or_default().push(value);
+            }
+        }
+        let obs = demo
+            .group("obs")
+            .map(|g| {
+                g.members
+                    .keys()
+                    .filter_map(|k| {
+                        g.dataset(k).and_then(|d| d.array.values.to_f64().map(|v| (k.clone(), (d.array.shape[1..].to_vec(), v))))
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let data = DemoData {
+            actions,
+            states,
+            rewards: demo.dataset("rewards").and_then(|d| d.array.values.to_f64()),
+            dones: demo.dataset("dones").and_then(|d| d.array.values.to_i64()),
+            obs,
+            datagen_info: Some(info),
+            src_demo_inds: Vec::new(),
+            src_demo_labels: Vec::new(),
+            model_xml: Some(xml.to_owned()),
+            attempt_index: None,
+        };
+        writer.append(&data)?;
+        on_demo(done + 1, names.len(), name);
+    }
+    writer.finish()?;
+    Ok(names.len())
+}
+
+/// Where the app keeps a prepared copy of `input`: `$MIMICGEN_CACHE/prepared/<stem>-<hash>.hdf5`,
+/// the hash over the input's path, size and modification time (a changed file is prepared again).
+#[must_use]
+pub fn cached_prepared_path(input: &Path) -> PathBuf {
+    let meta = std::fs::metadata(input).ok();
+    let stamp = format!(
+        "{}|{}|{:?}",
+        input.canonicalize().unwrap_or_else(|_| input.to_path_buf()).display(),
+        meta.as_ref().map_or(0, std::fs::Metadata::len),
+        meta.and_then(|m| m.modified().ok())
+    );
+    let hash = stamp.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    let stem = input.file_stem().map_or_else(|| "dataset".into(), |s| s.to_string_lossy().into_owned());
+    mimicgen_sim::assets::cache_dir().join("prepared").join(format!("{stem}-{hash:016x}.hdf5"))
+}
