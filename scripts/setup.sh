@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One-time (idempotent) setup of everything the build and tests need beyond cargo:
-#   - Debian: libhdf5-dev (the HDF5 C library our dataset crate links), pkg-config
+#   - Debian: libhdf5-dev (the HDF5 C library our dataset crate links), pkg-config; with --viewer
+#     also libudev-dev (linked by the Rerun viewer the app embeds with its `viewer` feature)
 #   - Python: a virtual environment with the pinned packages in scripts/requirements.txt
 # Everything lands in $MIMICGEN_CACHE (default ~/.cache/mimicgen), outside the clone, so a fresh
 # clone on the same machine reuses it.
@@ -10,6 +11,8 @@ cache="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}"
 mkdir -p "$cache"
 
 debian_packages=(libhdf5-dev=1.10.8+repack1-1 pkg-config)
+viewer_packages=(libudev-dev=252.39-1~deb12u2)
+[ "${1:-}" = "--viewer" ] && debian_packages+=("${viewer_packages[@]}")
 missing=()
 for p in "${debian_packages[@]}"; do
   name="${p%%=*}"
@@ -20,7 +23,11 @@ if [ ${#missing[@]} -gt 0 ]; then
   sudo_cmd=""
   [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
   $sudo_cmd apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  if ! DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null; then
+    # A security update can replace a pinned systemd-family version; take the archive's then.
+    echo "setup: pinned versions unavailable, installing the archive's: ${missing[*]%%=*}" >&2
+    DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]%%=*}" >/dev/null
+  fi
 fi
 
 venv="$cache/venv"
