@@ -52,10 +52,29 @@ enum Command {
     /// Subtask ends for source demos: proposed from the recording (--auto) or typed (--ends),
     /// written where MimicGen reads them.
     Annotate(annotate::AnnotateArgs),
-    /// The inspection app: source demos, their timelines, subtask ends by hand or proposed.
+    /// The inspection app: source demos, their timelines, subtask ends by hand or proposed,
+    /// previews of attempts over new scenes, "try it" in simulation, a Rerun 3D view.
+    #[command(after_help = "\
+Examples:
+  mimicgen app                                   # the bundled Stack D0 source demos
+  mimicgen app my_sources.hdf5                   # MimicGen source demos, or a plain robomimic file
+  mimicgen app --screen preview --try-it         # open on the preview screen and try attempt 0
+  mimicgen app --demo 3 --screenshot annotate.png  # the docs' screenshots (under Xvfb too)")]
     App {
         /// Source demos to open (default: the bundled Stack D0 demos).
         file: Option<PathBuf>,
+        /// Screen to show once the file is open.
+        #[arg(long, value_enum, default_value = "annotate")]
+        screen: ScreenArg,
+        /// Demo to show (index in the file).
+        #[arg(long)]
+        demo: Option<usize>,
+        /// Try the previewed attempt in simulation once the preview is shown.
+        #[arg(long)]
+        try_it: bool,
+        /// Once everything is shown, save the window to this PNG and exit.
+        #[arg(long, value_name = "FILE.png")]
+        screenshot: Option<PathBuf>,
     },
     /// Record scripted source demos of a task (the bundled defaults are made this way).
     Demos(generate::DemosArgs),
@@ -193,12 +212,17 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             generate::demos(&args)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::App { file } => {
+        Command::App { file, screen, demo, try_it, screenshot } => {
             let file = match file {
                 Some(f) => f,
                 None => mimicgen_pipeline::bundled::source_demos("stack")?,
             };
-            mimicgen_gui::run(Some(file)).map_err(|e| {
+            let screen = match screen {
+                ScreenArg::Annotate => mimicgen_gui::Screen::Annotate,
+                ScreenArg::Preview => mimicgen_gui::Screen::Preview,
+            };
+            let options = mimicgen_gui::RunOptions { file: Some(file), screen, demo, try_it, screenshot };
+            mimicgen_gui::run(options).map_err(|e| {
                 anyhow::anyhow!("cannot open the app's window ({e}); without a display, use the batch commands (`mimicgen generate`, `mimicgen annotate`)")
             })?;
             Ok(ExitCode::SUCCESS)
@@ -283,4 +307,13 @@ fn print_info(info: &DatasetInfo) {
     } else {
         println!("  MimicGen source: no: {}", info.report);
     }
+}
+
+/// The app's screens, as `--screen` names them.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+enum ScreenArg {
+    /// Demo timelines and subtask ends.
+    Annotate,
+    /// An attempt over a new scene, and "try it".
+    Preview,
 }

@@ -11,7 +11,8 @@
 //! ([`preview_ui`]). Not built yet: the 3D view (Rerun).
 //!
 //! ```no_run
-//! mimicgen_gui::run(Some("core/io/tests/data/source_D0_prepared.hdf5".into())).ok();
+//! let options = mimicgen_gui::RunOptions { file: Some("core/io/tests/data/source_D0_prepared.hdf5".into()), ..Default::default() };
+//! mimicgen_gui::run(options).ok();
 //! ```
 
 pub mod backend;
@@ -104,27 +105,115 @@ impl MimicgenApp {
     }
 }
 
+/// How the window starts: what to open and show, and (for the docs) a screenshot to take.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// The file to open.
+    pub file: Option<PathBuf>,
+    /// The screen to show once it is open.
+    pub screen: Screen,
+    /// The demo to show.
+    pub demo: Option<usize>,
+    /// Run "try it" on the preview screen.
+    pub try_it: bool,
+    /// Once everything asked for is shown, save the window to this PNG and close.
+    pub screenshot: Option<PathBuf>,
+}
+
+/// The app in its window, with the start-up steps of [`RunOptions`] still to do.
+struct Window {
+    app: MimicgenApp,
+    steps: Vec<Command>,
+    screenshot: Option<PathBuf>,
+    idle_frames: usize,
+    shot_requested: bool,
+}
+
+impl Window {
+    fn new(app: MimicgenApp, options: &RunOptions) -> Self {
+        let mut steps = Vec::new();
+        if let Some(d) = options.demo {
+            steps.push(Command::SelectDemo(d));
+        }
+        if options.screen != Screen::Annotate {
+            steps.push(Command::Show(options.screen));
+        }
+        if options.try_it {
+            steps.push(Command::TryIt);
+        }
+        steps.reverse();
+        Self { app, steps, screenshot: options.screenshot.clone(), idle_frames: 0, shot_requested: false }
+    }
+
+    /// Takes the next start-up step once the backend is idle; then the screenshot, if asked for.
+    fn script(&mut self, ctx: &egui::Context) {
+        if self.app.model.in_flight > 0 || self.app.model.file.is_none() {
+            self.idle_frames = 0;
+            ctx.request_repaint();
+            return;
+        }
+        if let Some(step) = self.steps.pop() {
+            self.app.command(step);
+            ctx.request_repaint();
+            return;
+        }
+        let Some(path) = self.screenshot.clone() else { return };
+        self.idle_frames += 1;
+        ctx.request_repaint();
+        if self.idle_frames == 10 && !self.shot_requested {
+            self.shot_requested = true;
+            ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(egui::UserData::default()));
+        }
+        let shot = ctx.input(|i| {
+            i.raw.events.iter().find_map(|e| match e {
+                egui::Event::Screenshot { image, .. } => Some(std::sync::Arc::clone(image)),
+                _ => None,
+            })
+        });
+        if let Some(image) = shot {
+            let [w, h] = image.size;
+            let bytes: Vec<u8> = image.pixels.iter().flat_map(egui::Color32::to_array).collect();
+            #[allow(clippy::cast_possible_truncation)]
+            let saved = image::save_buffer(&path, &bytes, w as u32, h as u32, image::ExtendedColorType::Rgba8);
+            match saved {
+                Ok(()) => eprintln!("saved {}", path.display()),
+                Err(e) => eprintln!("cannot save {}: {e}", path.display()),
+            }
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    }
+}
+
+impl eframe::App for Window {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let ctx = ui.ctx().clone();
+        self.app.show(ui);
+        self.script(&ctx);
+    }
+}
+
 impl eframe::App for MimicgenApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         self.show(ui);
     }
 }
 
-/// Opens the app's window (with `file` loaded, if given) and runs until it is closed.
+/// Opens the app's window as `options` say and runs until it is closed.
 ///
 /// # Errors
 /// eframe's error when no window can be opened (no display).
-pub fn run(file: Option<PathBuf>) -> Result<(), eframe::Error> {
-    let options = eframe::NativeOptions {
+pub fn run(options: RunOptions) -> Result<(), eframe::Error> {
+    let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default().with_inner_size([1280.0, 800.0]).with_drag_and_drop(true),
         ..eframe::NativeOptions::default()
     };
     eframe::run_native(
         "mimicgen",
-        options,
+        native,
         Box::new(move |cc| {
             let ctx = cc.egui_ctx.clone();
-            Ok(Box::new(MimicgenApp::new(move || ctx.request_repaint(), file)))
+            let app = MimicgenApp::new(move || ctx.request_repaint(), options.file.clone());
+            Ok(Box::new(Window::new(app, &options)))
         }),
     )
 }

@@ -10,8 +10,8 @@ use crate::model::{AppModel, Command};
 use crate::protocol::{Point, PreviewView};
 use crate::ui::subtask_color;
 
-/// Colour of the executed path.
-const EXECUTED: Color32 = Color32::from_rgb(40, 40, 40);
+/// Colour of the executed path (and the objects where it left them): bright on the dark theme.
+const EXECUTED: Color32 = Color32::from_rgb(235, 235, 235);
 
 /// The controls: seed, scene, source per subtask with its ranking, "try it" and its outcome.
 pub fn controls(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>) {
@@ -102,12 +102,13 @@ fn xy(points: &[Point], axes: (usize, usize)) -> PlotPoints<'static> {
 
 /// One view of the scene: `axes` picks the plotted coordinates ((0, 1) from above, (0, 2) from
 /// the side).
-fn view_plot(ui: &mut egui::Ui, id: &str, view: &PreviewView, axes: (usize, usize), width: f32) {
+fn view_plot(ui: &mut egui::Ui, id: &str, view: &PreviewView, axes: (usize, usize), size: egui::Vec2) {
     let names = ["x (m)", "y (m)", "z (m)"];
     Plot::new(id)
-        .width(width)
+        .width(size.x)
+        .height(size.y)
         .data_aspect(1.0)
-        .legend(Legend::default().position(Corner::LeftTop))
+        .legend(Legend::default().position(Corner::LeftBottom).background_alpha(0.6))
         .x_axis_label(names[axes.0])
         .y_axis_label(names[axes.1])
         .show(ui, |plot| {
@@ -166,10 +167,16 @@ pub fn views(ui: &mut egui::Ui, model: &AppModel) {
         ui.label("Planning the first scene...");
         return;
     };
-    ui.label("Solid: transformed segments; dashed: interpolation bridges; dotted: the source segments in their own scene; dark: the executed path (after Try it).");
-    let width = (ui.available_width() - 12.0) / 2.0;
+    ui.label("Solid: transformed segments; dashed: interpolation bridges; dotted: the source segments in their own scene; white: the executed path (after Try it), diamonds where it left the objects.");
+    let size = egui::vec2((ui.available_width() - 12.0) / 2.0, ui.available_height() - 8.0);
     ui.horizontal(|ui| {
-        view_plot(ui, "top", view, (0, 1), width);
-        view_plot(ui, "side", view, (0, 2), width);
+        ui.vertical(|ui| {
+            ui.strong("From above");
+            view_plot(ui, "top", view, (0, 1), size - egui::vec2(0.0, 20.0));
+        });
+        ui.vertical(|ui| {
+            ui.strong("From the side");
+            view_plot(ui, "side", view, (0, 2), size - egui::vec2(0.0, 20.0));
+        });
     });
 }
