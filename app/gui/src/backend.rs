@@ -4,6 +4,7 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 
 use mimicgen_engine::transform::WaypointKind;
@@ -12,6 +13,7 @@ use mimicgen_io::IoError;
 use mimicgen_pipeline::annotate::Annotations;
 use mimicgen_pipeline::preview::Previewer;
 use mimicgen_pipeline::{PipelineError, RunConfig, annotate, prepare};
+use mimicgen_viz::rerun::RecordingStream;
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
 use crate::protocol::{
@@ -152,14 +154,24 @@ fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) 
     }
 }
 
+/// Makes a recording stream that feeds the viewer embedded in the app's window.
+pub type StreamFactory = Arc<dyn Fn() -> Result<RecordingStream, String> + Send + Sync>;
+
 /// The backend's state: the open file's demos and scene (for the 3D view), the previewer of the
 /// last previewed file (kept so that moving through scenes does not recompile the scene), and the
 /// Rerun stream once the 3D view is open.
-#[derive(Debug, Default)]
+#[derive(Default)]
 pub struct Worker {
     loaded: Option<Annotations>,
     previewer: Option<(PathBuf, Previewer)>,
     viewer: Option<(ViewerSink, RunLogger)>,
+    embedded: Option<StreamFactory>,
+}
+
+impl std::fmt::Debug for Worker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Worker").field("previewer", &self.previewer).field("embedded", &self.embedded.is_some()).finish_non_exhaustive()
+    }
 }
 
 fn viz_error(e: &mimicgen_viz::VizError) -> String {
@@ -167,20 +179,54 @@ fn viz_error(e: &mimicgen_viz::VizError) -> String {
 }
 
 impl Worker {
-    fn open_3d(&mut self, sink: ViewerSink, demo: usize) -> Result<String, String> {
+    /// A worker whose [`ViewerSink::Embedded`] streams come from `embedded`.
+    #[must_use]
+    pub fn new(embedded: Option<StreamFactory>) -> Self {
+        Self { embedded, ..Self::default() }
+    }
+
+    /// A logger on a new stream to `sink`.
+    fn logger(&self, sink: &ViewerSink) -> Result<RunLogger, String> {
         let loaded = self.loaded.as_ref().ok_or("open a file first")?;
-        let to = match &sink {
-            ViewerSink::Spawn => Sink::Spawn,
-            ViewerSink::Connect(url) => Sink::Connect(url.clone()),
-            ViewerSink::Save(path) => Sink::Save(path.clone()),
+        let rec = match sink {
+            ViewerSink::Spawn => Sink::Spawn.open("mimicgen").map_err(|e| viz_error(&e))?,
+            ViewerSink::Connect(url) => Sink::Connect(url.clone()).open("mimicgen").map_err(|e| viz_error(&e))?,
+            ViewerSink::Save(path) => Sink::Save(path.clone()).open("mimicgen").map_err(|e| viz_error(&e))?,
+            ViewerSink::Embedded => {
+                let make = self.embedded.as_ref().ok_or("this build has no embedded viewer (build with `--features viewer`)")?;
+                let rec = make()?;
+                rec.send_blueprint_opts(&mimicgen_viz::rerun::blueprint::BlueprintOpts {
+                    blueprint: mimicgen_viz::app_blueprint(),
+                    activation: mimicgen_viz::rerun::blueprint::BlueprintActivation { make_active: true, make_default: true },
+                })
+                .map_err(|e| e.to_string())?;
+                rec
+            }
         };
-        let rec = to.open("mimicgen").map_err(|e| viz_error(&e))?;
         let config = LogConfig { scene: SceneLevel::All, scene_stride: 1 };
-        let logger = RunLogger::new(rec, &loaded.scene, config).map_err(|e| viz_error(&e))?;
+        RunLogger::new(rec, &loaded.scene, config).map_err(|e| viz_error(&e))
+    }
+
+    /// The logger to show something new with: the open stream, or for the embedded viewer a new
+    /// recording (so every demo and attempt starts at step 0 of its own).
+    fn fresh_logger(&mut self) -> Result<&mut RunLogger, String> {
+        let Some((sink, _)) = &self.viewer else { return Err("the 3D view is not open".to_owned()) };
+        if *sink == ViewerSink::Embedded {
+            let logger = self.logger(sink)?;
+            if let Some((_, old)) = &mut self.viewer {
+                *old = logger;
+            }
+        }
+        self.viewer.as_mut().map(|(_, l)| l).ok_or_else(|| "the 3D view is not open".to_owned())
+    }
+
+    fn open_3d(&mut self, sink: ViewerSink, demo: usize) -> Result<String, String> {
+        let logger = self.logger(&sink)?;
         let said = match &sink {
             ViewerSink::Spawn => "the Rerun viewer".to_owned(),
             ViewerSink::Connect(url) => url.clone(),
             ViewerSink::Save(path) => path.display().to_string(),
+            ViewerSink::Embedded => "the viewer in this window".to_owned(),
         };
         self.viewer = Some((sink, logger));
         self.show_3d(demo)?;
@@ -188,6 +234,7 @@ impl Worker {
     }
 
     fn show_3d(&mut self, demo: usize) -> Result<String, String> {
+        self.fresh_logger()?;
         let (Some(loaded), Some((_, logger))) = (&self.loaded, &mut self.viewer) else { return Err("the 3D view is not open".to_owned()) };
         let source = loaded.sources.demos.get(demo).ok_or_else(|| format!("there is no demo {demo}"))?;
         logger.log_demos([(demo, source)]).map_err(|e| viz_error(&e))?;
@@ -197,8 +244,11 @@ impl Worker {
 
     /// Logs a tried attempt to the 3D view, if it is open.
     fn show_attempt_3d(&mut self, attempt: &Attempt) -> Result<(), String> {
-        let Some((_, logger)) = &mut self.viewer else { return Ok(()) };
+        if self.viewer.is_none() {
+            return Ok(());
+        }
         let num_demos = self.loaded.as_ref().map_or(0, |l| l.sources.demos.len());
+        let logger = self.fresh_logger()?;
         let mut stats = RunStats::new(num_demos);
         stats.record(attempt);
         logger.log_attempt(attempt, &stats).map_err(|e| viz_error(&e))?;
@@ -278,12 +328,12 @@ impl Backend {
     /// # Panics
     /// Never on purpose; if the OS cannot start a thread, replies report it.
     #[must_use]
-    pub fn start(repaint: impl Fn() + Send + 'static) -> Self {
+    pub fn start(repaint: impl Fn() + Send + 'static, embedded: Option<StreamFactory>) -> Self {
         let (requests, inbox) = channel::<Request>();
         let (outbox, replies) = channel::<Reply>();
         let failed = outbox.clone();
         let spawned = std::thread::Builder::new().name("mimicgen-gui-backend".to_owned()).spawn(move || {
-            let mut worker = Worker::default();
+            let mut worker = Worker::new(embedded);
             for request in inbox {
                 let progress = |reply: Reply| {
                     let _ = outbox.send(reply);

@@ -16,6 +16,8 @@
 //! ```
 
 pub mod backend;
+#[cfg(feature = "viewer")]
+mod embedded;
 pub mod model;
 pub mod preview_ui;
 pub mod protocol;
@@ -42,7 +44,14 @@ impl MimicgenApp {
     /// Starts the backend (`repaint` is called when a reply arrives) and opens `file` if given.
     #[must_use]
     pub fn new(repaint: impl Fn() + Send + 'static, file: Option<PathBuf>) -> Self {
-        let mut app = Self { model: AppModel::default(), backend: Backend::start(repaint), ui: UiState::default() };
+        Self::with_streams(repaint, file, None)
+    }
+
+    /// [`MimicgenApp::new`] whose [`protocol::ViewerSink::Embedded`] 3D view streams come from
+    /// `embedded` (the viewer in the app's window).
+    #[must_use]
+    pub fn with_streams(repaint: impl Fn() + Send + 'static, file: Option<PathBuf>, embedded: Option<backend::StreamFactory>) -> Self {
+        let mut app = Self { model: AppModel::default(), backend: Backend::start(repaint, embedded), ui: UiState::default() };
         if let Some(file) = file {
             app.ui.open_path = file.display().to_string();
             app.command(Command::Open(file));
@@ -72,6 +81,12 @@ impl MimicgenApp {
 
     /// One frame: replies in, panels drawn, commands applied.
     pub fn show(&mut self, ui: &mut egui::Ui) {
+        self.show_with(ui, None::<fn(&mut egui::Ui)>);
+    }
+
+    /// [`MimicgenApp::show`] beside a 3D view: the timeline (or the preview plots) moves to a
+    /// bottom (or right) panel and `viewer` draws in the space left.
+    pub fn show_with(&mut self, ui: &mut egui::Ui, viewer: Option<impl FnOnce(&mut egui::Ui)>) {
         self.poll();
         let ctx = ui.ctx().clone();
         let mut commands = Vec::new();
@@ -92,11 +107,28 @@ impl MimicgenApp {
         match self.model.screen {
             Screen::Annotate => {
                 egui::Panel::left("demos").default_size(220.0).show(ui, |ui| ui::demo_list(ui, &self.model, &mut commands));
-                egui::CentralPanel::default().show(ui, |ui| ui::timeline(ui, &self.model, &mut self.ui, &mut commands));
+                let timeline = |ui: &mut egui::Ui| ui::timeline(ui, &self.model, &mut self.ui, &mut commands);
+                match viewer {
+                    Some(viewer) => {
+                        egui::Panel::bottom("timeline").resizable(true).default_size(360.0).show(ui, timeline);
+                        viewer(ui);
+                    }
+                    None => {
+                        egui::CentralPanel::default().show(ui, timeline);
+                    }
+                }
             }
             Screen::Preview => {
                 egui::Panel::left("preview").default_size(300.0).show(ui, |ui| preview_ui::controls(ui, &self.model, &mut commands));
-                egui::CentralPanel::default().show(ui, |ui| preview_ui::views(ui, &self.model));
+                match viewer {
+                    Some(viewer) => {
+                        egui::Panel::right("views").resizable(true).default_size(520.0).show(ui, |ui| preview_ui::views(ui, &self.model));
+                        viewer(ui);
+                    }
+                    None => {
+                        egui::CentralPanel::default().show(ui, |ui| preview_ui::views(ui, &self.model));
+                    }
+                }
             }
         }
         for command in commands {
@@ -198,11 +230,20 @@ impl eframe::App for MimicgenApp {
     }
 }
 
-/// Opens the app's window as `options` say and runs until it is closed.
+/// Opens the app's window as `options` say and runs until it is closed. With the `viewer` feature
+/// the Rerun viewer is embedded in the window (and the 3D view opens by itself).
 ///
 /// # Errors
 /// eframe's error when no window can be opened (no display).
 pub fn run(options: RunOptions) -> Result<(), eframe::Error> {
+    #[cfg(feature = "viewer")]
+    return embedded::run(options);
+    #[cfg(not(feature = "viewer"))]
+    run_plain(options)
+}
+
+#[cfg_attr(feature = "viewer", allow(dead_code))]
+fn run_plain(options: RunOptions) -> Result<(), eframe::Error> {
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default().with_inner_size([1280.0, 800.0]).with_drag_and_drop(true),
         ..eframe::NativeOptions::default()

@@ -51,6 +51,9 @@ pub enum ViewerSink {
     Connect(String),
     /// A `.rrd` file.
     Save(PathBuf),
+    /// The viewer embedded in the app's window (builds with the `viewer` feature): a new recording
+    /// per shown demo or tried attempt, on the `step` timeline the app's cursor drives.
+    Embedded,
 }
 
 /// What a preview is of.

@@ -24,3 +24,17 @@ pub fn default_blueprint() -> Blueprint {
     )
     .with_time_panel(TimePanel::new().with_timeline(timelines::FRAME).with_play_state(PlayState::Following))
 }
+
+/// The layout inside the app, which draws its own plots: the 3D scene (with the outcome log
+/// below it), the time panel on the `step` timeline, paused, so the app's time cursor drives it.
+#[must_use]
+pub fn app_blueprint() -> Blueprint {
+    Blueprint::new(
+        Vertical::new([
+            Spatial3DView::new("Scene").with_origin("world").into(),
+            TextLogView::new("Outcomes").with_origin("outcome").into(),
+        ])
+        .with_row_shares([5.0, 1.0]),
+    )
+    .with_time_panel(TimePanel::new().with_timeline(timelines::STEP).with_play_state(PlayState::Paused))
+}

@@ -24,7 +24,7 @@ mod run;
 mod scene;
 mod sink;
 
-pub use blueprint::default_blueprint;
+pub use blueprint::{app_blueprint, default_blueprint};
 pub use rerun;
 pub use run::{LogConfig, RunLogger, SceneLevel};
 pub use scene::{SceneLogger, xyzw_from_xmat};
