@@ -2,15 +2,16 @@
 //! replies over a channel.
 //! The UI never waits on it; it asks for a repaint when a reply is ready.
 
+use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 
 use mimicgen_engine::transform::WaypointKind;
-use mimicgen_engine::{Attempt, Plan, Pose, RunStats};
+use mimicgen_engine::{Attempt, Plan, Pose, RunStats, SourceDataset, SourceDemo};
 use mimicgen_io::IoError;
-use mimicgen_pipeline::annotate::Annotations;
+use mimicgen_pipeline::annotate::{Annotations, DemoAnnotation};
 use mimicgen_pipeline::preview::Previewer;
 use mimicgen_pipeline::{PipelineError, RunConfig, annotate, prepare};
 use mimicgen_viz::rerun::RecordingStream;
@@ -24,14 +25,101 @@ use crate::protocol::{
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
 const CONTROL_HZ: f64 = 20.0;
 
-/// Reads `path` and turns every demo into what the timeline draws. A plain robomimic file (no
-/// `datagen_info`) is first prepared by replay into the cache (once per version of the file),
-/// reporting each demo to `progress`.
+/// Demos per reply while a file streams in.
+const CHUNK: usize = 64;
+
+/// What the timeline draws of one demo.
+fn demo_view(d: &SourceDemo, a: &DemoAnnotation) -> DemoView {
+    let eef: Vec<_> = d.eef_poses.iter().map(|p| p.translation.vector).collect();
+    let mut eef_speed: Vec<f64> = eef.windows(2).map(|w| (w[1] - w[0]).norm() * CONTROL_HZ).collect();
+    eef_speed.push(eef_speed.last().copied().unwrap_or_default());
+    DemoView {
+        name: a.demo.clone(),
+        len: a.len,
+        gripper: (0..d.len()).map(|t| d.gripper_actions.row(t).first().copied().unwrap_or_default()).collect(),
+        finger_width_m: a.finger_width_m.clone(),
+        eef_speed,
+        distances: d
+            .object_poses
+            .iter()
+            .map(|(name, poses)| (name.clone(), poses.iter().zip(&eef).map(|(p, e)| (p.translation.vector - e).norm()).collect()))
+            .collect(),
+        signals: d.subtask_term_signals.clone(),
+        stored_ends: a.signal_ends.clone(),
+        proposals: a.proposals.iter().map(|p| ProposalView { end: p.end, confidence: p.confidence, reason: p.reason.clone() }).collect(),
+    }
+}
+
+/// Streams `path` in: the first [`CHUNK`] demos as [`Reply::Opened`], the rest as
+/// [`Reply::MoreDemos`], each sent to `send` except the last, which is returned (it ends the
+/// request). Returns the demos and scene read, for the 3D view.
+fn stream(path: &Path, prepared_from: Option<&Path>, send: &dyn Fn(Reply)) -> Result<(Reply, Annotations), PipelineError> {
+    let found: RefCell<Option<Annotations>> = RefCell::new(None);
+    let header: RefCell<Option<(LoadedFile, usize)>> = RefCell::new(None);
+    let pending: RefCell<Option<Reply>> = RefCell::new(None);
+    annotate::propose_streaming(
+        path,
+        CHUNK,
+        |proposer, total| {
+            let spec = proposer.spec();
+            let last = spec.subtasks.len().saturating_sub(1);
+            let file = LoadedFile {
+                path: path.to_path_buf(),
+                prepared_from: prepared_from.map(Path::to_path_buf),
+                task: spec.name.clone(),
+                signal_names: spec.subtasks.iter().take(last).map(|s| s.term_signal.clone().unwrap_or_default()).collect(),
+                subtask_objects: spec.subtasks.iter().map(|s| s.object_ref.clone()).collect(),
+                total_demos: total,
+                demos: Vec::new(),
+            };
+            *header.borrow_mut() = Some((file, 0));
+            *found.borrow_mut() = Some(Annotations {
+                spec: spec.clone(),
+                demos: Vec::with_capacity(total),
+                sources: SourceDataset { demos: Vec::with_capacity(total), env_args: None },
+                scene: proposer.scene().clone(),
+            });
+        },
+        |chunk| {
+            let views: Vec<DemoView> = chunk.iter().map(|(d, a)| demo_view(d, a)).collect();
+            if let Some(found) = found.borrow_mut().as_mut() {
+                for (d, a) in chunk {
+                    found.sources.demos.push(d);
+                    found.demos.push(a);
+                }
+            }
+            let mut header = header.borrow_mut();
+            let Some((file, sent)) = header.as_mut() else { return };
+            let reply = if *sent == 0 {
+                Reply::Opened(Box::new(LoadedFile { demos: views, ..file.clone() }))
+            } else {
+                Reply::MoreDemos { path: path.to_path_buf(), last: *sent + views.len() >= file.total_demos, demos: views }
+            };
+            *sent += match &reply {
+                Reply::Opened(f) => f.demos.len(),
+                Reply::MoreDemos { demos, .. } => demos.len(),
+                _ => 0,
+            };
+            if let Some(previous) = pending.borrow_mut().replace(reply) {
+                send(previous);
+            }
+        },
+    )?;
+    let reply =
+        pending.into_inner().ok_or_else(|| PipelineError::Fs { file: path.display().to_string(), reason: "no demos read".to_owned() })?;
+    let found =
+        found.into_inner().ok_or_else(|| PipelineError::Fs { file: path.display().to_string(), reason: "no demos read".to_owned() })?;
+    Ok((reply, found))
+}
+
+/// Opens `path`, streaming its demos to `send` as they are read (the returned reply is the last
+/// part). A plain robomimic file (no `datagen_info`) is first prepared by replay into the cache
+/// (once per version of the file), reporting each demo.
 ///
 /// # Errors
 /// The pipeline's error, whole (it names the file and field).
-pub fn open(path: &Path, progress: &dyn Fn(Reply)) -> Result<(LoadedFile, Annotations), PipelineError> {
-    match annotate::propose(path, None, None) {
+pub fn open(path: &Path, send: &dyn Fn(Reply)) -> Result<(Reply, Annotations), PipelineError> {
+    match stream(path, None, send) {
         Err(PipelineError::Io(IoError::NotMimicGen { .. })) => {
             let prepared = prepare::cached_prepared_path(path);
             if !prepared.is_file() {
@@ -40,55 +128,11 @@ pub fn open(path: &Path, progress: &dyn Fn(Reply)) -> Result<(LoadedFile, Annota
                         .map_err(|e| PipelineError::Fs { file: dir.display().to_string(), reason: e.to_string() })?;
                 }
                 let what = format!("{} has no datagen_info: replaying its demos in MuJoCo", path.display());
-                prepare::prepare(path, &prepared, None, |done, total, _| progress(Reply::Progress { what: what.clone(), done, total }))?;
+                prepare::prepare(path, &prepared, None, |done, total, _| send(Reply::Progress { what: what.clone(), done, total }))?;
             }
-            let found = annotate::propose(&prepared, None, None)?;
-            Ok((loaded_file(&prepared, Some(path), &found), found))
+            stream(&prepared, Some(path), send)
         }
-        Err(e) => Err(e),
-        Ok(found) => Ok((loaded_file(path, None, &found), found)),
-    }
-}
-
-fn loaded_file(path: &Path, prepared_from: Option<&Path>, found: &Annotations) -> LoadedFile {
-    let spec = &found.spec;
-    let demos = found
-        .demos
-        .iter()
-        .zip(&found.sources.demos)
-        .map(|(a, d)| {
-            let eef: Vec<_> = d.eef_poses.iter().map(|p| p.translation.vector).collect();
-            let mut eef_speed: Vec<f64> = eef.windows(2).map(|w| (w[1] - w[0]).norm() * CONTROL_HZ).collect();
-            eef_speed.push(eef_speed.last().copied().unwrap_or_default());
-            DemoView {
-                name: a.demo.clone(),
-                len: a.len,
-                gripper: (0..d.len()).map(|t| d.gripper_actions.row(t).first().copied().unwrap_or_default()).collect(),
-                finger_width_m: a.finger_width_m.clone(),
-                eef_speed,
-                distances: d
-                    .object_poses
-                    .iter()
-                    .map(|(name, poses)| (name.clone(), poses.iter().zip(&eef).map(|(p, e)| (p.translation.vector - e).norm()).collect()))
-                    .collect(),
-                signals: d.subtask_term_signals.clone(),
-                stored_ends: a.signal_ends.clone(),
-                proposals: a
-                    .proposals
-                    .iter()
-                    .map(|p| ProposalView { end: p.end, confidence: p.confidence, reason: p.reason.clone() })
-                    .collect(),
-            }
-        })
-        .collect();
-    let last = spec.subtasks.len().saturating_sub(1);
-    LoadedFile {
-        path: path.to_path_buf(),
-        prepared_from: prepared_from.map(Path::to_path_buf),
-        task: spec.name.clone(),
-        signal_names: spec.subtasks.iter().take(last).map(|s| s.term_signal.clone().unwrap_or_default()).collect(),
-        subtask_objects: spec.subtasks.iter().map(|s| s.object_ref.clone()).collect(),
-        demos,
+        other => other,
     }
 }
 
@@ -279,11 +323,11 @@ impl Worker {
     pub fn handle(&mut self, request: Request, progress: &dyn Fn(Reply)) -> Reply {
         match request {
             Request::Open { path } => match open(&path, progress) {
-                Ok((file, found)) => {
+                Ok((reply, found)) => {
                     self.loaded = Some(found);
                     // The stream's static scene is the old file's: a new file needs a new stream.
                     self.viewer = None;
-                    Reply::Opened(Box::new(file))
+                    reply
                 }
                 Err(e) => Reply::Failed { what: format!("opening {}", path.display()), error: e.to_string() },
             },

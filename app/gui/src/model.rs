@@ -338,12 +338,29 @@ impl AppModel {
             return;
         }
         self.progress = None;
-        self.in_flight = self.in_flight.saturating_sub(1);
-        if self.in_flight == 0 {
-            self.busy = None;
+        if reply.ends_request() {
+            self.in_flight = self.in_flight.saturating_sub(1);
+            if self.in_flight == 0 {
+                self.busy = None;
+            }
         }
         match reply {
             Reply::Progress { .. } => {}
+            Reply::MoreDemos { path, demos, .. } => {
+                let Some(file) = self.file.as_mut().filter(|f| f.path == path) else { return };
+                for d in &demos {
+                    self.ends.insert(d.name.clone(), d.stored_ends.clone().unwrap_or_else(|| d.proposals.iter().map(|p| p.end).collect()));
+                }
+                file.demos.extend(demos);
+                let (loaded, total) = (file.demos.len(), file.total_demos);
+                if loaded < total {
+                    self.busy = Some(format!("reading demos: {loaded} of {total}"));
+                    self.progress = Some((loaded, total));
+                } else {
+                    self.status =
+                        format!("opened {} ({total} demos of {})", file.prepared_from.as_ref().unwrap_or(&file.path).display(), file.task);
+                }
+            }
             Reply::Opened(file) => {
                 self.ends = file
                     .demos
@@ -371,6 +388,12 @@ impl AppModel {
                 self.preview.sources.clear();
                 self.preview.view = None;
                 self.viewer = None;
+                if let Some(file) = &self.file
+                    && file.demos.len() < file.total_demos
+                {
+                    self.busy = Some(format!("reading demos: {} of {}", file.demos.len(), file.total_demos));
+                    self.progress = Some((file.demos.len(), file.total_demos));
+                }
             }
             Reply::Streaming { to } => {
                 self.status = format!("3D view: streaming to {to}");
@@ -419,6 +442,7 @@ mod tests {
         m.on_reply(Reply::Opened(Box::new(LoadedFile {
             path: "f.hdf5".into(),
             prepared_from: None,
+            total_demos: 1,
             task: "t".into(),
             signal_names: vec!["a".into(), "b".into()],
             subtask_objects: vec![Some("a".into()), Some("b".into())],
@@ -462,6 +486,27 @@ mod tests {
         assert_eq!(m.in_flight, 4);
         m.on_reply(Reply::Failed { what: "w".into(), error: "e".into() });
         assert!(m.busy.is_some(), "busy until every request is answered");
+    }
+
+    #[test]
+    fn a_streaming_file_is_browsable_from_its_first_part() {
+        let mut m = model(50, vec![10]);
+        let mut file = m.file.clone().unwrap();
+        file.path = "big.hdf5".into();
+        file.total_demos = 2;
+        m.in_flight = 1;
+        let second = DemoView { name: "demo_1".into(), ..file.demos[0].clone() };
+        m.on_reply(Reply::Opened(Box::new(file)));
+        assert_eq!((m.in_flight, m.file.as_ref().unwrap().demos.len()), (1, 1), "the first part does not end the request");
+        assert!(m.busy.as_deref().is_some_and(|b| b.contains("1 of 2")));
+        m.apply(Command::SetEnd { subtask: 0, end: 12 });
+        m.on_reply(Reply::MoreDemos { path: "other.hdf5".into(), demos: vec![second.clone()], last: false });
+        assert_eq!(m.file.as_ref().unwrap().demos.len(), 1, "parts of another file are ignored");
+        m.on_reply(Reply::MoreDemos { path: "big.hdf5".into(), demos: vec![second], last: true });
+        assert_eq!((m.in_flight, m.file.as_ref().unwrap().demos.len()), (0, 2));
+        assert_eq!(m.ends["demo_1"], vec![10]);
+        assert_eq!(m.ends["demo_0"], vec![12], "edits made while it streamed are kept");
+        assert!(m.busy.is_none());
     }
 
     #[test]

@@ -73,11 +73,21 @@ pub struct PreviewRequest {
     pub execute: bool,
 }
 
-/// A reply from the backend.
+/// A reply from the backend. Each request gets exactly one reply that [`Reply::ends_request`];
+/// progress and the first parts of a streamed file come before it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Reply {
-    /// A file was read.
+    /// A file was opened: its first demos (the rest follow as [`Reply::MoreDemos`]).
     Opened(Box<LoadedFile>),
+    /// More demos of the file being opened.
+    MoreDemos {
+        /// The file.
+        path: PathBuf,
+        /// The demos, in file order after those sent before.
+        demos: Vec<DemoView>,
+        /// Whether these are the file's last.
+        last: bool,
+    },
     /// A file was written.
     Saved {
         /// Where.
@@ -128,7 +138,9 @@ pub struct LoadedFile {
     pub signal_names: Vec<String>,
     /// The object each subtask is relative to.
     pub subtask_objects: Vec<Option<String>>,
-    /// The demos, in file order.
+    /// How many demos the file has (more than `demos` while it is still streaming in).
+    pub total_demos: usize,
+    /// The demos read so far, in file order.
     pub demos: Vec<DemoView>,
 }
 
@@ -255,4 +267,17 @@ pub struct ExecutedView {
     pub sources: Vec<usize>,
     /// The objects where the attempt ended.
     pub final_objects: Vec<ObjectView>,
+}
+
+impl Reply {
+    /// Whether this is the last reply to its request.
+    #[must_use]
+    pub fn ends_request(&self) -> bool {
+        match self {
+            Self::Progress { .. } => false,
+            Self::Opened(file) => file.demos.len() >= file.total_demos,
+            Self::MoreDemos { last, .. } => *last,
+            Self::Saved { .. } | Self::Streaming { .. } | Self::Shown3d { .. } | Self::Previewed(_) | Self::Failed { .. } => true,
+        }
+    }
 }

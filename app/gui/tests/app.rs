@@ -262,3 +262,39 @@ fn a_plain_robomimic_file_is_prepared_in_the_background_with_progress() {
         .collect();
     assert_eq!(done, vec![(1, 3), (2, 3), (3, 3)]);
 }
+
+/// A large file streams in: the first 64 demos open the file (the list is usable at once), the
+/// rest follow, and the app's list grows to all of them.
+#[test]
+fn a_large_file_streams_in_and_is_browsable_before_it_is_read() {
+    use mimicgen_io::tree::Node;
+    let dir = tempfile::tempdir().unwrap();
+    let mut big = mimicgen_io::RobomimicDataset::open(fixture()).unwrap();
+    let Some(Node::Group(data)) = big.root.members.get_mut("data") else { panic!("no data group") };
+    let originals: Vec<Node> = (0..10).map(|i| data.members[&format!("demo_{i}")].clone()).collect();
+    for i in 10..90 {
+        data.members.insert(format!("demo_{i}"), originals[i % 10].clone());
+    }
+    let path = dir.path().join("big.hdf5");
+    mimicgen_io::write_tree(&path, &big.root).unwrap();
+    let sent = std::cell::RefCell::new(Vec::new());
+    let (last, found) = mimicgen_gui::backend::open(&path, &|reply| sent.borrow_mut().push(reply)).unwrap();
+    let sent = sent.into_inner();
+    let [mimicgen_gui::protocol::Reply::Opened(first)] = sent.as_slice() else {
+        panic!("expected the first part alone, got {} replies", sent.len())
+    };
+    assert_eq!((first.demos.len(), first.total_demos), (64, 90));
+    assert!(!sent[0].ends_request());
+    let mimicgen_gui::protocol::Reply::MoreDemos { demos, last: true, .. } = &last else { panic!("expected the last part") };
+    assert_eq!(demos.len(), 26);
+    assert_eq!(demos[25].name, "demo_89");
+    assert_eq!(found.sources.demos.len(), 90);
+    // In the app: everything arrives and every demo gets its ends.
+    let mut h = harness(Some(path));
+    settle(&mut h);
+    let model = &h.state().model;
+    assert_eq!(model.file.as_ref().unwrap().demos.len(), 90);
+    assert_eq!(model.ends.len(), 90);
+    assert_eq!(model.ends["demo_83"], model.ends["demo_3"], "copies of a demo get its ends");
+    h.get_by_label("90 demos");
+}

@@ -271,95 +271,12 @@ impl RobomimicDataset {
     }
 
     fn source_demo(&self, name: &str) -> Result<SourceDemo> {
-        let group = format!("data/{name}");
-        let demo = self.demo(name).ok_or_else(|| IoError::Missing {
-            file: self.file.clone(),
-            group: "data".into(),
-            field: name.to_owned(),
-            hint: String::new(),
-        })?;
-        let steps = self.demo_len(name);
-        let dg_group = format!("{group}/datagen_info");
-        let info = demo.group("datagen_info").ok_or_else(|| self.missing(&group, "datagen_info"))?;
-        let poses = |field: &str, g: &Group, gpath: &str| -> Result<Vec<Pose>> {
-            let d = g.dataset(field).ok_or_else(|| self.missing(gpath, field))?;
-            self.poses(gpath, field, d, steps)
-        };
-        let mut object_poses = BTreeMap::new();
-        let objects_path = format!("{dg_group}/object_poses");
-        let objects = info.group("object_poses").ok_or_else(|| self.missing(&dg_group, "object_poses"))?;
-        for obj in objects.members.keys() {
-            object_poses.insert(obj.clone(), poses(obj, objects, &objects_path)?);
-        }
-        let mut subtask_term_signals = BTreeMap::new();
-        let signals_path = format!("{dg_group}/subtask_term_signals");
-        let signals = info.group("subtask_term_signals").ok_or_else(|| self.missing(&dg_group, "subtask_term_signals"))?;
-        for (sig, node) in &signals.members {
-            let Node::Dataset(d) = node else { return Err(self.invalid(&signals_path, sig, "expected a dataset, found a group")) };
-            let values =
-                d.array.values.to_i64().ok_or_else(|| {
-                    self.invalid(&signals_path, sig, &format!("expected integers, found {}", d.array.values.dtype_name()))
-                })?;
-            if values.len() != steps {
-                return Err(self.shape(&signals_path, sig, &format!("has {} values but the demo has {steps} steps", values.len())));
-            }
-            subtask_term_signals.insert(sig.clone(), values);
-        }
-        let actions = self.rows(&group, "actions", demo.dataset("actions"))?;
-        let states = self.rows(&group, "states", demo.dataset("states"))?;
-        Ok(SourceDemo {
-            name: name.to_owned(),
-            eef_poses: poses("eef_pose", info, &dg_group)?,
-            target_poses: poses("target_pose", info, &dg_group)?,
-            gripper_actions: self.rows(&dg_group, "gripper_action", info.dataset("gripper_action"))?,
-            object_poses,
-            subtask_term_signals,
-            manual_subtask_ends: None,
-            sim: SimPayload { actions, states, model_xml: demo.attrs.get("model_file").and_then(Array::as_str).map(str::to_owned) },
-        })
-    }
-
-    fn poses(&self, group: &str, field: &str, d: &Dataset, steps: usize) -> Result<Vec<Pose>> {
-        if d.array.shape.as_slice() != [steps, 4, 4] {
-            return Err(self.shape(group, field, &format!("expected ({steps}, 4, 4) (one 4x4 pose per step), found {:?}", d.array.shape)));
-        }
-        let values = self.floats(group, field, d)?;
-        values
-            .chunks_exact(16)
-            .enumerate()
-            .map(|(t, m)| {
-                pose_from_matrix(&Mat4::from_row_slice(m), &format!("step {t}")).map_err(|e| self.invalid(group, field, &e.to_string()))
-            })
-            .collect()
-    }
-
-    fn rows(&self, group: &str, field: &str, d: Option<&Dataset>) -> Result<Rows> {
-        let Some(d) = d else { return Ok(Rows::new(0)) };
-        let width = match d.array.shape.as_slice() {
-            [_, w] => *w,
-            [_] => 1,
-            other => return Err(self.shape(group, field, &format!("expected (T, D), found {other:?}"))),
-        };
-        Rows::from_vec(width, self.floats(group, field, d)?, field).map_err(|e| self.shape(group, field, &e.to_string()))
-    }
-
-    fn floats(&self, group: &str, field: &str, d: &Dataset) -> Result<Vec<f64>> {
-        d.array
-            .values
-            .to_f64()
-            .ok_or_else(|| self.invalid(group, field, &format!("expected numbers, found {}", d.array.values.dtype_name())))
+        let demo = self.demo(name).ok_or_else(|| self.missing("data", name))?;
+        source_demo_from_group(&self.file, name, demo)
     }
 
     fn missing(&self, group: &str, field: &str) -> IoError {
-        IoError::Missing { file: self.file.clone(), group: group.to_owned(), field: field.to_owned(), hint: String::new() }
-    }
-
-    fn invalid(&self, group: &str, field: &str, reason: &str) -> IoError {
-        IoError::Invalid { file: self.file.clone(), group: group.to_owned(), field: field.to_owned(), reason: reason.to_owned() }
-    }
-
-    fn shape(&self, group: &str, field: &str, reason: &str) -> IoError {
-        IoError::Shape { file: self.file.clone(), group: group.to_owned(), field: field.to_owned(), reason: reason.to_owned() }
+        missing(&self.file, group, field)
     }
 
     /// Writes the whole file back out (an exact copy of what was read, plus any edits to `root`).
@@ -369,6 +286,96 @@ impl RobomimicDataset {
     pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
         write_tree(path, &self.root)
     }
+}
+
+/// The demo `data/<name>` of `file` as MimicGen source data (its `datagen_info`, actions, states
+/// and `model_file`), checked for shape and type.
+///
+/// # Errors
+/// [`IoError::Missing`] for a missing `datagen_info` field, [`IoError::Shape`] or
+/// [`IoError::Invalid`] naming the field that does not fit.
+pub fn source_demo_from_group(file: &str, name: &str, demo: &Group) -> Result<SourceDemo> {
+    let group = format!("data/{name}");
+    let steps = demo_steps(demo);
+    let dg_group = format!("{group}/datagen_info");
+    let info = demo.group("datagen_info").ok_or_else(|| missing(file, &group, "datagen_info"))?;
+    let poses_of = |field: &str, g: &Group, gpath: &str| -> Result<Vec<Pose>> {
+        let d = g.dataset(field).ok_or_else(|| missing(file, gpath, field))?;
+        poses(file, gpath, field, d, steps)
+    };
+    let mut object_poses = BTreeMap::new();
+    let objects_path = format!("{dg_group}/object_poses");
+    let objects = info.group("object_poses").ok_or_else(|| missing(file, &dg_group, "object_poses"))?;
+    for obj in objects.members.keys() {
+        object_poses.insert(obj.clone(), poses_of(obj, objects, &objects_path)?);
+    }
+    let mut subtask_term_signals = BTreeMap::new();
+    let signals_path = format!("{dg_group}/subtask_term_signals");
+    let signals = info.group("subtask_term_signals").ok_or_else(|| missing(file, &dg_group, "subtask_term_signals"))?;
+    for (sig, node) in &signals.members {
+        let Node::Dataset(d) = node else { return Err(invalid(file, &signals_path, sig, "expected a dataset, found a group")) };
+        let values = d
+            .array
+            .values
+            .to_i64()
+            .ok_or_else(|| invalid(file, &signals_path, sig, &format!("expected integers, found {}", d.array.values.dtype_name())))?;
+        if values.len() != steps {
+            return Err(shape(file, &signals_path, sig, &format!("has {} values but the demo has {steps} steps", values.len())));
+        }
+        subtask_term_signals.insert(sig.clone(), values);
+    }
+    let actions = rows(file, &group, "actions", demo.dataset("actions"))?;
+    let states = rows(file, &group, "states", demo.dataset("states"))?;
+    Ok(SourceDemo {
+        name: name.to_owned(),
+        eef_poses: poses_of("eef_pose", info, &dg_group)?,
+        target_poses: poses_of("target_pose", info, &dg_group)?,
+        gripper_actions: rows(file, &dg_group, "gripper_action", info.dataset("gripper_action"))?,
+        object_poses,
+        subtask_term_signals,
+        manual_subtask_ends: None,
+        sim: SimPayload { actions, states, model_xml: demo.attrs.get("model_file").and_then(Array::as_str).map(str::to_owned) },
+    })
+}
+
+fn poses(file: &str, group: &str, field: &str, d: &Dataset, steps: usize) -> Result<Vec<Pose>> {
+    if d.array.shape.as_slice() != [steps, 4, 4] {
+        return Err(shape(file, group, field, &format!("expected ({steps}, 4, 4) (one 4x4 pose per step), found {:?}", d.array.shape)));
+    }
+    let values = floats(file, group, field, d)?;
+    values
+        .chunks_exact(16)
+        .enumerate()
+        .map(|(t, m)| {
+            pose_from_matrix(&Mat4::from_row_slice(m), &format!("step {t}")).map_err(|e| invalid(file, group, field, &e.to_string()))
+        })
+        .collect()
+}
+
+fn rows(file: &str, group: &str, field: &str, d: Option<&Dataset>) -> Result<Rows> {
+    let Some(d) = d else { return Ok(Rows::new(0)) };
+    let width = match d.array.shape.as_slice() {
+        [_, w] => *w,
+        [_] => 1,
+        other => return Err(shape(file, group, field, &format!("expected (T, D), found {other:?}"))),
+    };
+    Rows::from_vec(width, floats(file, group, field, d)?, field).map_err(|e| shape(file, group, field, &e.to_string()))
+}
+
+fn floats(file: &str, group: &str, field: &str, d: &Dataset) -> Result<Vec<f64>> {
+    d.array.values.to_f64().ok_or_else(|| invalid(file, group, field, &format!("expected numbers, found {}", d.array.values.dtype_name())))
+}
+
+fn missing(file: &str, group: &str, field: &str) -> IoError {
+    IoError::Missing { file: file.to_owned(), group: group.to_owned(), field: field.to_owned(), hint: String::new() }
+}
+
+fn invalid(file: &str, group: &str, field: &str, reason: &str) -> IoError {
+    IoError::Invalid { file: file.to_owned(), group: group.to_owned(), field: field.to_owned(), reason: reason.to_owned() }
+}
+
+fn shape(file: &str, group: &str, field: &str, reason: &str) -> IoError {
+    IoError::Shape { file: file.to_owned(), group: group.to_owned(), field: field.to_owned(), reason: reason.to_owned() }
 }
 
 /// Filter keys of a `mask` group with the demo names each lists.
@@ -449,9 +456,19 @@ pub struct DemoReader {
     data_attrs: BTreeMap<String, Array>,
     mask: Option<Group>,
     demo_names: Vec<String>,
+    /// Demo members not read (observations, for readers that need only MimicGen's fields).
+    skip: &'static [&'static str],
 }
 
 impl DemoReader {
+    /// The same reader, leaving each demo's `obs` and `next_obs` unread (most of a generated
+    /// dataset's bytes, and compressed): for readers of poses, actions, states and signals.
+    #[must_use]
+    pub fn without_observations(mut self) -> Self {
+        self.skip = &["obs", "next_obs"];
+        self
+    }
+
     /// Opens a dataset, reading only its names, attributes and masks (same checks and options
     /// as [`RobomimicDataset::open_with`], per demo when it is read).
     ///
@@ -488,7 +505,7 @@ impl DemoReader {
             Ok(g) => Some(tree::read_group(&file, &g, "mask")?),
             Err(_) => None,
         };
-        Ok(Self { file, data, data_attrs, mask, demo_names: sort_demo_names(names) })
+        Ok(Self { file, data, data_attrs, mask, demo_names: sort_demo_names(names), skip: &[] })
     }
 }
 
@@ -509,7 +526,7 @@ impl DemoSource for DemoReader {
             field: name.to_owned(),
             hint: String::new(),
         })?;
-        let demo = tree::read_group(&self.file, &g, &group)?;
+        let demo = tree::read_group_except(&self.file, &g, &group, self.skip)?;
         check_demo(&self.file, name, &demo)?;
         Ok(std::borrow::Cow::Owned(demo))
     }

@@ -32,6 +32,8 @@ pub mod mcap_export;
 pub mod tree;
 pub mod writer;
 
-pub use dataset::{DatasetReport, DemoReader, DemoSource, ReadOptions, RobomimicDataset, read_source_dataset, write_tree};
+pub use dataset::{
+    DatasetReport, DemoReader, DemoSource, ReadOptions, RobomimicDataset, read_source_dataset, source_demo_from_group, write_tree,
+};
 pub use error::{IoError, Result};
 pub use writer::{ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, Observation, WriterOptions};

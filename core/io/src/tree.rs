@@ -255,9 +255,17 @@ impl Group {
 
 /// Reads `path` from `file_label` into a [`Group`] tree (`group_path` names it in errors).
 pub(crate) fn read_group(file: &str, group: &hdf5::Group, group_path: &str) -> Result<Group> {
+    read_group_except(file, group, group_path, &[])
+}
+
+/// [`read_group`] leaving out the direct members named in `skip` (and everything below them).
+pub(crate) fn read_group_except(file: &str, group: &hdf5::Group, group_path: &str, skip: &[&str]) -> Result<Group> {
     let err = |field: &str, e: &hdf5::Error| IoError::hdf5(file, group_path, field, e);
     let mut out = Group { attrs: read_attrs(file, group, group_path)?, members: BTreeMap::new() };
     for name in group.member_names().map_err(|e| err("", &e))? {
+        if skip.contains(&name.as_str()) {
+            continue;
+        }
         let child = join(group_path, &name);
         let node = if let Ok(g) = group.group(&name) {
             Node::Group(read_group(file, &g, &child)?)

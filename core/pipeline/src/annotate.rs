@@ -5,12 +5,13 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use mimicgen_engine::SourceDemo;
 use mimicgen_engine::TaskSpec;
 use mimicgen_engine::detect::{Proposal, propose_subtask_ends, signal_for_end};
 use mimicgen_engine::segment::subtask_end_from_signal;
 use mimicgen_engine::spec::SourceSelection;
-use mimicgen_io::RobomimicDataset;
 use mimicgen_io::tree::{Array, Dataset, Group, Node};
+use mimicgen_io::{DatasetReport, DemoReader, DemoSource as _, IoError, ReadOptions, RobomimicDataset, source_demo_from_group};
 use mimicgen_sim::{Scene, registry};
 use serde::Serialize;
 
@@ -69,6 +70,89 @@ impl Annotations {
     }
 }
 
+/// Proposes subtask ends one demo at a time: the task's spec, the scene (for finger openings) and
+/// the signal names, worked out once per file.
+#[derive(Debug)]
+pub struct Proposer {
+    label: String,
+    spec: TaskSpec,
+    scene: Scene,
+    signal_names: Vec<String>,
+}
+
+impl Proposer {
+    /// Works out the task (`task`, else the file's `env_args`) and spec (`config`, else the task's
+    /// bundled one) of `path`, and its scene (from `model_xml`, a demo's `model_file`, else the
+    /// task's own).
+    ///
+    /// # Errors
+    /// [`PipelineError`] naming the file and field for unknown tasks, specs that do not load and
+    /// scenes that do not compile.
+    pub fn new(
+        path: &Path,
+        env_args: Option<&str>,
+        model_xml: Option<&str>,
+        task: Option<&str>,
+        config: Option<&Path>,
+    ) -> Result<Self, PipelineError> {
+        let label = path.display().to_string();
+        let spec_from_file =
+            config.map(|c| TaskSpec::load(c).map_err(|e| PipelineError::engine(c.display().to_string(), e))).transpose()?;
+        let (task, _) = resolve_task(task, None, spec_from_file.as_ref().zip(config), env_args.map(|a| (a, path)))?;
+        let spec = match spec_from_file {
+            Some(spec) => spec,
+            None => TaskSpec::from_toml_str(
+                registry::default_spec_toml(task.name()).unwrap_or_default(),
+                &format!("bundled {} spec", task.name()),
+            )
+            .map_err(|e| PipelineError::engine("bundled spec", e))?,
+        };
+        let scene = match model_xml {
+            Some(xml) => Scene::from_model_file(xml, &format!("{label} (model_file)"), task.as_ref())?,
+            None => Scene::for_task(task.as_ref())?,
+        };
+        let signal_names = spec.subtasks.iter().take(spec.subtasks.len().saturating_sub(1)).filter_map(|s| s.term_signal.clone()).collect();
+        Ok(Self { label, spec, scene, signal_names })
+    }
+
+    /// The spec whose subtasks are annotated.
+    #[must_use]
+    pub fn spec(&self) -> &TaskSpec {
+        &self.spec
+    }
+
+    /// The scene the demos were recorded in.
+    #[must_use]
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Proposes `demo`'s subtask ends and reads the ends its own signals give.
+    ///
+    /// # Errors
+    /// [`PipelineError`] naming the file and demo when its states do not fit the scene or its
+    /// gripper commands cannot be read.
+    pub fn annotate(&self, demo: &SourceDemo) -> Result<DemoAnnotation, PipelineError> {
+        let widths = if demo.sim.states.is_empty() { None } else { Some(self.scene.finger_widths(&demo.sim.states)?) };
+        let proposals =
+            propose_subtask_ends(demo, &self.spec, widths.as_deref()).map_err(|e| PipelineError::engine(self.label.clone(), e))?;
+        let signal_ends = (self.signal_names.len() + 1 == self.spec.subtasks.len())
+            .then(|| {
+                let mut start = 0;
+                self.signal_names
+                    .iter()
+                    .map(|name| {
+                        let end = subtask_end_from_signal(demo.subtask_term_signals.get(name)?, start)?;
+                        start = end;
+                        Some(end)
+                    })
+                    .collect::<Option<Vec<usize>>>()
+            })
+            .flatten();
+        Ok(DemoAnnotation { demo: demo.name.clone(), len: demo.len(), proposals, signal_ends, finger_width_m: widths })
+    }
+}
+
 /// Reads `path` (MimicGen source layout), works out its task (`task`, else its `env_args`) and
 /// spec (`config`, else the task's bundled one), and proposes every demo's subtask ends from its
 /// gripper commands, finger openings (from the stored states and the scene) and object poses.
@@ -78,43 +162,59 @@ impl Annotations {
 /// gripper commands cannot be read.
 pub fn propose(path: &Path, task: Option<&str>, config: Option<&Path>) -> Result<Annotations, PipelineError> {
     let file = RobomimicDataset::open(path)?;
-    let label = path.display().to_string();
-    let spec_from_file = config.map(|c| TaskSpec::load(c).map_err(|e| PipelineError::engine(c.display().to_string(), e))).transpose()?;
-    let (task, _) = resolve_task(task, None, spec_from_file.as_ref().zip(config), file.env_args().map(|a| (a, path)))?;
-    let spec = match spec_from_file {
-        Some(spec) => spec,
-        None => {
-            TaskSpec::from_toml_str(registry::default_spec_toml(task.name()).unwrap_or_default(), &format!("bundled {} spec", task.name()))
-                .map_err(|e| PipelineError::engine("bundled spec", e))?
-        }
-    };
     let sources = file.to_source_dataset(&SourceSelection::default())?;
-    let scene = match sources.demos.first().and_then(|d| d.sim.model_xml.as_deref()) {
-        Some(xml) => Scene::from_model_file(xml, &format!("{label} (model_file)"), task.as_ref())?,
-        None => Scene::for_task(task.as_ref())?,
+    let model_xml = sources.demos.first().and_then(|d| d.sim.model_xml.as_deref());
+    let proposer = Proposer::new(path, file.env_args(), model_xml, task, config)?;
+    let demos = sources.demos.iter().map(|d| proposer.annotate(d)).collect::<Result<Vec<_>, _>>()?;
+    Ok(Annotations { spec: proposer.spec, demos, sources, scene: proposer.scene })
+}
+
+/// [`propose`] for large files, demo by demo without reading observations: `on_start` gets the
+/// proposer and the number of demos once the first demo is read, then `on_chunk` gets every
+/// `chunk` demos (read, checked and annotated) as they are ready. A file without `datagen_info` is
+/// [`IoError::NotMimicGen`] before anything is reported.
+///
+/// # Errors
+/// As [`propose`], naming the demo at fault; demos reported before it stay reported.
+pub fn propose_streaming(
+    path: &Path,
+    chunk: usize,
+    on_start: impl FnOnce(&Proposer, usize),
+    mut on_chunk: impl FnMut(Vec<(SourceDemo, DemoAnnotation)>),
+) -> Result<(), PipelineError> {
+    let reader = DemoReader::open_with(path, ReadOptions::default())?.without_observations();
+    let label = path.display().to_string();
+    let names = reader.demo_names().to_vec();
+    let read = |name: &str| -> Result<SourceDemo, PipelineError> {
+        let group = reader.load_demo(name)?;
+        let mut report = DatasetReport { file: label.clone(), ..DatasetReport::default() };
+        report.add_demo(name, &group);
+        if !report.is_mimicgen_source() {
+            return Err(IoError::NotMimicGen { file: label.clone(), report: Box::new(report) }.into());
+        }
+        let demo = source_demo_from_group(&label, name, &group)?;
+        demo.validate().map_err(|e| PipelineError::engine(label.clone(), e))?;
+        Ok(demo)
     };
-    let signal_names: Vec<&str> =
-        spec.subtasks.iter().take(spec.subtasks.len().saturating_sub(1)).filter_map(|s| s.term_signal.as_deref()).collect();
-    let mut demos = Vec::with_capacity(sources.demos.len());
-    for demo in &sources.demos {
-        let widths = if demo.sim.states.is_empty() { None } else { Some(scene.finger_widths(&demo.sim.states)?) };
-        let proposals = propose_subtask_ends(demo, &spec, widths.as_deref()).map_err(|e| PipelineError::engine(label.clone(), e))?;
-        let signal_ends = (signal_names.len() + 1 == spec.subtasks.len())
-            .then(|| {
-                let mut start = 0;
-                signal_names
-                    .iter()
-                    .map(|name| {
-                        let end = subtask_end_from_signal(demo.subtask_term_signals.get(*name)?, start)?;
-                        start = end;
-                        Some(end)
-                    })
-                    .collect::<Option<Vec<usize>>>()
-            })
-            .flatten();
-        demos.push(DemoAnnotation { demo: demo.name.clone(), len: demo.len(), proposals, signal_ends, finger_width_m: widths });
+    let Some(first_name) = names.first() else {
+        return Err(PipelineError::input(label, "data", "holds no demos"));
+    };
+    let first = read(first_name)?;
+    let proposer = Proposer::new(path, reader.env_args_json(), first.sim.model_xml.as_deref(), None, None)?;
+    on_start(&proposer, names.len());
+    let mut batch = Vec::with_capacity(chunk);
+    let first_annotation = proposer.annotate(&first)?;
+    batch.push((first, first_annotation));
+    for name in &names[1..] {
+        if batch.len() >= chunk.max(1) {
+            on_chunk(std::mem::take(&mut batch));
+        }
+        let demo = read(name)?;
+        let annotation = proposer.annotate(&demo)?;
+        batch.push((demo, annotation));
     }
-    Ok(Annotations { spec, demos, sources, scene })
+    on_chunk(batch);
+    Ok(())
 }
 
 /// Writes `input` to `out` with each demo of `ends` given the subtask-end signals of those ends
