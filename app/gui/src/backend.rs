@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 
 use mimicgen_engine::transform::WaypointKind;
-use mimicgen_engine::{Attempt, Plan, Pose, RunStats, SourceDataset, SourceDemo};
+use mimicgen_engine::{Attempt, Overrides, Plan, Pose, RunStats, SourceDataset, SourceDemo};
 use mimicgen_io::IoError;
 use mimicgen_pipeline::annotate::{Annotations, DemoAnnotation};
 use mimicgen_pipeline::preview::Previewer;
@@ -308,8 +308,25 @@ impl Worker {
             }
         };
         previewer.configure(&request.ends, request.seed)?;
-        let plan = previewer.plan(request.index, &request.sources)?;
-        let executed = if request.execute { Some(previewer.try_attempt(request.index, &request.sources)?) } else { None };
+        let mut overrides = Overrides { sources: request.sources.clone(), ..Overrides::default() };
+        if !request.moved.is_empty() {
+            let sampled = previewer.plan(request.index, &overrides)?.initial_object_poses;
+            for (name, [x, y]) in &request.moved {
+                let mut pose = *sampled.get(name).ok_or_else(|| PipelineError::Engine {
+                    file: "preview".to_owned(),
+                    source: mimicgen_engine::EngineError::UnknownName {
+                        field: "moved object".to_owned(),
+                        name: name.clone(),
+                        available: sampled.keys().cloned().collect(),
+                    },
+                })?;
+                pose.translation.vector.x = *x;
+                pose.translation.vector.y = *y;
+                overrides.object_poses.insert(name.clone(), pose);
+            }
+        }
+        let plan = previewer.plan(request.index, &overrides)?;
+        let executed = if request.execute { Some(previewer.try_attempt(request.index, &overrides)?) } else { None };
         let view = preview_view(previewer, &plan, executed.as_ref());
         if let Some(attempt) = &executed
             && let Err(e) = self.show_attempt_3d(attempt)

@@ -122,11 +122,14 @@ impl MimicgenApp {
                 egui::Panel::left("preview").default_size(300.0).show(ui, |ui| preview_ui::controls(ui, &self.model, &mut commands));
                 match viewer {
                     Some(viewer) => {
-                        egui::Panel::right("views").resizable(true).default_size(520.0).show(ui, |ui| preview_ui::views(ui, &self.model));
+                        egui::Panel::right("views")
+                            .resizable(true)
+                            .default_size(520.0)
+                            .show(ui, |ui| preview_ui::views(ui, &self.model, &mut self.ui, &mut commands));
                         viewer(ui);
                     }
                     None => {
-                        egui::CentralPanel::default().show(ui, |ui| preview_ui::views(ui, &self.model));
+                        egui::CentralPanel::default().show(ui, |ui| preview_ui::views(ui, &self.model, &mut self.ui, &mut commands));
                     }
                 }
             }

@@ -26,13 +26,15 @@ pub struct PreviewState {
     pub index: u64,
     /// The source demo forced per subtask (`None`: the selection strategy picks).
     pub sources: Vec<Option<usize>>,
+    /// Objects moved by hand in the top-down view: (x, y) per object name.
+    pub moved: BTreeMap<String, [f64; 2]>,
     /// The last preview the backend sent.
     pub view: Option<PreviewView>,
 }
 
 impl Default for PreviewState {
     fn default() -> Self {
-        Self { seed: 1, index: 0, sources: Vec::new(), view: None }
+        Self { seed: 1, index: 0, sources: Vec::new(), moved: BTreeMap::new(), view: None }
     }
 }
 
@@ -89,6 +91,15 @@ pub enum Command {
     },
     /// Execute the previewed attempt in simulation.
     TryIt,
+    /// Move an object of the previewed scene to (x, y) on the table.
+    MoveObject {
+        /// The object.
+        name: String,
+        /// Where (m, world frame).
+        xy: [f64; 2],
+    },
+    /// Put every moved object back where the scene had it.
+    ResetObjects,
     /// Stream the shown demo, and every demo shown and attempt tried after, to Rerun.
     Open3d(ViewerSink),
 }
@@ -194,6 +205,7 @@ impl AppModel {
             seed: p.seed,
             index: p.index,
             sources: p.sources.clone(),
+            moved: p.moved.clone(),
             execute,
         }))
     }
@@ -302,15 +314,30 @@ impl AppModel {
             }
             Command::SetPreviewSeed(seed) => {
                 self.preview.seed = seed;
+                self.preview.moved.clear();
                 return self.preview_request(false);
             }
             Command::SetPreviewIndex(index) => {
                 self.preview.index = index;
+                self.preview.moved.clear();
                 return self.preview_request(false);
             }
             Command::NextScene => {
                 self.preview.index = self.preview.index.saturating_add(1);
+                self.preview.moved.clear();
                 return self.preview_request(false);
+            }
+            Command::MoveObject { name, xy } => {
+                if xy.iter().all(|v| v.is_finite()) {
+                    self.preview.moved.insert(name, xy);
+                    return self.preview_request(false);
+                }
+            }
+            Command::ResetObjects => {
+                if !self.preview.moved.is_empty() {
+                    self.preview.moved.clear();
+                    return self.preview_request(false);
+                }
             }
             Command::SetPreviewSource { subtask, demo } => {
                 let num_demos = self.file.as_ref().map_or(0, |f| f.demos.len());

@@ -8,7 +8,17 @@ use egui_plot::{Corner, Legend, Line, LineStyle, MarkerShape, Plot, PlotPoint, P
 
 use crate::model::{AppModel, Command};
 use crate::protocol::{Point, PreviewView};
-use crate::ui::subtask_color;
+use crate::ui::{UiState, subtask_color};
+
+/// The id of preview plot `name` (`top`, `side`), where egui_plot keeps its transform (tests find
+/// screen positions of objects through it).
+#[must_use]
+pub fn preview_plot_id(name: &str) -> egui::Id {
+    egui::Id::new(("preview", name))
+}
+
+/// How close (in screen points) a press must be to an object to pick it up.
+const PICK_RADIUS_PX: f32 = 12.0;
 
 /// Colour of the executed path (and the objects where it left them): bright on the dark theme.
 const EXECUTED: Color32 = Color32::from_rgb(235, 235, 235);
@@ -39,12 +49,23 @@ pub fn controls(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>
         if ui.button("New scene").on_hover_text("The next attempt's scene from the variant's reset distribution").clicked() {
             commands.push(Command::NextScene);
         }
+        if !p.moved.is_empty()
+            && ui.button("Reset objects").on_hover_text("Put the objects you dragged back where the scene had them").clicked()
+        {
+            commands.push(Command::ResetObjects);
+        }
         if ui.button("Try it").on_hover_text("Execute this attempt in MuJoCo, exactly as generate would").clicked() {
             commands.push(Command::TryIt);
         }
     });
     let Some(view) = &p.view else { return };
     ui.label(format!("{} {}: attempt {} of seed {}", view.task, view.variant, view.index, view.seed));
+    if p.moved.is_empty() {
+        ui.label(RichText::new("Drag an object in the view from above to move it.").italics());
+    } else {
+        let moved: Vec<&str> = p.moved.keys().map(String::as_str).collect();
+        ui.label(format!("Moved by hand: {}", moved.join(", ")));
+    }
     if let Some(e) = &view.executed {
         let (text, color) = if e.success {
             (format!("Tried: success in {} steps", e.path.len()), Color32::from_rgb(30, 140, 60))
@@ -102,9 +123,21 @@ fn xy(points: &[Point], axes: (usize, usize)) -> PlotPoints<'static> {
 
 /// One view of the scene: `axes` picks the plotted coordinates ((0, 1) from above, (0, 2) from
 /// the side).
-fn view_plot(ui: &mut egui::Ui, id: &str, view: &PreviewView, axes: (usize, usize), size: egui::Vec2) {
+fn view_plot(
+    ui: &mut egui::Ui,
+    id: &str,
+    view: &PreviewView,
+    axes: (usize, usize),
+    size: egui::Vec2,
+    state: &mut UiState,
+    commands: &mut Vec<Command>,
+) {
     let names = ["x (m)", "y (m)", "z (m)"];
-    Plot::new(id)
+    let top = axes == (0, 1);
+    let dragged = state.object_drag.clone();
+    let response = Plot::new(id)
+        .id(preview_plot_id(id))
+        .allow_drag(!top)
         .width(size.x)
         .height(size.y)
         .data_aspect(1.0)
@@ -149,7 +182,10 @@ fn view_plot(ui: &mut egui::Ui, id: &str, view: &PreviewView, axes: (usize, usiz
                     .color(Color32::GRAY),
             );
             for o in &view.objects {
-                let at = [o.position[axes.0], o.position[axes.1]];
+                let at = match &dragged {
+                    Some((name, xy)) if top && *name == o.name => *xy,
+                    _ => [o.position[axes.0], o.position[axes.1]],
+                };
                 plot.points(
                     Points::new("objects", PlotPoints::new(vec![at]))
                         .shape(MarkerShape::Square)
@@ -158,11 +194,37 @@ fn view_plot(ui: &mut egui::Ui, id: &str, view: &PreviewView, axes: (usize, usiz
                 );
                 plot.text(Text::new("objects", PlotPoint::new(at[0], at[1]), format!("  {}", o.name)).anchor(egui::Align2::LEFT_CENTER));
             }
+            (plot.response().clone(), plot.pointer_coordinate(), *plot.transform())
         });
+    if !top {
+        return;
+    }
+    let (response, pointer, transform) = response.inner;
+    if response.drag_stopped() {
+        if let Some((name, xy)) = state.object_drag.take() {
+            commands.push(Command::MoveObject { name, xy });
+        }
+        return;
+    }
+    let Some(pointer) = pointer else { return };
+    if response.drag_started() {
+        let at = transform.position_from_point(&pointer);
+        state.object_drag = view
+            .objects
+            .iter()
+            .map(|o| (o, transform.position_from_point(&PlotPoint::new(o.position[0], o.position[1])).distance(at)))
+            .filter(|(_, d)| *d <= PICK_RADIUS_PX)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(o, _)| (o.name.clone(), [pointer.x, pointer.y]));
+    } else if response.dragged()
+        && let Some((_, xy)) = &mut state.object_drag
+    {
+        *xy = [pointer.x, pointer.y];
+    }
 }
 
-/// The scene from above and from the side.
-pub fn views(ui: &mut egui::Ui, model: &AppModel) {
+/// The scene from above (objects can be dragged there) and from the side.
+pub fn views(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: &mut Vec<Command>) {
     let Some(view) = &model.preview.view else {
         ui.label("Planning the first scene...");
         return;
@@ -172,11 +234,11 @@ pub fn views(ui: &mut egui::Ui, model: &AppModel) {
     ui.horizontal(|ui| {
         ui.vertical(|ui| {
             ui.strong("From above");
-            view_plot(ui, "top", view, (0, 1), size - egui::vec2(0.0, 20.0));
+            view_plot(ui, "top", view, (0, 1), size - egui::vec2(0.0, 20.0), state, commands);
         });
         ui.vertical(|ui| {
             ui.strong("From the side");
-            view_plot(ui, "side", view, (0, 2), size - egui::vec2(0.0, 20.0));
+            view_plot(ui, "side", view, (0, 2), size - egui::vec2(0.0, 20.0), state, commands);
         });
     });
 }

@@ -69,6 +69,8 @@ pub struct PreviewRequest {
     pub index: u64,
     /// The source demo forced for each subtask (`None`: the selection strategy picks).
     pub sources: Vec<Option<usize>>,
+    /// Objects moved by hand: their new (x, y) on the table (height and rotation as sampled).
+    pub moved: BTreeMap<String, [f64; 2]>,
     /// Also execute the attempt.
     pub execute: bool,
 }

@@ -31,6 +31,8 @@ pub struct UiState {
     pub save_path: String,
     /// A boundary being dragged: (subtask, current x).
     pub drag: Option<(usize, f64)>,
+    /// An object being dragged in the preview's view from above: (name, current x, y).
+    pub object_drag: Option<(String, [f64; 2])>,
     /// Time of the last playback step (s).
     pub last_tick_s: f64,
 }

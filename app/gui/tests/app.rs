@@ -298,3 +298,49 @@ fn a_large_file_streams_in_and_is_browsable_before_it_is_read() {
     assert_eq!(model.ends["demo_83"], model.ends["demo_3"], "copies of a demo get its ends");
     h.get_by_label("90 demos");
 }
+
+/// Objects dragged in the view from above make the scene the preview plans (and "try it" runs).
+#[test]
+fn dragging_an_object_from_above_moves_it_in_the_planned_scene() {
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    h.get_by_label("Preview").click();
+    h.step();
+    settle(&mut h);
+    let before = h.state().model.preview.view.clone().unwrap();
+    let cube = before.objects.iter().find(|o| o.name == "cubeA").unwrap().clone();
+    let memory = egui_plot::PlotMemory::load(&h.ctx, mimicgen_gui::preview_ui::preview_plot_id("top")).unwrap();
+    let at = |x: f64, y: f64| memory.transform().position_from_point(&egui_plot::PlotPoint::new(x, y));
+    let (from, to) = (at(cube.position[0], cube.position[1]), at(cube.position[0] + 0.03, cube.position[1] - 0.02));
+    h.hover_at(from);
+    h.step();
+    h.drag_at(from);
+    h.step();
+    for i in 1..=6 {
+        h.hover_at(from + (to - from) * (i as f32 / 6.0));
+        h.step();
+    }
+    h.step();
+    h.drop_at(to);
+    h.step();
+    settle(&mut h);
+    let moved = h.state().model.preview.moved.get("cubeA").copied().unwrap();
+    assert!((moved[0] - (cube.position[0] + 0.03)).abs() < 0.003 && (moved[1] - (cube.position[1] - 0.02)).abs() < 0.003, "{moved:?}");
+    let after = h.state().model.preview.view.clone().unwrap();
+    let planned = after.objects.iter().find(|o| o.name == "cubeA").unwrap();
+    assert_eq!([planned.position[0], planned.position[1]], moved, "the plan uses the moved cube");
+    assert_eq!(planned.position[2], cube.position[2], "height as sampled");
+    let other = |v: &mimicgen_gui::protocol::PreviewView| v.objects.iter().find(|o| o.name == "cubeB").unwrap().position;
+    assert_eq!(other(&after), other(&before));
+    assert_ne!(after.subtasks[0].transformed, before.subtasks[0].transformed, "the segment follows the cube");
+    h.get_by_label("Try it").click();
+    h.step();
+    settle(&mut h);
+    let tried = h.state().model.preview.view.clone().unwrap();
+    assert!(tried.executed.is_some() && tried.objects == after.objects, "try it runs the moved scene");
+    h.get_by_label("Reset objects").click();
+    h.step();
+    settle(&mut h);
+    assert!(h.state().model.preview.moved.is_empty());
+    assert_eq!(h.state().model.preview.view.as_ref().unwrap().objects, before.objects);
+}

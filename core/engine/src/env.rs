@@ -66,6 +66,18 @@ pub trait Environment {
     /// The flattened simulator state.
     fn state(&self) -> Vec<f64>;
 
+    /// Moves the named objects to these poses (at rest), after a reset: a scene set by hand.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] naming an object the scene does not have, or when the environment
+    /// cannot place objects (the default).
+    fn place_objects(&mut self, world_from_objects: &BTreeMap<String, Pose>) -> Result<(), EnvError> {
+        match world_from_objects.keys().next() {
+            Some(name) => Err(EnvError::Fatal { reason: format!("this environment cannot place objects (asked to move {name:?})") }),
+            None => Ok(()),
+        }
+    }
+
     /// Restores a state returned by [`Environment::state`].
     ///
     /// # Errors

@@ -254,22 +254,19 @@ impl Generator {
     /// # Errors
     /// Only [`EnvError::Fatal`] problems; a failed attempt is an `Ok` record with `success == false`.
     pub fn attempt<E: Environment + ?Sized>(&self, env: &mut E, index: u64) -> Result<Attempt, EngineError> {
-        self.attempt_with(env, index, &[])
+        self.attempt_with(env, index, &Overrides::default())
     }
 
-    /// [`Generator::attempt`] with the source demo of subtask `k` forced to `sources[k]` where that
-    /// is `Some`. The selection still draws its random numbers, so the scene, the segment offsets
-    /// and the action noise are those of attempt `index` of a run: with no overrides this is that
-    /// attempt exactly.
+    /// [`Generator::attempt`] with what `overrides` forces: the source demo of some subtasks, and
+    /// objects moved after the reset. Every random number is still drawn, so the segment offsets
+    /// and the action noise (and the scene, but for the moved objects) are those of attempt
+    /// `index` of a run: with no overrides this is that attempt exactly.
     ///
     /// # Errors
-    /// As [`Generator::attempt`], and [`EngineError::Config`] for an override past the last demo.
-    pub fn attempt_with<E: Environment + ?Sized>(
-        &self,
-        env: &mut E,
-        index: u64,
-        sources: &[Option<usize>],
-    ) -> Result<Attempt, EngineError> {
+    /// As [`Generator::attempt`], and [`EngineError::Config`] for a source past the last demo or
+    /// [`EngineError::Env`] for an object the scene does not have.
+    pub fn attempt_with<E: Environment + ?Sized>(&self, env: &mut E, index: u64, overrides: &Overrides) -> Result<Attempt, EngineError> {
+        let sources = &overrides.sources;
         self.check_overrides(sources)?;
         let settings = &self.spec.generation;
         let mut rng = attempt_rng(settings.seed, index);
@@ -293,6 +290,7 @@ impl Generator {
             attempt.failure = Some(unstable(e, 0)?);
             return Ok(attempt);
         }
+        env.place_objects(&overrides.object_poses).map_err(fatal)?;
         attempt.initial_object_poses = env.object_poses();
         attempt.initial_state = env.state();
         attempt.trajectory = Trajectory::new(attempt.initial_state.len(), env.action_dim());
@@ -346,8 +344,9 @@ impl Generator {
         Ok(attempt)
     }
 
-    /// Plans attempt `index` without executing it: samples its scene (the same as the attempt's)
-    /// and, for every subtask, ranks and picks the source demo (or takes `sources[k]`), transforms
+    /// Plans attempt `index` without executing it: samples its scene (the same as the attempt's,
+    /// with the objects `overrides` moves moved) and, for every subtask, ranks and picks the source
+    /// demo (or takes the one `overrides` forces), transforms
     /// its segment into the scene and bridges to it. Objects are taken to stay where the scene put
     /// them and each subtask to start where the previous one's last target is, so later subtasks
     /// are what the attempt would plan if execution went as planned (with per-subtask random
@@ -355,11 +354,13 @@ impl Generator {
     ///
     /// # Errors
     /// As [`Generator::attempt_with`]; a scene the simulator rejects is [`EngineError::Env`].
-    pub fn plan<E: Environment + ?Sized>(&self, env: &mut E, index: u64, sources: &[Option<usize>]) -> Result<Plan, EngineError> {
+    pub fn plan<E: Environment + ?Sized>(&self, env: &mut E, index: u64, overrides: &Overrides) -> Result<Plan, EngineError> {
+        let sources = &overrides.sources;
         self.check_overrides(sources)?;
         let mut rng = attempt_rng(self.spec.generation.seed, index);
         let fatal = |e: EnvError| EngineError::Env { attempt: index, source: e };
         env.reset(&mut rng).map_err(fatal)?;
+        env.place_objects(&overrides.object_poses).map_err(fatal)?;
         let objects = env.object_poses();
         let world_from_eef = env.eef_pose();
         let spans = self.segmentation.draw_spans(&mut rng);
@@ -469,6 +470,16 @@ impl Generator {
         };
         Ok((plan, waypoints))
     }
+}
+
+/// What a caller forces in a planned or executed attempt; everything else is drawn as a run
+/// draws it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    /// The source demo of subtask `k` where `sources[k]` is `Some` (the selection picks otherwise).
+    pub sources: Vec<Option<usize>>,
+    /// Objects moved after the reset (the others stay where the reset put them).
+    pub object_poses: BTreeMap<String, Pose>,
 }
 
 /// Where one subtask is planned from.

@@ -119,6 +119,17 @@ impl Environment for PickPlace {
         BTreeMap::from([("grasp".to_owned(), i64::from(self.eef_from_held.is_some()))])
     }
 
+    fn place_objects(&mut self, world_from_objects: &BTreeMap<String, Pose>) -> Result<(), EnvError> {
+        for (name, pose) in world_from_objects {
+            match name.as_str() {
+                "cubeA" => self.cube_a = *pose,
+                "cubeB" => self.cube_b = *pose,
+                _ => return Err(EnvError::Fatal { reason: format!("no object {name:?} (the scene has cubeA, cubeB)") }),
+            }
+        }
+        Ok(())
+    }
+
     fn is_success(&self) -> bool {
         let offset = self.cube_a.translation.vector - self.cube_b.translation.vector;
         self.eef_from_held.is_none() && offset.xy().norm() < PLACE_TOLERANCE_M && (offset.z - 2.0 * CUBE_HALF_M).abs() < 1e-6

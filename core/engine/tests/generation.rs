@@ -6,7 +6,7 @@ use std::ops::ControlFlow;
 use mimicgen_engine::generate::FailureReason;
 use mimicgen_engine::kinematic::{self, PickPlace};
 use mimicgen_engine::transform::WaypointKind;
-use mimicgen_engine::{Attempt, Environment, Generator, SelectionStrategy, TaskSpec, run};
+use mimicgen_engine::{Attempt, Environment, Generator, Overrides, SelectionStrategy, TaskSpec, run};
 
 fn collect(generator: &Generator, workers: usize, half_range_m: f64) -> (Vec<Attempt>, mimicgen_engine::RunStats) {
     let mut envs: Vec<PickPlace> = (0..workers).map(|_| PickPlace::new(half_range_m)).collect();
@@ -265,7 +265,7 @@ fn a_plan_is_the_attempt_before_execution_and_forced_sources_keep_the_scene() {
     let mut env = PickPlace::new(0.15);
     for index in 0..6 {
         let attempt = g.attempt(&mut env, index).unwrap();
-        let plan = g.plan(&mut env, index, &[]).unwrap();
+        let plan = g.plan(&mut env, index, &Overrides::default()).unwrap();
         // Same scene, same source, same first subtask (nothing has executed before it).
         assert_eq!(plan.initial_object_poses, attempt.initial_object_poses);
         assert_eq!(plan.subtasks[0].src_demo, attempt.plans[0].src_demo);
@@ -278,11 +278,33 @@ fn a_plan_is_the_attempt_before_execution_and_forced_sources_keep_the_scene() {
         assert!(nearer < 3, "picked the {}th nearest", nearer + 1);
         // Forcing another source keeps the scene and uses that demo where it is forced.
         let other = (attempt.plans[0].src_demo + 1) % g.dataset().demos.len();
-        let forced = g.attempt_with(&mut env, index, &[Some(other), None]).unwrap();
+        let forced = g.attempt_with(&mut env, index, &Overrides { sources: vec![Some(other), None], ..Overrides::default() }).unwrap();
         assert_eq!(forced.initial_object_poses, attempt.initial_object_poses);
         assert_eq!(forced.src_demo_per_subtask[0], other);
         assert_ne!(forced.plans[0].transformed_poses, attempt.plans[0].transformed_poses);
     }
-    let err = g.plan(&mut env, 0, &[Some(99)]).unwrap_err().to_string();
+    let err = g.plan(&mut env, 0, &Overrides { sources: vec![Some(99)], ..Overrides::default() }).unwrap_err().to_string();
     assert!(err.contains("sources[0]") && err.contains("99"), "{err}");
+}
+
+#[test]
+fn moved_objects_move_the_plan_and_the_attempt_and_nothing_else() {
+    let g = generator(kinematic::pick_place_spec(10, 4));
+    let mut env = PickPlace::new(0.15);
+    let sampled = g.plan(&mut env, 2, &Overrides::default()).unwrap();
+    let mut moved_a = sampled.initial_object_poses["cubeA"];
+    moved_a.translation.vector.x += 0.05;
+    let overrides = Overrides { sources: vec![Some(1), Some(1)], object_poses: [("cubeA".to_owned(), moved_a)].into() };
+    let plan = g.plan(&mut env, 2, &overrides).unwrap();
+    assert_eq!(plan.initial_object_poses["cubeA"], moved_a);
+    assert_eq!(plan.initial_object_poses["cubeB"], sampled.initial_object_poses["cubeB"]);
+    // The subtask relative to cubeA moved with it; the one relative to cubeB did not.
+    let unmoved = g.plan(&mut env, 2, &Overrides { object_poses: Default::default(), ..overrides.clone() }).unwrap();
+    let shift = plan.subtasks[0].transformed_poses[3].translation.vector - unmoved.subtasks[0].transformed_poses[3].translation.vector;
+    assert!((shift - nalgebra::Vector3::new(0.05, 0.0, 0.0)).norm() < 1e-9, "{shift:?}");
+    assert_eq!(plan.subtasks[1].transformed_poses, unmoved.subtasks[1].transformed_poses);
+    let attempt = g.attempt_with(&mut env, 2, &overrides).unwrap();
+    assert_eq!(attempt.initial_object_poses["cubeA"], moved_a);
+    let err = g.plan(&mut env, 2, &Overrides { object_poses: [("cubeZ".to_owned(), moved_a)].into(), ..Overrides::default() }).unwrap_err();
+    assert!(err.to_string().contains("cubeZ"), "{err}");
 }

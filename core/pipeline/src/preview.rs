@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use mimicgen_engine::{Attempt, Generator, Plan};
+use mimicgen_engine::{Attempt, Generator, Overrides, Plan};
 use mimicgen_sim::SimEnv;
 
 use crate::{Pipeline, PipelineError, RunConfig};
@@ -60,21 +60,22 @@ impl Previewer {
         Ok(())
     }
 
-    /// Plans attempt `index` (see [`Generator::plan`]); `sources[k]` forces subtask `k`'s demo.
+    /// Plans attempt `index` (see [`Generator::plan`]) with what `overrides` forces (source demos,
+    /// moved objects).
     ///
     /// # Errors
-    /// [`PipelineError::Engine`] for a forced demo that does not exist or a scene the simulator
-    /// rejects.
-    pub fn plan(&mut self, index: u64, sources: &[Option<usize>]) -> Result<Plan, PipelineError> {
-        self.generator.plan(&mut self.env, index, sources).map_err(|e| PipelineError::engine("preview", e))
+    /// [`PipelineError::Engine`] for a forced demo or moved object that does not exist, or a scene
+    /// the simulator rejects.
+    pub fn plan(&mut self, index: u64, overrides: &Overrides) -> Result<Plan, PipelineError> {
+        self.generator.plan(&mut self.env, index, overrides).map_err(|e| PipelineError::engine("preview", e))
     }
 
-    /// Executes attempt `index` (see [`Generator::attempt_with`]): with no forced sources, the
-    /// attempt a run with this seed makes, step for step.
+    /// Executes attempt `index` (see [`Generator::attempt_with`]): with no overrides, the attempt a
+    /// run with this seed makes, step for step.
     ///
     /// # Errors
     /// As [`Previewer::plan`].
-    pub fn try_attempt(&mut self, index: u64, sources: &[Option<usize>]) -> Result<Attempt, PipelineError> {
-        self.generator.attempt_with(&mut self.env, index, sources).map_err(|e| PipelineError::engine("try it", e))
+    pub fn try_attempt(&mut self, index: u64, overrides: &Overrides) -> Result<Attempt, PipelineError> {
+        self.generator.attempt_with(&mut self.env, index, overrides).map_err(|e| PipelineError::engine("try it", e))
     }
 }

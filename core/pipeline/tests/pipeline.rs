@@ -253,6 +253,7 @@ fn written_annotations_read_back_as_the_same_segments() {
 /// nothing, other ends change the segment the attempt executes.
 #[test]
 fn a_tried_attempt_is_the_attempt_a_run_makes() {
+    use mimicgen_engine::Overrides;
     use mimicgen_pipeline::preview::Previewer;
     let dir = tempfile::tempdir().unwrap();
     let cfg = config(&dir.path().join("run.hdf5"), 3, 1);
@@ -275,10 +276,10 @@ fn a_tried_attempt_is_the_attempt_a_run_makes() {
         .collect();
     preview.configure(&signal_ends, 3).unwrap();
     for ran in &attempts {
-        let tried = preview.try_attempt(ran.index, &[]).unwrap();
+        let tried = preview.try_attempt(ran.index, &Overrides::default()).unwrap();
         assert_eq!(tried.trajectory.actions, ran.trajectory.actions, "attempt {}", ran.index);
         assert_eq!(tried.success, ran.success);
-        let plan = preview.plan(ran.index, &[]).unwrap();
+        let plan = preview.plan(ran.index, &Overrides::default()).unwrap();
         assert_eq!(plan.subtasks[0].waypoints, ran.plans[0].waypoints);
     }
     let demo = attempts[0].plans[0].src_demo;
@@ -286,7 +287,7 @@ fn a_tried_attempt_is_the_attempt_a_run_makes() {
     let name = preview.generator().dataset().demos[demo].name.clone();
     moved.insert(name.clone(), vec![signal_ends[&name][0] - 12]);
     preview.configure(&moved, 3).unwrap();
-    let plan = preview.plan(attempts[0].index, &[Some(demo)]).unwrap();
+    let plan = preview.plan(attempts[0].index, &Overrides { sources: vec![Some(demo)], ..Overrides::default() }).unwrap();
     assert_eq!(plan.subtasks[0].src_span.1 + 12, attempts[0].plans[0].src_span.1);
     // Ends that do not fit name the demo.
     let bad = std::collections::BTreeMap::from([(name.clone(), vec![100_000])]);

@@ -289,6 +289,20 @@ impl Environment for SimEnv {
         pose_from_xpos_xmat(&self.data.site_xpos()[site], &self.data.site_xmat()[site])
     }
 
+    fn place_objects(&mut self, world_from_objects: &BTreeMap<String, Pose>) -> Result<(), EnvError> {
+        for (name, pose) in world_from_objects {
+            let i = self.scene.objects.iter().position(|o| &o.name == name).ok_or_else(|| EnvError::Fatal {
+                reason: format!(
+                    "no object {name:?} in the scene (it has {:?})",
+                    self.scene.objects.iter().map(|o| &o.name).collect::<Vec<_>>()
+                ),
+            })?;
+            self.place_object(i, pose);
+        }
+        self.data.forward();
+        Ok(())
+    }
+
     fn object_poses(&self) -> BTreeMap<String, Pose> {
         (0..self.scene.objects.len()).map(|i| (self.scene.objects[i].name.clone(), self.object_pose(i))).collect()
     }
