@@ -33,6 +33,21 @@ fn settle(h: &mut Harness<'static, MimicgenApp>) {
     h.run_steps(2);
 }
 
+/// Presses at `from`, moves to `to` over a few frames and releases there, as a hand drags.
+fn drag(h: &mut Harness<'static, MimicgenApp>, from: egui::Pos2, to: egui::Pos2) {
+    h.hover_at(from);
+    h.step();
+    h.drag_at(from);
+    h.step();
+    for i in 1..=8 {
+        h.hover_at(from + (to - from) * (i as f32 / 8.0));
+        h.step();
+    }
+    // egui_plot reports the pointer of the frame before: hold still one frame before releasing.
+    h.step();
+    h.drop_at(to);
+}
+
 #[test]
 fn opens_a_source_file_and_shows_every_demo() {
     let mut h = harness(Some(fixture()));
@@ -127,19 +142,7 @@ fn dragging_a_boundary_marker_moves_the_subtask_end() {
     let memory = egui_plot::PlotMemory::load(&h.ctx, mimicgen_gui::ui::timeline_plot_id("gripper")).unwrap();
     #[allow(clippy::cast_precision_loss)]
     let at = |step: usize| memory.transform().position_from_point(&egui_plot::PlotPoint::new(step as f64, 0.0));
-    let (from, to) = (at(end - 1), at(end - 16));
-    h.hover_at(from);
-    h.step();
-    h.drag_at(from);
-    h.step();
-    for i in 1..=8 {
-        h.hover_at(from + (to - from) * (i as f32 / 8.0));
-        h.step();
-    }
-    // egui_plot reports the pointer of the frame before: hold still one frame before releasing,
-    // as a hand does.
-    h.step();
-    h.drop_at(to);
+    drag(&mut h, at(end - 1), at(end - 16));
     h.run_steps(2);
     assert_eq!(h.state().model.demo_ends(), vec![end - 15], "the marker was dropped 15 steps earlier");
     h.get_by_label("Undo").click();
@@ -311,17 +314,7 @@ fn dragging_an_object_from_above_moves_it_in_the_planned_scene() {
     let cube = before.objects.iter().find(|o| o.name == "cubeA").unwrap().clone();
     let memory = egui_plot::PlotMemory::load(&h.ctx, mimicgen_gui::preview_ui::preview_plot_id("top")).unwrap();
     let at = |x: f64, y: f64| memory.transform().position_from_point(&egui_plot::PlotPoint::new(x, y));
-    let (from, to) = (at(cube.position[0], cube.position[1]), at(cube.position[0] + 0.03, cube.position[1] - 0.02));
-    h.hover_at(from);
-    h.step();
-    h.drag_at(from);
-    h.step();
-    for i in 1..=6 {
-        h.hover_at(from + (to - from) * (i as f32 / 6.0));
-        h.step();
-    }
-    h.step();
-    h.drop_at(to);
+    drag(&mut h, at(cube.position[0], cube.position[1]), at(cube.position[0] + 0.03, cube.position[1] - 0.02));
     h.step();
     settle(&mut h);
     let moved = h.state().model.preview.moved.get("cubeA").copied().unwrap();
