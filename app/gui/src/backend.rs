@@ -6,6 +6,7 @@ use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
 
 use mimicgen_engine::transform::WaypointKind;
@@ -13,13 +14,13 @@ use mimicgen_engine::{Attempt, Overrides, Plan, Pose, RunStats, SourceDataset, S
 use mimicgen_io::IoError;
 use mimicgen_pipeline::annotate::{Annotations, DemoAnnotation};
 use mimicgen_pipeline::preview::Previewer;
-use mimicgen_pipeline::{PipelineError, RunConfig, annotate, prepare};
+use mimicgen_pipeline::{AttemptEvent, Event, Outcome, Pipeline, PipelineError, RunConfig, annotate, prepare};
 use mimicgen_viz::rerun::RecordingStream;
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
 use crate::protocol::{
-    DemoView, ExecutedView, LoadedFile, ObjectView, Point, PreviewRequest, PreviewView, ProposalView, RankView, Reply, Request,
-    SubtaskPreview, ViewerSink,
+    AttemptRow, DemoView, ExecutedView, LoadedFile, ObjectView, Point, PreviewRequest, PreviewView, ProposalView, RankView, Reply, Request,
+    RunUpdate, SubtaskPreview, ViewerSink,
 };
 
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
@@ -201,15 +202,59 @@ fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) 
 /// Makes a recording stream that feeds the viewer embedded in the app's window.
 pub type StreamFactory = Arc<dyn Fn() -> Result<RecordingStream, String> + Send + Sync>;
 
+/// Sends a reply to the UI (and asks for a repaint), from any thread.
+pub type Notify = Arc<dyn Fn(Reply) + Send + Sync>;
+
+/// An attempt event as the attempt table shows it.
+fn attempt_row(event: &AttemptEvent) -> AttemptRow {
+    let a = &event.attempt;
+    AttemptRow {
+        index: a.index,
+        success: a.success,
+        failed_subtask: a.failure.as_ref().map(|f| f.subtask),
+        reason: a.failure.as_ref().map(|f| f.reason.to_string()),
+        sources: a.src_demo_per_subtask.clone(),
+        steps: a.trajectory.len(),
+        outcome: match &event.outcome {
+            Outcome::Written { demo } => demo.clone(),
+            Outcome::KeptFailed { demo } => format!("{demo} (failed)"),
+            Outcome::Discarded => "discarded".to_owned(),
+        },
+        elapsed_s: event.elapsed_s,
+        objects: objects(&a.initial_object_poses),
+        stats: event.stats.clone(),
+    }
+}
+
+/// Runs `config` through the pipeline, reporting every event to `notify`; stops when `cancel` is set.
+fn run_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify) {
+    let update = |u: RunUpdate| notify(Reply::Run(u));
+    let pipeline = match Pipeline::prepare(config) {
+        Ok(p) => p,
+        Err(e) => return update(RunUpdate::Failed(e.to_string())),
+    };
+    let result = pipeline.run(cancel, |event| match event {
+        Event::Started(info) => update(RunUpdate::Started(info.clone())),
+        Event::Attempt(a) => update(RunUpdate::Attempt(Box::new(attempt_row(a)))),
+        Event::Finished(_) => {}
+    });
+    match result {
+        Ok(report) => update(RunUpdate::Finished(Box::new(report))),
+        Err(e) => update(RunUpdate::Failed(e.to_string())),
+    }
+}
+
 /// The backend's state: the open file's demos and scene (for the 3D view), the previewer of the
 /// last previewed file (kept so that moving through scenes does not recompile the scene), and the
 /// Rerun stream once the 3D view is open.
-#[derive(Default)]
 pub struct Worker {
     loaded: Option<Annotations>,
     previewer: Option<(PathBuf, Previewer)>,
     viewer: Option<(ViewerSink, RunLogger)>,
     embedded: Option<StreamFactory>,
+    notify: Notify,
+    /// The running generation's cancel flag and thread.
+    run: Option<(Arc<AtomicBool>, std::thread::JoinHandle<()>)>,
 }
 
 impl std::fmt::Debug for Worker {
@@ -223,10 +268,31 @@ fn viz_error(e: &mimicgen_viz::VizError) -> String {
 }
 
 impl Worker {
-    /// A worker whose [`ViewerSink::Embedded`] streams come from `embedded`.
+    /// A worker that sends progress and run updates to `notify` and whose
+    /// [`ViewerSink::Embedded`] streams come from `embedded`.
     #[must_use]
-    pub fn new(embedded: Option<StreamFactory>) -> Self {
-        Self { embedded, ..Self::default() }
+    pub fn new(notify: Notify, embedded: Option<StreamFactory>) -> Self {
+        Self { loaded: None, previewer: None, viewer: None, embedded, notify, run: None }
+    }
+
+    fn start_run(&mut self, config: RunConfig) -> Reply {
+        if self.run.as_ref().is_some_and(|(_, thread)| !thread.is_finished()) {
+            return Reply::Failed {
+                what: "starting a run".to_owned(),
+                error: "a run is going; cancel it or wait for it to end".to_owned(),
+            };
+        }
+        let cancel = Arc::new(AtomicBool::new(false));
+        let (flag, notify) = (Arc::clone(&cancel), Arc::clone(&self.notify));
+        let spawned =
+            std::thread::Builder::new().name("mimicgen-gui-run".to_owned()).spawn(move || run_generation(&config, &flag, &notify));
+        match spawned {
+            Ok(thread) => {
+                self.run = Some((cancel, thread));
+                Reply::RunAccepted
+            }
+            Err(e) => Reply::Failed { what: "starting a run".to_owned(), error: e.to_string() },
+        }
     }
 
     /// A logger on a new stream to `sink`.
@@ -337,9 +403,16 @@ impl Worker {
     }
 
     /// Answers one request.
-    pub fn handle(&mut self, request: Request, progress: &dyn Fn(Reply)) -> Reply {
+    pub fn handle(&mut self, request: Request) -> Reply {
         match request {
-            Request::Open { path } => match open(&path, progress) {
+            Request::Run(config) => self.start_run(*config),
+            Request::CancelRun => {
+                if let Some((cancel, _)) = &self.run {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+                Reply::Cancelling
+            }
+            Request::Open { path } => match open(&path, &*Arc::clone(&self.notify)) {
                 Ok((reply, found)) => {
                     self.loaded = Some(found);
                     // The stream's static scene is the old file's: a new file needs a new stream.
@@ -389,18 +462,24 @@ impl Backend {
     /// # Panics
     /// Never on purpose; if the OS cannot start a thread, replies report it.
     #[must_use]
-    pub fn start(repaint: impl Fn() + Send + 'static, embedded: Option<StreamFactory>) -> Self {
+    pub fn start(repaint: impl Fn() + Send + Sync + 'static, embedded: Option<StreamFactory>) -> Self {
         let (requests, inbox) = channel::<Request>();
         let (outbox, replies) = channel::<Reply>();
         let failed = outbox.clone();
-        let spawned = std::thread::Builder::new().name("mimicgen-gui-backend".to_owned()).spawn(move || {
-            let mut worker = Worker::new(embedded);
-            for request in inbox {
-                let progress = |reply: Reply| {
+        let repaint = Arc::new(repaint);
+        let notify: Notify = {
+            let (outbox, repaint) = (std::sync::Mutex::new(outbox.clone()), Arc::clone(&repaint));
+            Arc::new(move |reply| {
+                if let Ok(outbox) = outbox.lock() {
                     let _ = outbox.send(reply);
-                    repaint();
-                };
-                let reply = worker.handle(request, &progress);
+                }
+                repaint();
+            })
+        };
+        let spawned = std::thread::Builder::new().name("mimicgen-gui-backend".to_owned()).spawn(move || {
+            let mut worker = Worker::new(notify, embedded);
+            for request in inbox {
+                let reply = worker.handle(request);
                 if outbox.send(reply).is_err() {
                     break;
                 }

@@ -21,6 +21,7 @@ mod embedded;
 pub mod model;
 pub mod preview_ui;
 pub mod protocol;
+pub mod run_ui;
 pub mod ui;
 
 use std::path::PathBuf;
@@ -43,14 +44,18 @@ pub struct MimicgenApp {
 impl MimicgenApp {
     /// Starts the backend (`repaint` is called when a reply arrives) and opens `file` if given.
     #[must_use]
-    pub fn new(repaint: impl Fn() + Send + 'static, file: Option<PathBuf>) -> Self {
+    pub fn new(repaint: impl Fn() + Send + Sync + 'static, file: Option<PathBuf>) -> Self {
         Self::with_streams(repaint, file, None)
     }
 
     /// [`MimicgenApp::new`] whose [`protocol::ViewerSink::Embedded`] 3D view streams come from
     /// `embedded` (the viewer in the app's window).
     #[must_use]
-    pub fn with_streams(repaint: impl Fn() + Send + 'static, file: Option<PathBuf>, embedded: Option<backend::StreamFactory>) -> Self {
+    pub fn with_streams(
+        repaint: impl Fn() + Send + Sync + 'static,
+        file: Option<PathBuf>,
+        embedded: Option<backend::StreamFactory>,
+    ) -> Self {
         let mut app = Self { model: AppModel::default(), backend: Backend::start(repaint, embedded), ui: UiState::default() };
         if let Some(file) = file {
             app.ui.open_path = file.display().to_string();
@@ -95,6 +100,10 @@ impl MimicgenApp {
             self.ui.open_path = path.display().to_string();
             commands.push(Command::Open(path));
         }
+        if self.model.run.as_ref().is_some_and(model::RunState::running) {
+            // Run updates arrive with a repaint; this keeps the ETA ticking between them.
+            ctx.request_repaint_after(std::time::Duration::from_millis(250));
+        }
         if self.model.playing {
             let now = ctx.input(|i| i.time);
             if now - self.ui.last_tick_s >= 0.05 {
@@ -130,6 +139,19 @@ impl MimicgenApp {
                     }
                     None => {
                         egui::CentralPanel::default().show(ui, |ui| preview_ui::views(ui, &self.model, &mut self.ui, &mut commands));
+                    }
+                }
+            }
+            Screen::Generate => {
+                egui::Panel::left("run_form").default_size(300.0).show(ui, |ui| run_ui::form(ui, &self.model, &mut commands));
+                let progress = |ui: &mut egui::Ui| run_ui::progress(ui, &self.model, &mut self.ui, &mut commands);
+                match viewer {
+                    Some(viewer) => {
+                        egui::Panel::bottom("run").resizable(true).default_size(420.0).show(ui, progress);
+                        viewer(ui);
+                    }
+                    None => {
+                        egui::CentralPanel::default().show(ui, progress);
                     }
                 }
             }

@@ -3,9 +3,12 @@
 //! takes the backend's answers. Nothing here draws, reads files or waits.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use crate::protocol::{LoadedFile, PreviewRequest, PreviewView, Reply, Request, ViewerSink};
+use mimicgen_engine::RunStats;
+use mimicgen_pipeline::{Report, RunConfig, RunInfo};
+
+use crate::protocol::{AttemptRow, LoadedFile, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink};
 
 /// The app's screens.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -15,6 +18,127 @@ pub enum Screen {
     Annotate,
     /// A transformed attempt over a new scene, and "try it".
     Preview,
+    /// A generation run: its form, live progress and attempts.
+    Generate,
+}
+
+/// The run form: what `mimicgen generate` takes (the source is the open file, with the subtask
+/// ends it holds on disk).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunForm {
+    /// Attempts to make (successes to reach with `guarantee`).
+    pub attempts: usize,
+    /// Keep attempting until `attempts` successes.
+    pub guarantee: bool,
+    /// Run seed.
+    pub seed: u64,
+    /// Worker threads.
+    pub workers: usize,
+    /// Also write failed attempts.
+    pub keep_failed: bool,
+    /// End an attempt at the first subtask that misses its signal.
+    pub early_abort: bool,
+    /// Output dataset.
+    pub out: String,
+    /// Replace existing outputs.
+    pub overwrite: bool,
+}
+
+impl Default for RunForm {
+    fn default() -> Self {
+        Self {
+            attempts: 50,
+            guarantee: false,
+            seed: 1,
+            workers: 1,
+            keep_failed: true,
+            early_abort: false,
+            out: "out/app_run.hdf5".to_owned(),
+            overwrite: false,
+        }
+    }
+}
+
+impl RunForm {
+    /// The pipeline's config for a run over `source`.
+    #[must_use]
+    pub fn config(&self, source: &Path) -> RunConfig {
+        RunConfig {
+            source: Some(source.to_path_buf()),
+            out: PathBuf::from(&self.out),
+            workers: self.workers.max(1),
+            num_demos: Some(self.attempts),
+            seed: Some(self.seed),
+            keep_failed: self.keep_failed,
+            guarantee: self.guarantee,
+            early_abort: self.early_abort,
+            overwrite: self.overwrite,
+            ..RunConfig::default()
+        }
+    }
+
+    /// The `mimicgen generate` line that makes the same run (for a batch machine).
+    #[must_use]
+    pub fn command_line(&self, source: &Path) -> String {
+        let quote = |s: &str| {
+            if s.chars().all(|c| c.is_ascii_alphanumeric() || "/._-+=:".contains(c)) {
+                s.to_owned()
+            } else {
+                format!("'{}'", s.replace('\'', "'\\''"))
+            }
+        };
+        let mut line = format!(
+            "mimicgen generate --source {} --num-demos {} --seed {} --workers {} --out {}",
+            quote(&source.display().to_string()),
+            self.attempts,
+            self.seed,
+            self.workers.max(1),
+            quote(&self.out)
+        );
+        for (on, flag) in [
+            (self.guarantee, "--guarantee"),
+            (self.keep_failed, "--keep-failed"),
+            (self.early_abort, "--early-abort"),
+            (self.overwrite, "--overwrite"),
+        ] {
+            if on {
+                line.push(' ');
+                line.push_str(flag);
+            }
+        }
+        line
+    }
+}
+
+/// A run started from the app, as its updates arrive.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunState {
+    /// What was asked.
+    pub config: RunConfig,
+    /// The run as it started (task, variant, target).
+    pub info: Option<RunInfo>,
+    /// Every decided attempt, in index order.
+    pub rows: Vec<AttemptRow>,
+    /// The report, once the run has ended.
+    pub report: Option<Report>,
+    /// The error that stopped it, if one did.
+    pub error: Option<String>,
+    /// Whether a cancel was asked for.
+    pub cancelling: bool,
+}
+
+impl RunState {
+    /// Whether the run is still going.
+    #[must_use]
+    pub fn running(&self) -> bool {
+        self.report.is_none() && self.error.is_none()
+    }
+
+    /// Statistics after the last decided attempt.
+    #[must_use]
+    pub fn stats(&self) -> Option<&RunStats> {
+        self.rows.last().map(|r| &r.stats)
+    }
 }
 
 /// What the preview screen shows and asks for.
@@ -100,6 +224,14 @@ pub enum Command {
     },
     /// Put every moved object back where the scene had it.
     ResetObjects,
+    /// Change the run form.
+    SetRunForm(RunForm),
+    /// Start a run as the form says, over the open file.
+    StartRun,
+    /// Stop the run (after the attempts already decided).
+    CancelRun,
+    /// Show attempt `index` of the run on the preview screen and try it again.
+    ReRun(u64),
     /// Stream the shown demo, and every demo shown and attempt tried after, to Rerun.
     Open3d(ViewerSink),
 }
@@ -144,6 +276,10 @@ pub struct AppModel {
     pub viewer: Option<String>,
     /// Progress of a long request: units done and in all.
     pub progress: Option<(usize, usize)>,
+    /// The run form.
+    pub run_form: RunForm,
+    /// The last run started from the app.
+    pub run: Option<RunState>,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
 }
@@ -348,6 +484,40 @@ impl AppModel {
                 }
             }
             Command::TryIt => return self.preview_request(true),
+            Command::SetRunForm(form) => self.run_form = form,
+            Command::StartRun => {
+                let file = self.file.as_ref()?;
+                if self.run.as_ref().is_some_and(RunState::running) {
+                    self.error = Some("a run is going: cancel it or wait for it to end".to_owned());
+                    return None;
+                }
+                if self.dirty {
+                    self.error = Some(format!(
+                        "the subtask ends have unsaved changes: save them (\"Save as\") and open the saved file first; a run reads the ends from {}",
+                        file.path.display()
+                    ));
+                    return None;
+                }
+                let config = self.run_form.config(&file.path);
+                self.run =
+                    Some(RunState { config: config.clone(), info: None, rows: Vec::new(), report: None, error: None, cancelling: false });
+                self.busy = Some("starting the run".to_owned());
+                return Some(Request::Run(Box::new(config)));
+            }
+            Command::CancelRun => {
+                let run = self.run.as_mut().filter(|r| r.running() && !r.cancelling)?;
+                run.cancelling = true;
+                return Some(Request::CancelRun);
+            }
+            Command::ReRun(index) => {
+                let seed = self.run.as_ref().and_then(|r| r.config.seed)?;
+                self.preview.seed = seed;
+                self.preview.index = index;
+                self.preview.moved.clear();
+                self.preview.sources.clear();
+                self.screen = Screen::Preview;
+                return self.preview_request(true);
+            }
             Command::Open3d(sink) => {
                 self.file.as_ref()?;
                 self.busy = Some("opening the 3D view".to_owned());
@@ -373,6 +543,9 @@ impl AppModel {
         }
         match reply {
             Reply::Progress { .. } => {}
+            Reply::RunAccepted => self.status = "run started".to_owned(),
+            Reply::Cancelling => self.status = "cancelling: finishing the attempts already decided".to_owned(),
+            Reply::Run(update) => self.on_run_update(update),
             Reply::MoreDemos { path, demos, .. } => {
                 let Some(file) = self.file.as_mut().filter(|f| f.path == path) else { return };
                 for d in &demos {
@@ -444,6 +617,31 @@ impl AppModel {
                 self.preview.view = Some(*view);
             }
             Reply::Failed { what, error } => self.error = Some(format!("{what}: {error}")),
+        }
+    }
+}
+
+impl AppModel {
+    fn on_run_update(&mut self, update: RunUpdate) {
+        let Some(run) = self.run.as_mut() else { return };
+        match update {
+            RunUpdate::Started(info) => run.info = Some(info),
+            RunUpdate::Attempt(row) => run.rows.push(*row),
+            RunUpdate::Finished(report) => {
+                self.status = format!(
+                    "{} of {} attempts succeeded ({:.1} %){}; dataset {}",
+                    report.successes,
+                    report.attempts,
+                    100.0 * report.generation_rate,
+                    if report.cancelled { ", cancelled" } else { "" },
+                    report.output
+                );
+                run.report = Some(*report);
+            }
+            RunUpdate::Failed(error) => {
+                self.error = Some(format!("the run stopped: {error}"));
+                run.error = Some(error);
+            }
         }
     }
 }

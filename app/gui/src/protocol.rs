@@ -4,6 +4,8 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use mimicgen_engine::RunStats;
+use mimicgen_pipeline::{Report, RunConfig, RunInfo};
 use serde::{Deserialize, Serialize};
 
 /// A request to the backend (file reads, detection, writes: everything that may take time).
@@ -40,6 +42,48 @@ pub enum Request {
         /// The demo.
         demo: usize,
     },
+    /// Start a generation run (on its own thread; it reports through [`Reply::Run`]).
+    Run(Box<RunConfig>),
+    /// Stop the run after the attempts already decided; its outputs are finished as valid datasets.
+    CancelRun,
+}
+
+/// What a running generation reports (after [`Request::Run`] was accepted).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum RunUpdate {
+    /// The run has started.
+    Started(RunInfo),
+    /// An attempt was decided (in index order).
+    Attempt(Box<AttemptRow>),
+    /// The run has ended (completed or cancelled); its outputs are complete.
+    Finished(Box<Report>),
+    /// The run stopped on an error (naming the file and field).
+    Failed(String),
+}
+
+/// One decided attempt of a run, as the attempt table shows it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AttemptRow {
+    /// Attempt index (its random stream).
+    pub index: u64,
+    /// Whether the task was achieved.
+    pub success: bool,
+    /// The subtask that went wrong, if it failed.
+    pub failed_subtask: Option<usize>,
+    /// Why, if it failed.
+    pub reason: Option<String>,
+    /// The source demo of each subtask.
+    pub sources: Vec<usize>,
+    /// Executed steps.
+    pub steps: usize,
+    /// Where it went: the demo written, the failed demo kept, or "discarded".
+    pub outcome: String,
+    /// Seconds since the run started.
+    pub elapsed_s: f64,
+    /// The scene's objects before the first action.
+    pub objects: Vec<ObjectView>,
+    /// Statistics of the run so far, this attempt included.
+    pub stats: RunStats,
 }
 
 /// Where the 3D view streams.
@@ -109,6 +153,12 @@ pub enum Reply {
     },
     /// A preview (and, if asked, its execution) is ready.
     Previewed(Box<PreviewView>),
+    /// A run was started (its updates follow as [`Reply::Run`]).
+    RunAccepted,
+    /// The run was asked to stop.
+    Cancelling,
+    /// What the running generation reports.
+    Run(RunUpdate),
     /// Progress of a long request (the request's own reply comes after).
     Progress {
         /// What is being done.
@@ -276,10 +326,16 @@ impl Reply {
     #[must_use]
     pub fn ends_request(&self) -> bool {
         match self {
-            Self::Progress { .. } => false,
+            Self::Progress { .. } | Self::Run(_) => false,
             Self::Opened(file) => file.demos.len() >= file.total_demos,
             Self::MoreDemos { last, .. } => *last,
-            Self::Saved { .. } | Self::Streaming { .. } | Self::Shown3d { .. } | Self::Previewed(_) | Self::Failed { .. } => true,
+            Self::Saved { .. }
+            | Self::Streaming { .. }
+            | Self::Shown3d { .. }
+            | Self::Previewed(_)
+            | Self::RunAccepted
+            | Self::Cancelling
+            | Self::Failed { .. } => true,
         }
     }
 }

@@ -33,6 +33,12 @@ pub struct UiState {
     pub drag: Option<(usize, f64)>,
     /// An object being dragged in the preview's view from above: (name, current x, y).
     pub object_drag: Option<(String, [f64; 2])>,
+    /// Which attempts the run's table lists.
+    pub attempt_filter: crate::run_ui::AttemptFilter,
+    /// Sort the attempt table by length, longest first (else by index).
+    pub longest_first: bool,
+    /// The attempt selected in the table.
+    pub selected_attempt: Option<u64>,
     /// Time of the last playback step (s).
     pub last_tick_s: f64,
 }
@@ -73,7 +79,7 @@ pub fn keys(ctx: &egui::Context, commands: &mut Vec<Command>) {
 /// The top bar: open, detect, undo/redo, save, and what is going on.
 pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: &mut Vec<Command>) {
     ui.horizontal(|ui| {
-        for (screen, name) in [(Screen::Annotate, "Annotate"), (Screen::Preview, "Preview")] {
+        for (screen, name) in [(Screen::Annotate, "Annotate"), (Screen::Preview, "Preview"), (Screen::Generate, "Generate")] {
             if ui.add_enabled(model.file.is_some(), egui::Button::selectable(model.screen == screen, name)).clicked()
                 && model.screen != screen
             {

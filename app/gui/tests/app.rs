@@ -1,7 +1,9 @@
-//! The app driven through its real UI with egui_kittest (no display): open the reference source
-//! file, select demos, move a subtask end with the keyboard, undo and redo, accept the proposals,
-//! save and read the file back, and see a bad file reported without losing the open one.
+//! The app driven through its real UI with egui_kittest (no display): open files (source demos, a
+//! broken file, a plain robomimic file, a large file), annotate (keyboard, mouse, undo and redo,
+//! auto-detect, save and reload), preview and try attempts (new scenes, forced sources, dragged
+//! objects), the 3D view's recording, and generation runs (start, progress, cancel, re-run).
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
+#![allow(clippy::float_cmp)] // positions pass through the backend unchanged: exact comparisons are the point
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -336,4 +338,77 @@ fn dragging_an_object_from_above_moves_it_in_the_planned_scene() {
     settle(&mut h);
     assert!(h.state().model.preview.moved.is_empty());
     assert_eq!(h.state().model.preview.view.as_ref().unwrap().objects, before.objects);
+}
+
+/// Waits (stepping frames) until the app's run has ended.
+fn until_run_ends(h: &mut Harness<'static, MimicgenApp>) {
+    let deadline = Instant::now() + Duration::from_secs(300);
+    while h.state().model.run.as_ref().is_some_and(mimicgen_gui::model::RunState::running) {
+        h.step();
+        assert!(Instant::now() < deadline, "the run did not end");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    h.run_steps(2);
+}
+
+/// A run from the app: the form, Start, live progress, the report and the outputs; a re-run of
+/// one of its attempts in the preview has the same outcome; a long run cancelled leaves a valid
+/// dataset.
+#[test]
+fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("app_run.hdf5");
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    h.get_by_label("Generate").click();
+    h.step();
+    let form = mimicgen_gui::model::RunForm { attempts: 6, seed: 3, out: out.display().to_string(), ..Default::default() };
+    h.state_mut().command(Command::SetRunForm(form.clone()));
+    h.run_steps(2);
+    h.get_by_label_contains("mimicgen generate --source");
+    h.get_by_label("Start").click();
+    h.step();
+    until_run_ends(&mut h);
+    let run = h.state().model.run.clone().unwrap();
+    assert!(run.error.is_none(), "{:?}", run.error);
+    let report = run.report.as_ref().unwrap();
+    assert_eq!((run.rows.len(), report.attempts), (6, 6));
+    assert_eq!(report.successes, run.rows.iter().filter(|r| r.success).count());
+    assert_eq!(run.rows.iter().map(|r| r.index).collect::<Vec<_>>(), (0..6).collect::<Vec<_>>());
+    assert!(out.is_file() && !report.cancelled);
+    h.get_by_label_contains("6 attempts,");
+    // Re-run attempt 2 in the preview: the same seed and index give the same outcome.
+    h.get_by_label_contains("    2  ").click();
+    h.run_steps(2);
+    h.get_by_label("Re-run in preview").click();
+    h.step();
+    settle(&mut h);
+    let model = &h.state().model;
+    assert_eq!(model.screen, mimicgen_gui::Screen::Preview);
+    let view = model.preview.view.as_ref().unwrap();
+    assert_eq!((view.seed, view.index), (3, 2));
+    let executed = view.executed.as_ref().unwrap();
+    assert_eq!(executed.success, run.rows[2].success);
+    assert_eq!(executed.path.len(), run.rows[2].steps);
+    // A long run, cancelled: it stops early and its dataset is complete.
+    h.get_by_label("Generate").click();
+    h.run_steps(2);
+    let long = mimicgen_gui::model::RunForm { attempts: 400, overwrite: true, ..form };
+    h.state_mut().command(Command::SetRunForm(long));
+    h.get_by_label("Start").click();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while h.state().model.run.as_ref().is_none_or(|r| r.rows.len() < 3) {
+        h.step();
+        assert!(Instant::now() < deadline, "no attempts arrived");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    h.get_by_label("Cancel").click();
+    h.step();
+    until_run_ends(&mut h);
+    let run = h.state().model.run.clone().unwrap();
+    let report = run.report.as_ref().unwrap();
+    assert!(report.cancelled && report.attempts < 400, "{} attempts", report.attempts);
+    assert_eq!(run.rows.len(), report.attempts);
+    let written = mimicgen_io::RobomimicDataset::open(&out).unwrap();
+    assert_eq!(written.demo_names().len(), report.successes);
 }

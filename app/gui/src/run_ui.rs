@@ -1,0 +1,277 @@
+//! The generate screen: the run form (what `mimicgen generate` takes, and the command line that
+//! makes the same run), then, live: progress with ETA, the generation rate over attempts,
+//! attempts and successes per source demo, failures by subtask and reason, the initial scenes from
+//! above coloured by outcome, and the attempt table (filter, sort, re-run one in the preview).
+//! Reads the model, returns commands.
+
+use egui::{Color32, RichText};
+use egui_plot::{Bar, BarChart, Corner, Legend, Line, MarkerShape, Plot, PlotPoints, Points};
+
+use crate::model::{AppModel, Command, RunState};
+use crate::protocol::AttemptRow;
+use crate::ui::UiState;
+
+/// Colour of successes in the run's plots.
+const SUCCESS: Color32 = Color32::from_rgb(60, 180, 90);
+/// Colour of failures in the run's plots.
+const FAILURE: Color32 = Color32::from_rgb(220, 70, 70);
+
+/// Which attempts the table lists.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AttemptFilter {
+    /// Every attempt.
+    #[default]
+    All,
+    /// Successes only.
+    Successes,
+    /// Failures only.
+    Failures,
+}
+
+/// The run form, "Copy as command", Start and Cancel.
+pub fn form(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>) {
+    let Some(file) = &model.file else {
+        ui.label("Open a source file first.");
+        return;
+    };
+    let running = model.run.as_ref().is_some_and(RunState::running);
+    let mut f = model.run_form.clone();
+    ui.heading("Run");
+    ui.add_enabled_ui(!running, |ui| {
+        egui::Grid::new("run_form").num_columns(2).show(ui, |ui| {
+            ui.label(if f.guarantee { "Successes" } else { "Attempts" });
+            ui.add(egui::DragValue::new(&mut f.attempts).range(1..=1_000_000)).on_hover_text("--num-demos");
+            ui.end_row();
+            ui.label("");
+            ui.checkbox(&mut f.guarantee, "until that many successes").on_hover_text("--guarantee");
+            ui.end_row();
+            ui.label("Seed");
+            ui.add(egui::DragValue::new(&mut f.seed)).on_hover_text("--seed: the same seed gives the same dataset");
+            ui.end_row();
+            ui.label("Workers");
+            let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+            ui.add(egui::DragValue::new(&mut f.workers).range(1..=cores.max(1)))
+                .on_hover_text("--workers: the dataset does not depend on it");
+            ui.end_row();
+            let label = ui.label("Output:");
+            ui.add(egui::TextEdit::singleline(&mut f.out).desired_width(180.0)).labelled_by(label.id);
+            ui.end_row();
+            ui.label("");
+            ui.checkbox(&mut f.keep_failed, "keep failed attempts").on_hover_text("--keep-failed: OUT_failed.hdf5, for the failure views");
+            ui.end_row();
+            ui.label("");
+            ui.checkbox(&mut f.early_abort, "end attempts at a missed subtask").on_hover_text("--early-abort");
+            ui.end_row();
+            ui.label("");
+            ui.checkbox(&mut f.overwrite, "replace existing outputs").on_hover_text("--overwrite");
+            ui.end_row();
+        });
+    });
+    if f != model.run_form {
+        commands.push(Command::SetRunForm(f.clone()));
+    }
+    ui.label(RichText::new(format!("source: {}", file.path.display())).small());
+    ui.horizontal(|ui| {
+        if ui.add_enabled(!running, egui::Button::new("Start")).clicked() {
+            commands.push(Command::StartRun);
+        }
+        let cancelling = model.run.as_ref().is_some_and(|r| r.cancelling);
+        if ui
+            .add_enabled(running && !cancelling, egui::Button::new("Cancel"))
+            .on_hover_text("Stops after the attempts already decided; the outputs stay valid")
+            .clicked()
+        {
+            commands.push(Command::CancelRun);
+        }
+        if ui.button("Copy as command").on_hover_text("The mimicgen generate line for the same run").clicked() {
+            ui.ctx().copy_text(f.command_line(&file.path));
+        }
+    });
+    ui.label(RichText::new(f.command_line(&file.path)).monospace().small());
+    if model.dirty {
+        ui.label(RichText::new("Unsaved subtask ends: a run reads the ends saved in the file.").italics());
+    }
+}
+
+/// Target, done and ETA of a run.
+fn progress_line(run: &RunState) -> (f32, String) {
+    let guarantee = run.config.guarantee;
+    let target = run.info.as_ref().map_or(run.config.num_demos.unwrap_or(1), |i| i.target).max(1);
+    let (attempts, successes) = run.stats().map_or((0, 0), |s| (s.attempts, s.successes));
+    let done = if guarantee { successes } else { attempts };
+    let elapsed = run.rows.last().map_or(0.0, |r| r.elapsed_s);
+    #[allow(clippy::cast_precision_loss)]
+    let eta = if done > 0 && done < target { elapsed / done as f64 * (target - done) as f64 } else { 0.0 };
+    #[allow(clippy::cast_precision_loss)]
+    let rate = if attempts > 0 { 100.0 * successes as f64 / attempts as f64 } else { 0.0 };
+    let state = match (&run.report, &run.error) {
+        (Some(r), _) if r.cancelled => "cancelled".to_owned(),
+        (Some(_), _) => "done".to_owned(),
+        (None, Some(_)) => "stopped on an error".to_owned(),
+        (None, None) if run.cancelling => "cancelling".to_owned(),
+        (None, None) => format!("ETA {eta:.0} s"),
+    };
+    #[allow(clippy::cast_precision_loss)]
+    let fraction = (done as f32 / target as f32).min(1.0);
+    (fraction, format!("{attempts} attempts, {successes} successes ({rate:.1} %) in {elapsed:.1} s; {state}"))
+}
+
+/// Live progress, charts and the attempt table of the last run.
+pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: &mut Vec<Command>) {
+    let Some(run) = &model.run else {
+        ui.label(
+            "Fill in the run on the left and press Start. The run goes on in the background; every attempt shows up here as it is decided.",
+        );
+        return;
+    };
+    let (fraction, text) = progress_line(run);
+    ui.add(egui::ProgressBar::new(fraction).text(text));
+    if let Some(report) = &run.report {
+        ui.label(format!(
+            "dataset {}{}",
+            report.output,
+            report.failed_output.as_ref().map_or(String::new(), |f| format!(", failed attempts {f}"))
+        ));
+    }
+    let height = 190.0;
+    let width = (ui.available_width() - 16.0) / 3.0;
+    ui.horizontal(|ui| {
+        rate_plot(ui, run, egui::vec2(width, height));
+        source_plot(ui, run, egui::vec2(width, height));
+        scene_plot(ui, run, egui::vec2(width, height));
+    });
+    if let Some(stats) = run.stats().filter(|s| !s.failures.is_empty()) {
+        ui.strong("Failures by subtask and reason");
+        egui::Grid::new("failures").striped(true).num_columns(3).show(ui, |ui| {
+            for f in &stats.failures {
+                ui.label(format!("subtask {}", f.subtask));
+                ui.label(f.reason.to_string());
+                ui.label(format!("{}", f.count));
+                ui.end_row();
+            }
+        });
+    }
+    ui.separator();
+    attempt_table(ui, run, state, commands);
+}
+
+fn rate_plot(ui: &mut egui::Ui, run: &RunState, size: egui::Vec2) {
+    let mut successes = 0usize;
+    #[allow(clippy::cast_precision_loss)]
+    let rate: PlotPoints<'static> = run
+        .rows
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            successes += usize::from(r.success);
+            [(i + 1) as f64, 100.0 * successes as f64 / (i + 1) as f64]
+        })
+        .collect();
+    Plot::new("run_rate")
+        .width(size.x)
+        .height(size.y)
+        .include_y(0.0)
+        .include_y(100.0)
+        .x_axis_label("attempts")
+        .y_axis_label("generation rate (%)")
+        .legend(Legend::default().position(Corner::LeftBottom))
+        .show(ui, |plot| plot.line(Line::new("rate so far", rate).color(SUCCESS)));
+}
+
+fn source_plot(ui: &mut egui::Ui, run: &RunState, size: egui::Vec2) {
+    let Some(stats) = run.stats() else { return };
+    #[allow(clippy::cast_precision_loss)]
+    let bars = |f: &dyn Fn(&mimicgen_engine::generate::DemoUse) -> usize| -> Vec<Bar> {
+        stats.per_source_demo.iter().enumerate().map(|(d, u)| Bar::new(d as f64, f(u) as f64).width(0.7)).collect()
+    };
+    let succeeded = BarChart::new("successes", bars(&|u| u.successes)).color(SUCCESS);
+    let failed = BarChart::new("failures", bars(&|u| u.attempts - u.successes)).color(FAILURE).stack_on(&[&succeeded]);
+    Plot::new("run_sources")
+        .width(size.x)
+        .height(size.y)
+        .x_axis_label("source demo")
+        .y_axis_label("attempts")
+        .legend(Legend::default().position(Corner::LeftTop))
+        .show(ui, |plot| {
+            plot.bar_chart(succeeded);
+            plot.bar_chart(failed);
+        });
+}
+
+fn scene_plot(ui: &mut egui::Ui, run: &RunState, size: egui::Vec2) {
+    let shapes = [MarkerShape::Circle, MarkerShape::Square, MarkerShape::Diamond, MarkerShape::Up];
+    Plot::new("run_scenes")
+        .width(size.x)
+        .height(size.y)
+        .data_aspect(1.0)
+        .x_axis_label("x (m)")
+        .y_axis_label("y (m)")
+        .legend(Legend::default().position(Corner::LeftTop))
+        .show(ui, |plot| {
+            let names: Vec<String> = run.rows.first().map(|r| r.objects.iter().map(|o| o.name.clone()).collect()).unwrap_or_default();
+            for (k, name) in names.iter().enumerate() {
+                for (success, color) in [(true, SUCCESS), (false, FAILURE)] {
+                    let points: PlotPoints<'static> = run
+                        .rows
+                        .iter()
+                        .filter(|r| r.success == success)
+                        .filter_map(|r| r.objects.iter().find(|o| &o.name == name).map(|o| [o.position[0], o.position[1]]))
+                        .collect();
+                    let label = format!("{name} ({})", if success { "success" } else { "failure" });
+                    plot.points(Points::new(label, points).shape(shapes[k % shapes.len()]).radius(2.5).color(color));
+                }
+            }
+        });
+}
+
+fn matches(filter: AttemptFilter, row: &AttemptRow) -> bool {
+    match filter {
+        AttemptFilter::All => true,
+        AttemptFilter::Successes => row.success,
+        AttemptFilter::Failures => !row.success,
+    }
+}
+
+fn attempt_table(ui: &mut egui::Ui, run: &RunState, state: &mut UiState, commands: &mut Vec<Command>) {
+    ui.horizontal(|ui| {
+        ui.strong("Attempts");
+        for (filter, name) in [(AttemptFilter::All, "all"), (AttemptFilter::Successes, "successes"), (AttemptFilter::Failures, "failures")]
+        {
+            ui.radio_value(&mut state.attempt_filter, filter, name);
+        }
+        ui.checkbox(&mut state.longest_first, "longest first");
+    });
+    let mut rows: Vec<&AttemptRow> = run.rows.iter().filter(|r| matches(state.attempt_filter, r)).collect();
+    if state.longest_first {
+        rows.sort_by(|a, b| b.steps.cmp(&a.steps).then(a.index.cmp(&b.index)));
+    }
+    if let Some(row) = state.selected_attempt.and_then(|i| run.rows.iter().find(|r| r.index == i)) {
+        ui.horizontal(|ui| {
+            let what = match (&row.reason, row.failed_subtask) {
+                (Some(reason), Some(k)) => format!("attempt {}: failed in subtask {k}: {reason}", row.index),
+                _ => format!("attempt {}: success, written as {}", row.index, row.outcome),
+            };
+            ui.label(RichText::new(what).color(if row.success { SUCCESS } else { FAILURE }));
+            if ui.button("Re-run in preview").on_hover_text("Plan and try this attempt again (same seed and index)").clicked() {
+                commands.push(Command::ReRun(row.index));
+            }
+        });
+    }
+    egui::ScrollArea::vertical().id_salt("attempts").show_rows(ui, 18.0, rows.len(), |ui, range| {
+        for row in &rows[range] {
+            let sources: Vec<String> = row.sources.iter().map(|d| format!("demo_{d}")).collect();
+            let text = format!(
+                "{:>5}  {:<10} {:>4} steps  sources {}  {}",
+                row.index,
+                if row.success { "success" } else { "failure" },
+                row.steps,
+                sources.join(","),
+                row.reason.as_ref().map_or(String::new(), |r| format!("subtask {}: {r}", row.failed_subtask.unwrap_or_default()))
+            );
+            let label = RichText::new(text).monospace().color(if row.success { SUCCESS } else { FAILURE });
+            if ui.selectable_label(state.selected_attempt == Some(row.index), label).clicked() {
+                state.selected_attempt = Some(row.index);
+            }
+        }
+    });
+}
