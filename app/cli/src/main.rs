@@ -59,6 +59,7 @@ Examples:
   mimicgen app                                   # the bundled Stack D0 source demos
   mimicgen app my_sources.hdf5                   # MimicGen source demos, or a plain robomimic file
   mimicgen app --screen preview --try-it         # open on the preview screen and try attempt 0
+  mimicgen app --run 100                         # start a 100-attempt run on the generate screen
   mimicgen app --demo 3 --screenshot annotate.png  # the docs' screenshots (under Xvfb too)")]
     App {
         /// Source demos to open (default: the bundled Stack D0 demos).
@@ -72,6 +73,9 @@ Examples:
         /// Try the previewed attempt in simulation once the preview is shown.
         #[arg(long)]
         try_it: bool,
+        /// Start a run of this many attempts on the generate screen (to out/app_run.hdf5, replaced).
+        #[arg(long, value_name = "ATTEMPTS")]
+        run: Option<usize>,
         /// Once everything is shown, save the window to this PNG and exit.
         #[arg(long, value_name = "FILE.png")]
         screenshot: Option<PathBuf>,
@@ -212,7 +216,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             generate::demos(&args)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::App { file, screen, demo, try_it, screenshot } => {
+        Command::App { file, screen, demo, try_it, run, screenshot } => {
             let file = match file {
                 Some(f) => f,
                 None => mimicgen_pipeline::bundled::source_demos("stack")?,
@@ -220,8 +224,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let screen = match screen {
                 ScreenArg::Annotate => mimicgen_gui::Screen::Annotate,
                 ScreenArg::Preview => mimicgen_gui::Screen::Preview,
+                ScreenArg::Generate => mimicgen_gui::Screen::Generate,
             };
-            let options = mimicgen_gui::RunOptions { file: Some(file), screen, demo, try_it, screenshot };
+            let options = mimicgen_gui::RunOptions { file: Some(file), screen, demo, try_it, run, screenshot };
             mimicgen_gui::run(options).map_err(|e| {
                 anyhow::anyhow!("cannot open the app's window ({e}); without a display, use the batch commands (`mimicgen generate`, `mimicgen annotate`)")
             })?;
@@ -316,4 +321,6 @@ enum ScreenArg {
     Annotate,
     /// An attempt over a new scene, and "try it".
     Preview,
+    /// A generation run, live.
+    Generate,
 }

@@ -173,6 +173,9 @@ pub struct RunOptions {
     pub demo: Option<usize>,
     /// Run "try it" on the preview screen.
     pub try_it: bool,
+    /// Start a run of this many attempts (to `out/app_run.hdf5`, replacing it) on the generate
+    /// screen.
+    pub run: Option<usize>,
     /// Once everything asked for is shown, save the window to this PNG and close.
     pub screenshot: Option<PathBuf>,
 }
@@ -198,13 +201,19 @@ impl Window {
         if options.try_it {
             steps.push(Command::TryIt);
         }
+        if let Some(attempts) = options.run {
+            steps.push(Command::Show(Screen::Generate));
+            steps.push(Command::SetRunForm(model::RunForm { attempts, overwrite: true, ..model::RunForm::default() }));
+            steps.push(Command::StartRun);
+        }
         steps.reverse();
         Self { app, steps, screenshot: options.screenshot.clone(), idle_frames: 0, shot_requested: false }
     }
 
     /// Takes the next start-up step once the backend is idle; then the screenshot, if asked for.
     fn script(&mut self, ctx: &egui::Context) {
-        if self.app.model.in_flight > 0 || self.app.model.file.is_none() {
+        let running = self.app.model.run.as_ref().is_some_and(model::RunState::running);
+        if self.app.model.in_flight > 0 || self.app.model.file.is_none() || running {
             self.idle_frames = 0;
             ctx.request_repaint();
             return;

@@ -190,7 +190,7 @@ fn source_plot(ui: &mut egui::Ui, run: &RunState, size: egui::Vec2) {
         .width(size.x)
         .height(size.y)
         .x_axis_label("source demo")
-        .y_axis_label("attempts")
+        .y_axis_label("segments used (all subtasks)")
         .legend(Legend::default().position(Corner::LeftTop))
         .show(ui, |plot| {
             plot.bar_chart(succeeded);
