@@ -27,6 +27,14 @@ pub struct BenchAppArgs {
     /// Frames measured per screen.
     #[arg(long, default_value_t = 300)]
     frames: usize,
+    /// Also start a run of this many attempts (1 worker) from the app, measure the frame time
+    /// while it goes, and compare its throughput with the same run through the pipeline alone
+    /// (what `mimicgen generate` does). 0: skip.
+    #[arg(long, default_value_t = 0)]
+    run: usize,
+    /// Directory for the runs' datasets (default: a temporary one).
+    #[arg(long)]
+    dir: Option<PathBuf>,
 }
 
 fn percentile(sorted_ms: &[f64], p: f64) -> f64 {
@@ -97,6 +105,51 @@ impl Frames {
     }
 }
 
+/// A run of `args.run` attempts on 1 worker started from the app (frames drawn at ~60 Hz while it
+/// goes), then the same run through the pipeline alone; their throughputs and the frame times.
+fn run_in_app(frames: &mut Frames, args: &BenchAppArgs, file: &std::path::Path) -> anyhow::Result<serde_json::Value> {
+    let tmp = tempfile::tempdir()?;
+    let dir = args.dir.clone().unwrap_or_else(|| tmp.path().to_path_buf());
+    let source = frames.app.model.file.as_ref().map_or_else(|| file.to_path_buf(), |f| f.path.clone());
+    let form = mimicgen_gui::model::RunForm {
+        attempts: args.run,
+        workers: 1,
+        keep_failed: false,
+        overwrite: true,
+        out: dir.join("app_run.hdf5").display().to_string(),
+        ..mimicgen_gui::model::RunForm::default()
+    };
+    frames.app.command(Command::Show(Screen::Generate));
+    frames.app.command(Command::SetRunForm(form.clone()));
+    frames.app.command(Command::StartRun);
+    let mut during = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(3600);
+    while frames.app.model.run.as_ref().is_some_and(mimicgen_gui::model::RunState::running) {
+        during.push(frames.frame(Vec::new()));
+        if Instant::now() > deadline {
+            bail!("the run did not end within an hour");
+        }
+        std::thread::sleep(Duration::from_millis(16));
+    }
+    let Some(app_report) = frames.app.model.run.as_ref().and_then(|r| r.report.clone()) else {
+        bail!("the run from the app failed: {:?}", frames.app.model.run.as_ref().and_then(|r| r.error.clone()))
+    };
+    let cli_config = mimicgen_gui::model::RunForm { out: dir.join("cli_run.hdf5").display().to_string(), ..form }.config(&source);
+    let pipeline = mimicgen_pipeline::Pipeline::prepare(&cli_config)?;
+    let cli_report = pipeline.run(&std::sync::atomic::AtomicBool::new(false), |_| {})?;
+    #[allow(clippy::cast_precision_loss)]
+    let frames_per_s = during.len() as f64 / app_report.wall_time_s.max(1e-9);
+    Ok(json!({
+        "attempts": args.run,
+        "app_attempts_per_s": app_report.attempts_per_s,
+        "pipeline_attempts_per_s": cli_report.attempts_per_s,
+        "app_over_pipeline": app_report.attempts_per_s / cli_report.attempts_per_s,
+        "same_successes": app_report.successes == cli_report.successes,
+        "frames_while_running": summary(during),
+        "frames_drawn_per_s": frames_per_s,
+    }))
+}
+
 fn key(key: egui::Key) -> Vec<egui::Event> {
     let press = |pressed| egui::Event::Key { key, physical_key: None, pressed, repeat: false, modifiers: egui::Modifiers::NONE };
     vec![press(true), press(false)]
@@ -143,7 +196,9 @@ pub fn run(args: &BenchAppArgs) -> anyhow::Result<()> {
     check(&frames)?;
     let preview: Vec<f64> = (0..args.frames).map(|_| frames.frame(Vec::new())).collect();
     let preview_vertices = frames.vertices;
+    let run = if args.run > 0 { Some(run_in_app(&mut frames, args, &file)?) } else { None };
     let report = json!({
+        "run": run,
         "file": file.display().to_string(),
         "demos": demos,
         "browsable_after_s": browsable_s,
