@@ -234,7 +234,7 @@ fn run_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify) {
         Err(e) => return update(RunUpdate::Failed(e.to_string())),
     };
     let result = pipeline.run(cancel, |event| match event {
-        Event::Started(info) => update(RunUpdate::Started(info.clone())),
+        Event::Started(info) => update(RunUpdate::Started { info: info.clone(), dimensions: pipeline.task().coverage_dimensions() }),
         Event::Attempt(a) => update(RunUpdate::Attempt(Box::new(attempt_row(a)))),
         Event::Finished(_) => {}
     });

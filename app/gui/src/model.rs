@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use mimicgen_engine::RunStats;
+use mimicgen_engine::coverage::Dimension;
 use mimicgen_pipeline::{Report, RunConfig, RunInfo};
 
 use crate::protocol::{AttemptRow, LoadedFile, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink};
@@ -117,6 +118,8 @@ pub struct RunState {
     pub config: RunConfig,
     /// The run as it started (task, variant, target).
     pub info: Option<RunInfo>,
+    /// The task variant's reset region per object coordinate (for coverage).
+    pub dimensions: Vec<Dimension>,
     /// Every decided attempt, in index order.
     pub rows: Vec<AttemptRow>,
     /// The report, once the run has ended.
@@ -499,8 +502,15 @@ impl AppModel {
                     return None;
                 }
                 let config = self.run_form.config(&file.path);
-                self.run =
-                    Some(RunState { config: config.clone(), info: None, rows: Vec::new(), report: None, error: None, cancelling: false });
+                self.run = Some(RunState {
+                    config: config.clone(),
+                    info: None,
+                    dimensions: Vec::new(),
+                    rows: Vec::new(),
+                    report: None,
+                    error: None,
+                    cancelling: false,
+                });
                 self.busy = Some("starting the run".to_owned());
                 return Some(Request::Run(Box::new(config)));
             }
@@ -625,7 +635,10 @@ impl AppModel {
     fn on_run_update(&mut self, update: RunUpdate) {
         let Some(run) = self.run.as_mut() else { return };
         match update {
-            RunUpdate::Started(info) => run.info = Some(info),
+            RunUpdate::Started { info, dimensions } => {
+                run.info = Some(info);
+                run.dimensions = dimensions;
+            }
             RunUpdate::Attempt(row) => run.rows.push(*row),
             RunUpdate::Finished(report) => {
                 self.status = format!(

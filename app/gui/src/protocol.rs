@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use mimicgen_engine::RunStats;
+use mimicgen_engine::coverage::Dimension;
 use mimicgen_pipeline::{Report, RunConfig, RunInfo};
 use serde::{Deserialize, Serialize};
 
@@ -51,8 +52,14 @@ pub enum Request {
 /// What a running generation reports (after [`Request::Run`] was accepted).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum RunUpdate {
-    /// The run has started.
-    Started(RunInfo),
+    /// The run has started; `dimensions` are the task variant's reset region per object coordinate
+    /// (what the coverage view bins, as `mimicgen coverage` does).
+    Started {
+        /// The run.
+        info: RunInfo,
+        /// The reset region per object coordinate.
+        dimensions: Vec<Dimension>,
+    },
     /// An attempt was decided (in index order).
     Attempt(Box<AttemptRow>),
     /// The run has ended (completed or cancelled); its outputs are complete.

@@ -1,11 +1,17 @@
 //! The generate screen: the run form (what `mimicgen generate` takes, and the command line that
 //! makes the same run), then, live: progress with ETA, the generation rate over attempts,
 //! attempts and successes per source demo, failures by subtask and reason, the initial scenes from
-//! above coloured by outcome, and the attempt table (filter, sort, re-run one in the preview).
+//! above coloured by outcome, support coverage against uniformly spread scenes with histograms per
+//! object coordinate, and the attempt table (filter, sort, re-run one in the preview).
 //! Reads the model, returns commands.
+
+use std::collections::BTreeMap;
 
 use egui::{Color32, RichText};
 use egui_plot::{Bar, BarChart, Corner, Legend, Line, MarkerShape, Plot, PlotPoints, Points};
+use mimicgen_engine::Pose;
+use mimicgen_engine::coverage::{Coordinate, coverage, uniform_support_coverage};
+use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
 
 use crate::model::{AppModel, Command, RunState};
 use crate::protocol::AttemptRow;
@@ -151,8 +157,83 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
             }
         });
     }
+    coverage_view(ui, run);
     ui.separator();
     attempt_table(ui, run, state, commands);
+}
+
+/// Bins per coordinate of the support coverage (the paper's appendix uses 3).
+const SUPPORT_BINS: usize = 3;
+/// Bins per coordinate of the histograms.
+const HISTOGRAM_BINS: usize = 10;
+
+/// The initial scenes of `rows` as object poses (for the engine's coverage analysis).
+fn scenes<'a>(rows: impl Iterator<Item = &'a AttemptRow>) -> Vec<BTreeMap<String, Pose>> {
+    rows.map(|r| {
+        r.objects
+            .iter()
+            .map(|o| {
+                (
+                    o.name.clone(),
+                    pose_from_parts(Vec3::new(o.position[0], o.position[1], o.position[2]), Rot::from_axis_angle(&Vec3::z_axis(), o.yaw)),
+                )
+            })
+            .collect()
+    })
+    .collect()
+}
+
+/// Support coverage of the run's initial scenes (all, successes, failures) against uniformly
+/// spread scenes, and per-coordinate histograms over the reset region, successes and failures
+/// stacked: the numbers `mimicgen coverage` prints, from the same function.
+fn coverage_view(ui: &mut egui::Ui, run: &RunState) {
+    if run.dimensions.is_empty() || run.rows.is_empty() {
+        return;
+    }
+    let all = scenes(run.rows.iter());
+    let good = scenes(run.rows.iter().filter(|r| r.success));
+    let bad = scenes(run.rows.iter().filter(|r| !r.success));
+    let support = |s: &[BTreeMap<String, Pose>]| coverage(s, &run.dimensions, SUPPORT_BINS).ok();
+    let (Some(c_all), Some(c_good), Some(c_bad)) = (support(&all), support(&good), support(&bad)) else { return };
+    let uniform = uniform_support_coverage(c_all.joint_bins_total, all.len());
+    egui::CollapsingHeader::new("Coverage of the initial scenes").default_open(true).show(ui, |ui| {
+        ui.label(format!(
+            "support coverage ({SUPPORT_BINS} bins per coordinate, {} joint bins): all {:.1} % (uniformly spread scenes: {:.1} %), successes {:.1} %, failures {:.1} %",
+            c_all.joint_bins_total,
+            100.0 * c_all.support_coverage(),
+            100.0 * uniform,
+            100.0 * c_good.support_coverage(),
+            100.0 * c_bad.support_coverage()
+        ));
+        let (Ok(h_good), Ok(h_bad)) = (coverage(&good, &run.dimensions, HISTOGRAM_BINS), coverage(&bad, &run.dimensions, HISTOGRAM_BINS)) else { return };
+        ui.horizontal_wrapped(|ui| {
+            for (k, dim) in h_good.dimensions.iter().enumerate() {
+                let width = (dim.high - dim.low) / HISTOGRAM_BINS as f64;
+                #[allow(clippy::cast_precision_loss)]
+                let bars = |h: &[usize]| -> Vec<Bar> {
+                    h.iter().enumerate().map(|(b, &n)| Bar::new(dim.low + (b as f64 + 0.5) * width, n as f64).width(width * 0.9)).collect()
+                };
+                let succeeded = BarChart::new("successes", bars(&h_good.histograms[k])).color(SUCCESS);
+                let failed = BarChart::new("failures", bars(&h_bad.histograms[k])).color(FAILURE).stack_on(&[&succeeded]);
+                let coordinate = match dim.coordinate {
+                    Coordinate::X => "x (m)",
+                    Coordinate::Y => "y (m)",
+                    Coordinate::Yaw => "yaw (rad)",
+                };
+                Plot::new(("coverage", k))
+                    .width(200.0)
+                    .height(110.0)
+                    .x_axis_label(format!("{} {coordinate}", dim.object))
+                    .show_axes([true, false])
+                    .allow_drag(false)
+                    .allow_scroll(false)
+                    .show(ui, |plot| {
+                        plot.bar_chart(succeeded);
+                        plot.bar_chart(failed);
+                    });
+            }
+        });
+    });
 }
 
 fn rate_plot(ui: &mut egui::Ui, run: &RunState, size: egui::Vec2) {

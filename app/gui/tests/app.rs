@@ -377,6 +377,12 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     assert_eq!(run.rows.iter().map(|r| r.index).collect::<Vec<_>>(), (0..6).collect::<Vec<_>>());
     assert!(out.is_file() && !report.cancelled);
     h.get_by_label_contains("6 attempts,");
+    // The coverage view's numbers are `mimicgen coverage`'s on the written dataset (one function).
+    let written = mimicgen_io::read_source_dataset(&out, &Default::default()).unwrap();
+    let scenes: Vec<_> = written.demos.iter().map(|d| d.object_poses.iter().map(|(k, v)| (k.clone(), v[0])).collect()).collect();
+    let dims = mimicgen_sim::registry::task("stack", "D0").unwrap().coverage_dimensions();
+    let expected = mimicgen_engine::coverage::coverage(&scenes, &dims, 3).unwrap().support_coverage();
+    h.get_by_label_contains(&format!("successes {:.1} %", 100.0 * expected));
     // Re-run attempt 2 in the preview: the same seed and index give the same outcome.
     h.get_by_label_contains("    2  ").click();
     h.run_steps(2);

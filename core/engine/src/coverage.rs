@@ -114,6 +114,19 @@ pub fn coverage(scenes: &[BTreeMap<String, Pose>], dimensions: &[Dimension], bin
     Ok(Coverage { bins, dimensions: dims, joint_bins_hit: hit.len(), joint_bins_total: total, histograms, scenes: scenes.len() })
 }
 
+/// Joint bins that `scenes` scenes drawn uniformly over `joint_bins_total` bins hit on average,
+/// as a fraction: `1 - (1 - 1/total)^scenes`. The reference a dataset's support coverage is read
+/// against (a dataset whose scenes cluster hits fewer).
+#[must_use]
+pub fn uniform_support_coverage(joint_bins_total: usize, scenes: usize) -> f64 {
+    if joint_bins_total == 0 {
+        return 0.0;
+    }
+    #[allow(clippy::cast_precision_loss)]
+    let miss = 1.0 - 1.0 / joint_bins_total as f64;
+    1.0 - miss.powi(i32::try_from(scenes).unwrap_or(i32::MAX))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -156,6 +169,15 @@ mod tests {
         let c = coverage(&scenes, &dims(), 3).unwrap();
         assert_eq!(c.joint_bins_hit, 27);
         assert!((c.support_coverage() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn uniform_coverage_grows_towards_one_with_scenes() {
+        assert!((uniform_support_coverage(27, 1) - 1.0 / 27.0).abs() < 1e-12);
+        assert!((uniform_support_coverage(1, 5) - 1.0).abs() < 1e-12);
+        assert!(uniform_support_coverage(729, 1000) > 0.74 && uniform_support_coverage(729, 1000) < 0.75);
+        assert!(uniform_support_coverage(729, 10) < uniform_support_coverage(729, 100));
+        assert!(uniform_support_coverage(0, 10).abs() < 1e-12);
     }
 
     #[test]
