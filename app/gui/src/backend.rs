@@ -227,7 +227,9 @@ fn attempt_row(event: &AttemptEvent) -> AttemptRow {
 }
 
 /// Runs `config` through the pipeline, reporting every event to `notify`; stops when `cancel` is set.
-fn run_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify) {
+/// With the 3D view open, every attempt is also logged to `logger` as it is decided (a failure
+/// to log ends the logging, not the run).
+fn run_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify, mut logger: Option<RunLogger>) {
     let update = |u: RunUpdate| notify(Reply::Run(u));
     let pipeline = match Pipeline::prepare(config) {
         Ok(p) => p,
@@ -235,9 +237,19 @@ fn run_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify) {
     };
     let result = pipeline.run(cancel, |event| match event {
         Event::Started(info) => update(RunUpdate::Started { info: info.clone(), dimensions: pipeline.task().coverage_dimensions() }),
-        Event::Attempt(a) => update(RunUpdate::Attempt(Box::new(attempt_row(a)))),
+        Event::Attempt(a) => {
+            update(RunUpdate::Attempt(Box::new(attempt_row(a))));
+            if let Some(l) = &mut logger
+                && l.log_attempt(&a.attempt, &a.stats).is_err()
+            {
+                logger = None;
+            }
+        }
         Event::Finished(_) => {}
     });
+    if let Some(l) = logger {
+        let _ = l.finish();
+    }
     match result {
         Ok(report) => update(RunUpdate::Finished(Box::new(report))),
         Err(e) => update(RunUpdate::Failed(e.to_string())),
@@ -284,8 +296,15 @@ impl Worker {
         }
         let cancel = Arc::new(AtomicBool::new(false));
         let (flag, notify) = (Arc::clone(&cancel), Arc::clone(&self.notify));
+        // The run's own recording (its attempts on the `attempt` and `frame` timelines): a new
+        // recording in the embedded viewer or the spawned one, `<file>_run.rrd` beside a saved one.
+        let logger = match self.viewer.as_ref().map(|(sink, _)| sink.clone()) {
+            Some(ViewerSink::Save(path)) => self.logger(&ViewerSink::Save(mimicgen_pipeline::sibling(&path, "_run", "rrd"))).ok(),
+            Some(sink) => self.logger(&sink).ok(),
+            None => None,
+        };
         let spawned =
-            std::thread::Builder::new().name("mimicgen-gui-run".to_owned()).spawn(move || run_generation(&config, &flag, &notify));
+            std::thread::Builder::new().name("mimicgen-gui-run".to_owned()).spawn(move || run_generation(&config, &flag, &notify, logger));
         match spawned {
             Ok(thread) => {
                 self.run = Some((cancel, thread));

@@ -223,6 +223,25 @@ fn the_3d_view_streams_the_shown_demo_and_tried_attempts_to_rerun() {
         assert!(print.contains(entity), "{entity} missing from the recording");
     }
     assert!(print.contains("LineStrips3D:show_labels"), "labels are hidden in the view (hover shows them)");
+    // A run started with the 3D view open records its attempts too (beside the app's recording).
+    h.get_by_label("Generate").click();
+    h.run_steps(2);
+    let out = dir.path().join("run.hdf5");
+    h.state_mut().command(Command::SetRunForm(mimicgen_gui::model::RunForm {
+        attempts: 3,
+        out: out.display().to_string(),
+        ..Default::default()
+    }));
+    h.get_by_label("Start").click();
+    h.step();
+    until_run_ends(&mut h);
+    let run_rrd = dir.path().join("app_run.rrd");
+    let out = std::process::Command::new(&bin).args(["rrd", "print"]).arg(&run_rrd).output().unwrap();
+    let print = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        print.contains("/world/history/attempt_00002") && print.contains("/stats/generation_rate"),
+        "the run's recording lacks its attempts"
+    );
 }
 
 /// A plain robomimic file (no `datagen_info`) is prepared by replay in the background, with
