@@ -70,6 +70,9 @@ Examples:
         /// Demo to show (index in the file).
         #[arg(long)]
         demo: Option<usize>,
+        /// Step to put the time cursor at.
+        #[arg(long)]
+        step: Option<usize>,
         /// Try the previewed attempt in simulation once the preview is shown.
         #[arg(long)]
         try_it: bool,
@@ -216,7 +219,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             generate::demos(&args)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::App { file, screen, demo, try_it, run, screenshot } => {
+        Command::App { file, screen, demo, step, try_it, run, screenshot } => {
             let file = match file {
                 Some(f) => f,
                 None => mimicgen_pipeline::bundled::source_demos("stack")?,
@@ -226,7 +229,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 ScreenArg::Preview => mimicgen_gui::Screen::Preview,
                 ScreenArg::Generate => mimicgen_gui::Screen::Generate,
             };
-            let options = mimicgen_gui::RunOptions { file: Some(file), screen, demo, try_it, run, screenshot };
+            let options = mimicgen_gui::RunOptions { file: Some(file), screen, demo, step, try_it, run, screenshot };
             mimicgen_gui::run(options).map_err(|e| {
                 anyhow::anyhow!("cannot open the app's window ({e}); without a display, use the batch commands (`mimicgen generate`, `mimicgen annotate`)")
             })?;

@@ -14,8 +14,6 @@ use rerun_viewer::external::re_viewer::external::re_log_types::{LogMsg, TimeReal
 use rerun_viewer::external::re_viewer::external::re_viewer_context::TimeControlCommand;
 use rerun_viewer::external::re_viewer::{self, SystemCommand, SystemCommandSender as _, ViewerEventKind};
 
-use eframe::App as _;
-
 use crate::backend::StreamFactory;
 use crate::model::Command;
 use crate::protocol::ViewerSink;

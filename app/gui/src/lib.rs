@@ -171,6 +171,8 @@ pub struct RunOptions {
     pub screen: Screen,
     /// The demo to show.
     pub demo: Option<usize>,
+    /// The step to put the time cursor at.
+    pub step: Option<usize>,
     /// Run "try it" on the preview screen.
     pub try_it: bool,
     /// Start a run of this many attempts (to `out/app_run.hdf5`, replacing it) on the generate
@@ -194,6 +196,9 @@ impl Window {
         let mut steps = Vec::new();
         if let Some(d) = options.demo {
             steps.push(Command::SelectDemo(d));
+        }
+        if let Some(t) = options.step {
+            steps.push(Command::SetCursor(t));
         }
         if options.screen != Screen::Annotate {
             steps.push(Command::Show(options.screen));

@@ -1,7 +1,9 @@
 //! The default viewer layout, the same as `viewer_assets/mimicgen.rbl`.
 
-use rerun::blueprint::components::PlayState;
-use rerun::blueprint::{Blueprint, Horizontal, Spatial3DView, TextLogView, TimePanel, TimeSeriesView, Vertical};
+use rerun::blueprint::components::{PanelState, PlayState};
+use rerun::blueprint::{
+    Blueprint, BlueprintPanel, Horizontal, SelectionPanel, Spatial3DView, Tabs, TextLogView, TimePanel, TimeSeriesView, Vertical,
+};
 
 use crate::record::timelines;
 
@@ -25,16 +27,23 @@ pub fn default_blueprint() -> Blueprint {
     .with_time_panel(TimePanel::new().with_timeline(timelines::FRAME).with_play_state(PlayState::Following))
 }
 
-/// The layout inside the app, which draws its own plots: the 3D scene (with the outcome log
-/// below it), the time panel on the `step` timeline, paused, so the app's time cursor drives it.
+/// The layout inside the app, which draws its own plots and lists: a 3D view of the workspace
+/// (table top, objects, gripper, paths: framed close, without the arm and the room) with a tab
+/// for the whole scene, the outcome log below, the viewer's side panels collapsed, and the time
+/// panel on the `step` timeline, paused and collapsed to its bar, so the app's cursor drives it.
 #[must_use]
 pub fn app_blueprint() -> Blueprint {
+    let workspace = Spatial3DView::new("Workspace").with_origin("world").with_contents([
+        "+ /world/**",
+        "- /world/scene/robot/**",
+        "- /world/scene/arena/**",
+    ]);
+    let whole = Spatial3DView::new("Whole scene").with_origin("world");
     Blueprint::new(
-        Vertical::new([
-            Spatial3DView::new("Scene").with_origin("world").into(),
-            TextLogView::new("Outcomes").with_origin("outcome").into(),
-        ])
-        .with_row_shares([5.0, 1.0]),
+        Vertical::new([Tabs::new([workspace.into(), whole.into()]).into(), TextLogView::new("Outcomes").with_origin("outcome").into()])
+            .with_row_shares([6.0, 1.0]),
     )
-    .with_time_panel(TimePanel::new().with_timeline(timelines::STEP).with_play_state(PlayState::Paused))
+    .with_blueprint_panel(BlueprintPanel::new().with_state(PanelState::Collapsed))
+    .with_selection_panel(SelectionPanel::new().with_state(PanelState::Collapsed))
+    .with_time_panel(TimePanel::new().with_timeline(timelines::STEP).with_play_state(PlayState::Paused).with_state(PanelState::Collapsed))
 }

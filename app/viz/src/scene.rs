@@ -1,4 +1,6 @@
-//! The MuJoCo scene as Rerun primitives: every visible geom logged once, then its pose per step.
+//! The MuJoCo scene as Rerun primitives: every visible geom logged once, then its pose per step,
+//! under `<root>/<part>/` (`robot`, `gripper`, `objects`, `table`, `arena`) so a view can show
+//! the workspace without the arm and the room.
 
 use mimicgen_engine::Rows;
 use mimicgen_sim::{GeomPoser, Scene, Shape, VisibleGeom};
@@ -64,8 +66,12 @@ impl SceneLogger {
             .into_iter()
             .map(|geom| {
                 let g = geom.id;
-                let path =
-                    if geom.name.is_empty() { format!("{root}/geom_{g:03}") } else { format!("{root}/{g:03}_{}", sanitize(&geom.name)) };
+                let part = geom.part.name();
+                let path = if geom.name.is_empty() {
+                    format!("{root}/{part}/geom_{g:03}")
+                } else {
+                    format!("{root}/{part}/{g:03}_{}", sanitize(&geom.name))
+                };
                 GeomEntity { geom, path }
             })
             .collect();

@@ -63,6 +63,35 @@ pub enum Shape {
 /// A geom's world position and row-major rotation matrix, as MuJoCo keeps them.
 pub type GeomPose = ([f64; 3], [f64; 9]);
 
+/// What a geom belongs to, so viewers can show the workspace without the arm and the room.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Part {
+    /// The arm and its mount.
+    Robot,
+    /// The gripper and fingers.
+    Gripper,
+    /// A task object (or a part of one).
+    Object,
+    /// The table top.
+    Table,
+    /// Everything else: floor, table legs.
+    Arena,
+}
+
+impl Part {
+    /// Lower-case name (for entity paths).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Robot => "robot",
+            Self::Gripper => "gripper",
+            Self::Object => "objects",
+            Self::Table => "table",
+            Self::Arena => "arena",
+        }
+    }
+}
+
 /// One geom a person would see.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VisibleGeom {
@@ -70,6 +99,8 @@ pub struct VisibleGeom {
     pub id: usize,
     /// Its name (may be empty).
     pub name: String,
+    /// What it belongs to.
+    pub part: Part,
     /// Its shape.
     pub shape: Shape,
     /// The colour MuJoCo's renderer would use (material colour unless the geom's own is set).
@@ -149,9 +180,36 @@ impl Scene {
                 if hidden {
                     return None;
                 }
-                Some(VisibleGeom { id: g, name, shape: shape(model, g)?, rgba })
+                let part = self.part_of(body, &name);
+                Some(VisibleGeom { id: g, name, part, shape: shape(model, g)?, rgba })
             })
             .collect()
+    }
+
+    /// What body `body` (holding geom `geom_name`) belongs to: robosuite's `robot0_` / `mount0_`
+    /// bodies are the arm, `gripper0_` the gripper, the task's objects and their sub-bodies
+    /// objects, the geom `table_*` (not a leg) the table top, the rest the arena.
+    fn part_of(&self, body: usize, geom_name: &str) -> Part {
+        let model = &self.model;
+        let parents = model.body_parentid();
+        let mut b = body;
+        loop {
+            if self.objects.iter().any(|o| o.body == b) {
+                return Part::Object;
+            }
+            let name = model.id_to_name(MjtObjBase::mjOBJ_BODY, b).unwrap_or_default();
+            if name.starts_with("gripper0_") {
+                return Part::Gripper;
+            }
+            if name.starts_with("robot0_") || name.starts_with("mount0_") {
+                return Part::Robot;
+            }
+            match usize::try_from(parents[b]) {
+                Ok(parent) if parent != b && b != 0 => b = parent,
+                _ => break,
+            }
+        }
+        if geom_name.starts_with("table") && !geom_name.starts_with("table_leg") { Part::Table } else { Part::Arena }
     }
 }
 

@@ -17,7 +17,7 @@ pub mod scene;
 pub mod task;
 
 pub use env::SimEnv;
-pub use geometry::{GeomPoser, Shape, VisibleGeom};
+pub use geometry::{GeomPoser, Part, Shape, VisibleGeom};
 pub use scene::Scene;
 pub use task::{Square, Stack, StackThree, Task};
 
