@@ -116,48 +116,36 @@ impl MimicgenApp {
         match self.model.screen {
             Screen::Annotate => {
                 egui::Panel::left("demos").default_size(220.0).show(ui, |ui| ui::demo_list(ui, &self.model, &mut commands));
-                let timeline = |ui: &mut egui::Ui| ui::timeline(ui, &self.model, &mut self.ui, &mut commands);
-                match viewer {
-                    Some(viewer) => {
-                        egui::Panel::bottom("timeline").resizable(true).default_size(360.0).show(ui, timeline);
-                        viewer(ui);
-                    }
-                    None => {
-                        egui::CentralPanel::default().show(ui, timeline);
-                    }
-                }
+                let beside = egui::Panel::bottom("timeline").default_size(360.0);
+                main_area(ui, viewer, beside, |ui| ui::timeline(ui, &self.model, &mut self.ui, &mut commands));
             }
             Screen::Preview => {
                 egui::Panel::left("preview").default_size(300.0).show(ui, |ui| preview_ui::controls(ui, &self.model, &mut commands));
-                match viewer {
-                    Some(viewer) => {
-                        egui::Panel::right("views")
-                            .resizable(true)
-                            .default_size(520.0)
-                            .show(ui, |ui| preview_ui::views(ui, &self.model, &mut self.ui, &mut commands));
-                        viewer(ui);
-                    }
-                    None => {
-                        egui::CentralPanel::default().show(ui, |ui| preview_ui::views(ui, &self.model, &mut self.ui, &mut commands));
-                    }
-                }
+                let beside = egui::Panel::right("views").default_size(520.0);
+                main_area(ui, viewer, beside, |ui| preview_ui::views(ui, &self.model, &mut self.ui, &mut commands));
             }
             Screen::Generate => {
                 egui::Panel::left("run_form").default_size(300.0).show(ui, |ui| run_ui::form(ui, &self.model, &mut commands));
-                let progress = |ui: &mut egui::Ui| run_ui::progress(ui, &self.model, &mut self.ui, &mut commands);
-                match viewer {
-                    Some(viewer) => {
-                        egui::Panel::bottom("run").resizable(true).default_size(420.0).show(ui, progress);
-                        viewer(ui);
-                    }
-                    None => {
-                        egui::CentralPanel::default().show(ui, progress);
-                    }
-                }
+                let beside = egui::Panel::bottom("run").default_size(420.0);
+                main_area(ui, viewer, beside, |ui| run_ui::progress(ui, &self.model, &mut self.ui, &mut commands));
             }
         }
         for command in commands {
             self.command(command);
+        }
+    }
+}
+
+/// Draws a screen's main content: in the central area, or beside a 3D view in `beside` (a
+/// resizable panel) with `viewer` drawing in the space left.
+fn main_area(ui: &mut egui::Ui, viewer: Option<impl FnOnce(&mut egui::Ui)>, beside: egui::Panel, content: impl FnOnce(&mut egui::Ui)) {
+    match viewer {
+        Some(viewer) => {
+            beside.resizable(true).show(ui, content);
+            viewer(ui);
+        }
+        None => {
+            egui::CentralPanel::default().show(ui, content);
         }
     }
 }
