@@ -46,6 +46,7 @@ fn synthetic_demo(d: usize, steps: usize) -> anyhow::Result<DemoData> {
         src_demo_labels: vec![0; steps],
         model_xml: Some("<mujoco model=\"bench\"/>".to_owned()),
         attempt_index: None,
+        failure: None,
     })
 }
 

@@ -295,6 +295,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             src_demo_labels: Vec::new(),
             model_xml: Some(scene.xml_with_fixed_objects(&xml, &initial)?),
             attempt_index: None,
+            failure: None,
         };
         let name = writer.append(&data)?;
         eprintln!("{name}: {n} steps");

@@ -11,10 +11,10 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 
 use mimicgen_engine::transform::WaypointKind;
 use mimicgen_engine::{Attempt, Overrides, Plan, Pose, RunStats, SourceDataset, SourceDemo};
-use mimicgen_io::IoError;
+use mimicgen_io::{ATTEMPT_ATTR, DemoReader, DemoSource as _, FAILURE_ATTR, IoError, ReadOptions, source_demo_from_group};
 use mimicgen_pipeline::annotate::{Annotations, DemoAnnotation};
 use mimicgen_pipeline::preview::Previewer;
-use mimicgen_pipeline::{AttemptEvent, Event, Outcome, Pipeline, PipelineError, RunConfig, annotate, prepare};
+use mimicgen_pipeline::{AttemptEvent, Event, Outcome, Pipeline, PipelineError, Report, RunConfig, RunInfo, annotate, prepare};
 use mimicgen_viz::rerun::RecordingStream;
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
@@ -256,6 +256,134 @@ fn run_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify, mut 
     }
 }
 
+/// Reads a finished run's outputs (the dataset `path`, its `_failed.hdf5` and its `.json` report
+/// where they exist) and reports them to `notify` as a run would: started, every kept attempt in
+/// index order, finished. Attempts that were not kept (failures beyond `max_num_failures`, or all
+/// failures without `--keep-failed`) are not in the files; the report still counts them.
+///
+/// # Errors
+/// A file that cannot be read, or demos without `mimicgen_attempt` (not made by `generate`).
+pub fn open_run(path: &Path, notify: &Notify) -> Result<(), PipelineError> {
+    let label = path.display().to_string();
+    let report_path = mimicgen_pipeline::sibling(path, "", "json");
+    let report: Option<Report> = match std::fs::read_to_string(&report_path) {
+        Ok(text) => Some(
+            serde_json::from_str(&text)
+                .map_err(|e| PipelineError::Fs { file: report_path.display().to_string(), reason: format!("not a run report: {e}") })?,
+        ),
+        Err(_) => None,
+    };
+    let mut rows: Vec<AttemptRow> = Vec::new();
+    let mut env_args = None;
+    let failed = mimicgen_pipeline::sibling(path, "_failed", "hdf5");
+    for (file, success) in [(path.to_path_buf(), true), (failed.clone(), false)] {
+        if !success && !file.is_file() {
+            continue;
+        }
+        let reader = DemoReader::open_with(&file, ReadOptions::default())?.without_observations();
+        let file_label = file.display().to_string();
+        env_args = env_args.or_else(|| reader.env_args_json().map(str::to_owned));
+        for name in reader.demo_names() {
+            let group = reader.load_demo(name)?;
+            let index = group.attrs.get(ATTEMPT_ATTR).and_then(mimicgen_io::tree::Array::as_i64).and_then(|i| u64::try_from(i).ok());
+            let index = index.ok_or_else(|| PipelineError::Fs {
+                file: file_label.clone(),
+                reason: format!("data/{name} has no {ATTEMPT_ATTR} attribute: the file was not written by `mimicgen generate`"),
+            })?;
+            let demo = source_demo_from_group(&file_label, name, &group)?;
+            let sources = group
+                .dataset("src_demo_inds")
+                .and_then(|d| d.array.values.to_i64())
+                .map(|v| v.into_iter().filter_map(|i| usize::try_from(i).ok()).collect())
+                .unwrap_or_default();
+            // `subtask k: reason`, as the writer puts it.
+            let failure = group.attrs.get(FAILURE_ATTR).and_then(mimicgen_io::tree::Array::as_str);
+            let parsed = failure.and_then(|f| {
+                let (subtask, reason) = f.strip_prefix("subtask ")?.split_once(": ")?;
+                Some((subtask.parse::<usize>().ok()?, reason.to_owned()))
+            });
+            let (failed_subtask, reason) = match parsed {
+                Some((k, r)) => (Some(k), Some(r)),
+                None => (None, failure.map(str::to_owned)),
+            };
+            rows.push(AttemptRow {
+                index,
+                success,
+                failed_subtask,
+                reason: if success { None } else { Some(reason.unwrap_or_else(|| "not recorded in the file".to_owned())) },
+                sources,
+                steps: demo.len(),
+                outcome: if success { name.clone() } else { format!("{name} (failed)") },
+                elapsed_s: 0.0,
+                objects: objects(&demo.object_poses.iter().filter_map(|(k, v)| Some((k.clone(), *v.first()?))).collect()),
+                stats: RunStats::default(),
+            });
+        }
+    }
+    rows.sort_by_key(|r| r.index);
+    let num_sources = report
+        .as_ref()
+        .map_or(0, |r| r.per_source_demo.len())
+        .max(rows.iter().flat_map(|r| r.sources.iter().map(|d| d + 1)).max().unwrap_or(0));
+    let mut stats = RunStats::new(num_sources);
+    for row in &mut rows {
+        stats.attempts += 1;
+        stats.successes += usize::from(row.success);
+        let mut used: Vec<usize> = row.sources.clone();
+        used.sort_unstable();
+        used.dedup();
+        for d in used {
+            if let Some(u) = stats.per_source_demo.get_mut(d) {
+                u.attempts += 1;
+                u.successes += usize::from(row.success);
+            }
+        }
+        row.stats = stats.clone();
+    }
+    let (task, variant) = mimicgen_sim::registry::task_from_env_args(env_args.as_deref())
+        .map_err(|e| PipelineError::Fs { file: label.clone(), reason: format!("data attribute env_args: {e}") })?;
+    let info = RunInfo {
+        task: task.name().to_owned(),
+        variant,
+        source: report.as_ref().map(|r| PathBuf::from(&r.source)).unwrap_or_default(),
+        num_sources,
+        workers: report.as_ref().map_or(1, |r| r.workers),
+        seed: report.as_ref().map_or(0, |r| r.seed),
+        target: report.as_ref().map_or(rows.len(), |r| r.attempts),
+        guarantee: false,
+        resumed_from: 0,
+    };
+    let update = |u: RunUpdate| notify(Reply::Run(u));
+    update(RunUpdate::Started { info, dimensions: task.coverage_dimensions() });
+    let kept = rows.len();
+    for row in rows {
+        update(RunUpdate::Attempt(Box::new(row)));
+    }
+    let report = report.unwrap_or_else(|| Report {
+        task: task.name().to_owned(),
+        variant: String::new(),
+        seed: 0,
+        workers: 1,
+        source: String::new(),
+        output: label.clone(),
+        failed_output: failed.is_file().then(|| failed.display().to_string()),
+        attempts: kept,
+        successes: stats.successes,
+        generation_rate: stats.rate(),
+        wall_time_s: 0.0,
+        attempts_per_s: 0.0,
+        control_steps: 0,
+        per_source_demo: Vec::new(),
+        peak_rss_mib: None,
+        failures: Vec::new(),
+        cancelled: false,
+        resumed_from: 0,
+        early_abort: false,
+    });
+    update(RunUpdate::Finished(Box::new(report)));
+    Ok(())
+}
+
 /// The backend's state: the open file's demos and scene (for the 3D view), the previewer of the
 /// last previewed file (kept so that moving through scenes does not recompile the scene), and the
 /// Rerun stream once the 3D view is open.
@@ -425,6 +553,10 @@ impl Worker {
     pub fn handle(&mut self, request: Request) -> Reply {
         match request {
             Request::Run(config) => self.start_run(*config),
+            Request::OpenRun { path } => match open_run(&path, &self.notify) {
+                Ok(()) => Reply::RunOpened,
+                Err(e) => Reply::Failed { what: format!("opening the run {}", path.display()), error: e.to_string() },
+            },
             Request::CancelRun => {
                 if let Some((cancel, _)) = &self.run {
                     cancel.store(true, Ordering::Relaxed);

@@ -125,7 +125,7 @@ impl MimicgenApp {
                 main_area(ui, viewer, beside, |ui| preview_ui::views(ui, &self.model, &mut self.ui, &mut commands));
             }
             Screen::Generate => {
-                egui::Panel::left("run_form").default_size(300.0).show(ui, |ui| run_ui::form(ui, &self.model, &mut commands));
+                egui::Panel::left("run_form").default_size(300.0).show(ui, |ui| run_ui::form(ui, &self.model, &mut self.ui, &mut commands));
                 let beside = egui::Panel::bottom("run").default_size(420.0);
                 main_area(ui, viewer, beside, |ui| run_ui::progress(ui, &self.model, &mut self.ui, &mut commands));
             }

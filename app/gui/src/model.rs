@@ -235,6 +235,8 @@ pub enum Command {
     CancelRun,
     /// Show attempt `index` of the run on the preview screen and try it again.
     ReRun(u64),
+    /// Read a finished run's outputs (the dataset `generate` wrote, its `_failed.hdf5` and report).
+    OpenRun(PathBuf),
     /// Stream the shown demo, and every demo shown and attempt tried after, to Rerun.
     Open3d(ViewerSink),
 }
@@ -519,8 +521,35 @@ impl AppModel {
                 run.cancelling = true;
                 return Some(Request::CancelRun);
             }
+            Command::OpenRun(path) => {
+                if self.run.as_ref().is_some_and(RunState::running) {
+                    self.error = Some("a run is going: cancel it or wait for it to end".to_owned());
+                    return None;
+                }
+                let config = RunConfig { out: path.clone(), source: None, ..RunConfig::default() };
+                self.run = Some(RunState {
+                    config,
+                    info: None,
+                    dimensions: Vec::new(),
+                    rows: Vec::new(),
+                    report: None,
+                    error: None,
+                    cancelling: false,
+                });
+                self.busy = Some(format!("reading the run {}", path.display()));
+                return Some(Request::OpenRun { path });
+            }
             Command::ReRun(index) => {
-                let seed = self.run.as_ref().and_then(|r| r.config.seed)?;
+                let run = self.run.as_ref()?;
+                let open = self.file.as_ref().map(|f| f.path.clone());
+                if run.config.source != open {
+                    self.error = Some(format!(
+                        "this run was made from {}; open that file to re-run its attempts",
+                        run.config.source.as_ref().map_or_else(|| "an unknown source (no report)".to_owned(), |p| p.display().to_string())
+                    ));
+                    return None;
+                }
+                let seed = run.config.seed?;
                 self.preview.seed = seed;
                 self.preview.index = index;
                 self.preview.moved.clear();
@@ -554,6 +583,7 @@ impl AppModel {
         match reply {
             Reply::Progress { .. } => {}
             Reply::RunAccepted => self.status = "run started".to_owned(),
+            Reply::RunOpened => {}
             Reply::Cancelling => self.status = "cancelling: finishing the attempts already decided".to_owned(),
             Reply::Run(update) => self.on_run_update(update),
             Reply::MoreDemos { path, demos, .. } => {
@@ -636,6 +666,10 @@ impl AppModel {
         let Some(run) = self.run.as_mut() else { return };
         match update {
             RunUpdate::Started { info, dimensions } => {
+                if run.config.source.is_none() && !info.source.as_os_str().is_empty() {
+                    run.config.source = Some(info.source.clone());
+                    run.config.seed = Some(info.seed);
+                }
                 run.info = Some(info);
                 run.dimensions = dimensions;
             }

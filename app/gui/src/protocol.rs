@@ -47,6 +47,12 @@ pub enum Request {
     Run(Box<RunConfig>),
     /// Stop the run after the attempts already decided; its outputs are finished as valid datasets.
     CancelRun,
+    /// Read a finished run's outputs (dataset, `_failed.hdf5`, report) into the run views; they
+    /// come as [`Reply::Run`] updates, as a live run's do.
+    OpenRun {
+        /// The dataset `mimicgen generate` wrote.
+        path: PathBuf,
+    },
 }
 
 /// What a running generation reports (after [`Request::Run`] was accepted).
@@ -162,6 +168,8 @@ pub enum Reply {
     Previewed(Box<PreviewView>),
     /// A run was started (its updates follow as [`Reply::Run`]).
     RunAccepted,
+    /// A finished run's outputs were read (their updates came before).
+    RunOpened,
     /// The run was asked to stop.
     Cancelling,
     /// What the running generation reports.
@@ -341,6 +349,7 @@ impl Reply {
             | Self::Shown3d { .. }
             | Self::Previewed(_)
             | Self::RunAccepted
+            | Self::RunOpened
             | Self::Cancelling
             | Self::Failed { .. } => true,
         }

@@ -34,8 +34,8 @@ pub enum AttemptFilter {
     Failures,
 }
 
-/// The run form, "Copy as command", Start and Cancel.
-pub fn form(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>) {
+/// The run form, "Copy as command", Start and Cancel; and opening a finished run's outputs.
+pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: &mut Vec<Command>) {
     let Some(file) = &model.file else {
         ui.label("Open a source file first.");
         return;
@@ -97,6 +97,17 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>) {
     if model.dirty {
         ui.label(RichText::new("Unsaved subtask ends: a run reads the ends saved in the file.").italics());
     }
+    ui.separator();
+    ui.heading("Open a run");
+    ui.horizontal(|ui| {
+        let label = ui.label("Dataset:");
+        ui.add(egui::TextEdit::singleline(&mut state.run_path).desired_width(150.0).hint_text("out/generated.hdf5"))
+            .labelled_by(label.id)
+            .on_hover_text("What mimicgen generate wrote; its _failed.hdf5 and .json report are read too");
+        if ui.add_enabled(!running && !state.run_path.trim().is_empty(), egui::Button::new("Open run")).clicked() {
+            commands.push(Command::OpenRun(state.run_path.trim().into()));
+        }
+    });
 }
 
 /// Target, done and ETA of a run.
@@ -146,16 +157,29 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
         source_plot(ui, run, egui::vec2(width, height));
         scene_plot(ui, run, egui::vec2(width, height));
     });
-    if let Some(stats) = run.stats().filter(|s| !s.failures.is_empty()) {
+    // Live runs count failures as they go; an opened run has them from its report.
+    let failures: Vec<(usize, String, usize)> = match run.stats().filter(|s| !s.failures.is_empty()) {
+        Some(stats) => stats.failures.iter().map(|f| (f.subtask, f.reason.to_string(), f.count)).collect(),
+        None => run.report.iter().flat_map(|r| &r.failures).map(|f| (f.subtask, f.reason.clone(), f.count)).collect(),
+    };
+    if !failures.is_empty() {
         ui.strong("Failures by subtask and reason");
         egui::Grid::new("failures").striped(true).num_columns(3).show(ui, |ui| {
-            for f in &stats.failures {
-                ui.label(format!("subtask {}", f.subtask));
-                ui.label(f.reason.to_string());
-                ui.label(format!("{}", f.count));
+            for (subtask, reason, count) in &failures {
+                ui.label(format!("subtask {subtask}"));
+                ui.label(reason);
+                ui.label(format!("{count}"));
                 ui.end_row();
             }
         });
+    }
+    if let Some(report) = run.report.as_ref().filter(|r| r.attempts > run.rows.len()) {
+        ui.label(RichText::new(format!(
+            "{} of {} attempts are in the files: failures not kept (beyond max_num_failures, or without --keep-failed) are only counted",
+            run.rows.len(),
+            report.attempts
+        ))
+        .italics());
     }
     coverage_view(ui, run);
     ui.separator();

@@ -39,6 +39,8 @@ pub struct UiState {
     pub longest_first: bool,
     /// The attempt selected in the table.
     pub selected_attempt: Option<u64>,
+    /// The "open a run" path field.
+    pub run_path: String,
     /// Time of the last playback step (s).
     pub last_tick_s: f64,
 }

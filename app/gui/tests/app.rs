@@ -381,7 +381,9 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     settle(&mut h);
     h.get_by_label("Generate").click();
     h.step();
-    let form = mimicgen_gui::model::RunForm { attempts: 6, seed: 3, out: out.display().to_string(), ..Default::default() };
+    // Seed 1: one of the first attempts misses its grasp, so the run has a failure to keep, open
+    // and re-run.
+    let form = mimicgen_gui::model::RunForm { attempts: 6, seed: 1, out: out.display().to_string(), ..Default::default() };
     h.state_mut().command(Command::SetRunForm(form.clone()));
     h.run_steps(2);
     h.get_by_label_contains("mimicgen generate --source");
@@ -402,8 +404,27 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     let dims = mimicgen_sim::registry::task("stack", "D0").unwrap().coverage_dimensions();
     let expected = mimicgen_engine::coverage::coverage(&scenes, &dims, 3).unwrap().support_coverage();
     h.get_by_label_contains(&format!("successes {:.1} %", 100.0 * expected));
-    // Re-run attempt 2 in the preview: the same seed and index give the same outcome.
-    h.get_by_label_contains("    2  ").click();
+    // The run's outputs opened afterwards give the same attempts (all kept: keep failed is on).
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Dataset:").click();
+    h.run_steps(2);
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Dataset:").type_text(&out.display().to_string());
+    h.run_steps(2);
+    h.get_by_label("Open run").click();
+    h.step();
+    settle(&mut h);
+    let opened = h.state().model.run.clone().unwrap();
+    assert!(opened.error.is_none() && h.state().model.error.is_none(), "{:?}", h.state().model.error);
+    let failed = run.rows.iter().find(|r| !r.success).expect("seed 1 has a failed attempt among the first 6").clone();
+    assert!(failed.reason.as_deref().is_some_and(|r| r.contains("grasp")), "{failed:?}");
+    let key =
+        |r: &mimicgen_gui::protocol::AttemptRow| (r.index, r.success, r.steps, r.sources.clone(), r.reason.clone(), r.objects.clone());
+    assert_eq!(opened.rows.iter().map(key).collect::<Vec<_>>(), run.rows.iter().map(key).collect::<Vec<_>>());
+    assert_eq!(opened.report.as_ref().unwrap(), report);
+    assert_eq!(opened.config.source, run.config.source, "the report names the source, so its attempts can be re-run");
+    // Re-run the failed attempt in the preview: the same seed and index give the same outcome.
+    h.get_by_label("Generate").click();
+    h.run_steps(2);
+    h.get_by_label_contains(&format!("{:>5}  failure", failed.index)).click();
     h.run_steps(2);
     h.get_by_label("Re-run in preview").click();
     h.step();
@@ -411,10 +432,11 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     let model = &h.state().model;
     assert_eq!(model.screen, mimicgen_gui::Screen::Preview);
     let view = model.preview.view.as_ref().unwrap();
-    assert_eq!((view.seed, view.index), (3, 2));
+    assert_eq!((view.seed, view.index), (1, failed.index));
     let executed = view.executed.as_ref().unwrap();
-    assert_eq!(executed.success, run.rows[2].success);
-    assert_eq!(executed.path.len(), run.rows[2].steps);
+    assert!(!executed.success);
+    assert_eq!(executed.failure, Some(format!("subtask {}: {}", failed.failed_subtask.unwrap(), failed.reason.as_ref().unwrap())));
+    assert_eq!(executed.path.len(), failed.steps);
     // A long run, cancelled: it stops early and its dataset is complete.
     h.get_by_label("Generate").click();
     h.run_steps(2);

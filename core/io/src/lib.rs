@@ -36,4 +36,4 @@ pub use dataset::{
     DatasetReport, DemoReader, DemoSource, ReadOptions, RobomimicDataset, read_source_dataset, source_demo_from_group, write_tree,
 };
 pub use error::{IoError, Result};
-pub use writer::{ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, Observation, WriterOptions};
+pub use writer::{ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, Observation, WriterOptions};

@@ -53,10 +53,15 @@ pub struct DemoData {
     /// Index of the generation attempt this demo came from (`mimicgen_attempt` attribute), which
     /// lets an interrupted run resume exactly where its last kept attempt was decided.
     pub attempt_index: Option<u64>,
+    /// Where and why the attempt failed (written as [`FAILURE_ATTR`]).
+    pub failure: Option<String>,
 }
 
 /// The demo attribute holding [`DemoData::attempt_index`].
 pub const ATTEMPT_ATTR: &str = "mimicgen_attempt";
+/// Demo attribute of a failed attempt: where and why it failed (`subtask 0: signal "grasp" never
+/// turned on`), so a failed-attempts file explains itself.
+pub const FAILURE_ATTR: &str = "mimicgen_failure";
 
 impl DemoData {
     /// A generation attempt as a demo: its trajectory, annotations and source labels, with
@@ -85,6 +90,7 @@ impl DemoData {
             src_demo_labels: to_i64(&t.src_demo_labels),
             model_xml,
             attempt_index: Some(attempt.index),
+            failure: attempt.failure.as_ref().map(|f| format!("subtask {}: {}", f.subtask, f.reason)),
         }
     }
 
@@ -170,6 +176,9 @@ impl DemoData {
         }
         if let Some(index) = self.attempt_index {
             g.attrs.insert(ATTEMPT_ATTR.into(), Array::int(i64::try_from(index).unwrap_or(i64::MAX)));
+        }
+        if let Some(failure) = &self.failure {
+            g.attrs.insert(FAILURE_ATTR.into(), Array::string(failure));
         }
         Ok(g)
     }

@@ -106,6 +106,7 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
             src_demo_labels: Vec::new(),
             model_xml: Some(xml.to_owned()),
             attempt_index: None,
+            failure: None,
         };
         writer.append(&data)?;
         on_demo(done + 1, names.len(), name);
