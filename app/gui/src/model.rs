@@ -782,6 +782,25 @@ mod tests {
     }
 
     #[test]
+    fn the_run_form_is_a_generate_command_line_and_a_pipeline_config() {
+        let form = RunForm { attempts: 30, seed: 7, workers: 2, guarantee: true, out: "my runs/out.hdf5".into(), ..RunForm::default() };
+        let line = form.command_line(Path::new("/data/src.hdf5"));
+        assert_eq!(
+            line,
+            "mimicgen generate --source /data/src.hdf5 --num-demos 30 --seed 7 --workers 2 --out 'my runs/out.hdf5' --guarantee --keep-failed"
+        );
+        let config = form.config(Path::new("/data/src.hdf5"));
+        assert_eq!(
+            (config.num_demos, config.seed, config.workers, config.guarantee, config.keep_failed),
+            (Some(30), Some(7), 2, true, true)
+        );
+        let mut m = model(50, vec![10]);
+        m.apply(Command::SetEnd { subtask: 0, end: 20 });
+        assert_eq!(m.apply(Command::StartRun), None, "unsaved ends: the run would not read them");
+        assert!(m.error.as_deref().is_some_and(|e| e.contains("unsaved")));
+    }
+
+    #[test]
     fn saving_over_the_source_is_refused_and_playback_stops_at_the_end() {
         let mut m = model(5, vec![2]);
         assert_eq!(m.apply(Command::Save("f.hdf5".into())), None);
