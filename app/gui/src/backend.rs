@@ -19,8 +19,8 @@ use mimicgen_viz::rerun::RecordingStream;
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
 use crate::protocol::{
-    AttemptRow, DemoView, ExecutedView, LoadedFile, ObjectView, Point, PreviewRequest, PreviewView, ProposalView, RankView, Reply, Request,
-    RunUpdate, SubtaskPreview, ViewerSink,
+    AttemptRow, DemoView, ExecutedView, Listing, LoadedFile, ObjectView, Point, PreviewRequest, PreviewView, ProposalView, RankView, Reply,
+    Request, RunUpdate, SubtaskPreview, ViewerSink,
 };
 
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
@@ -254,6 +254,31 @@ fn run_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify, mut 
         Ok(report) => update(RunUpdate::Finished(Box::new(report))),
         Err(e) => update(RunUpdate::Failed(e.to_string())),
     }
+}
+
+/// Lists `path`'s subdirectories (not hidden) and HDF5 files.
+///
+/// # Errors
+/// The OS error, naming the directory.
+pub fn list_dir(path: &Path) -> Result<Listing, PipelineError> {
+    let fs = |e: std::io::Error| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() };
+    let dir = path.canonicalize().map_err(fs)?;
+    let (mut dirs, mut files) = (Vec::new(), Vec::new());
+    for entry in std::fs::read_dir(&dir).map_err(fs)? {
+        let Ok(entry) = entry else { continue };
+        let (p, name) = (entry.path(), entry.file_name().to_string_lossy().into_owned());
+        if name.starts_with('.') {
+            continue;
+        }
+        if p.is_dir() {
+            dirs.push(p);
+        } else if p.extension().is_some_and(|e| e == "hdf5" || e == "h5") {
+            files.push((p, entry.metadata().map_or(0, |m| m.len())));
+        }
+    }
+    dirs.sort();
+    files.sort();
+    Ok(Listing { parent: dir.parent().map(Path::to_path_buf), dir, dirs, files })
 }
 
 /// Reads a finished run's outputs (the dataset `path`, its `_failed.hdf5` and its `.json` report
@@ -553,6 +578,10 @@ impl Worker {
     pub fn handle(&mut self, request: Request) -> Reply {
         match request {
             Request::Run(config) => self.start_run(*config),
+            Request::ListDir { path } => match list_dir(&path) {
+                Ok(listing) => Reply::Listing(Box::new(listing)),
+                Err(e) => Reply::Failed { what: format!("listing {}", path.display()), error: e.to_string() },
+            },
             Request::OpenRun { path } => match open_run(&path, &self.notify) {
                 Ok(()) => Reply::RunOpened,
                 Err(e) => Reply::Failed { what: format!("opening the run {}", path.display()), error: e.to_string() },

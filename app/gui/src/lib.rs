@@ -113,6 +113,7 @@ impl MimicgenApp {
             ctx.request_repaint_after(std::time::Duration::from_millis(50));
         }
         egui::Panel::top("top").show(ui, |ui| ui::top_bar(ui, &self.model, &mut self.ui, &mut commands));
+        ui::file_browser(&ctx, &self.model, &mut commands);
         match self.model.screen {
             Screen::Annotate => {
                 egui::Panel::left("demos").default_size(220.0).show(ui, |ui| ui::demo_list(ui, &self.model, &mut commands));
@@ -131,6 +132,9 @@ impl MimicgenApp {
             }
         }
         for command in commands {
+            if let Command::Open(path) = &command {
+                self.ui.open_path = path.display().to_string();
+            }
             self.command(command);
         }
     }

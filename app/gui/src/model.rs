@@ -9,7 +9,7 @@ use mimicgen_engine::RunStats;
 use mimicgen_engine::coverage::Dimension;
 use mimicgen_pipeline::{Report, RunConfig, RunInfo};
 
-use crate::protocol::{AttemptRow, LoadedFile, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink};
+use crate::protocol::{AttemptRow, Listing, LoadedFile, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink};
 
 /// The app's screens.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -237,6 +237,10 @@ pub enum Command {
     ReRun(u64),
     /// Read a finished run's outputs (the dataset `generate` wrote, its `_failed.hdf5` and report).
     OpenRun(PathBuf),
+    /// Show the file browser at a directory.
+    Browse(PathBuf),
+    /// Close the file browser.
+    CloseBrowser,
     /// Stream the shown demo, and every demo shown and attempt tried after, to Rerun.
     Open3d(ViewerSink),
 }
@@ -285,6 +289,10 @@ pub struct AppModel {
     pub run_form: RunForm,
     /// The last run started from the app.
     pub run: Option<RunState>,
+    /// The file browser, while it is open: the directory it shows.
+    pub browser: Option<Listing>,
+    /// Whether the file browser was asked for (it opens when the listing arrives).
+    pub browsing: bool,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
 }
@@ -355,6 +363,8 @@ impl AppModel {
         let len = self.demo().map_or(0, |d| d.len);
         match command {
             Command::Open(path) => {
+                self.browsing = false;
+                self.browser = None;
                 self.busy = Some(format!("opening {}", path.display()));
                 return Some(Request::Open { path });
             }
@@ -521,6 +531,14 @@ impl AppModel {
                 run.cancelling = true;
                 return Some(Request::CancelRun);
             }
+            Command::Browse(path) => {
+                self.browsing = true;
+                return Some(Request::ListDir { path });
+            }
+            Command::CloseBrowser => {
+                self.browsing = false;
+                self.browser = None;
+            }
             Command::OpenRun(path) => {
                 if self.run.as_ref().is_some_and(RunState::running) {
                     self.error = Some("a run is going: cancel it or wait for it to end".to_owned());
@@ -584,6 +602,11 @@ impl AppModel {
             Reply::Progress { .. } => {}
             Reply::RunAccepted => self.status = "run started".to_owned(),
             Reply::RunOpened => {}
+            Reply::Listing(listing) => {
+                if self.browsing {
+                    self.browser = Some(*listing);
+                }
+            }
             Reply::Cancelling => self.status = "cancelling: finishing the attempts already decided".to_owned(),
             Reply::Run(update) => self.on_run_update(update),
             Reply::MoreDemos { path, demos, .. } => {

@@ -47,6 +47,11 @@ pub enum Request {
     Run(Box<RunConfig>),
     /// Stop the run after the attempts already decided; its outputs are finished as valid datasets.
     CancelRun,
+    /// List a directory (for the file browser).
+    ListDir {
+        /// The directory.
+        path: PathBuf,
+    },
     /// Read a finished run's outputs (dataset, `_failed.hdf5`, report) into the run views; they
     /// come as [`Reply::Run`] updates, as a live run's do.
     OpenRun {
@@ -170,6 +175,8 @@ pub enum Reply {
     RunAccepted,
     /// A finished run's outputs were read (their updates came before).
     RunOpened,
+    /// A directory's subdirectories and datasets.
+    Listing(Box<Listing>),
     /// The run was asked to stop.
     Cancelling,
     /// What the running generation reports.
@@ -350,8 +357,22 @@ impl Reply {
             | Self::Previewed(_)
             | Self::RunAccepted
             | Self::RunOpened
+            | Self::Listing(_)
             | Self::Cancelling
             | Self::Failed { .. } => true,
         }
     }
+}
+
+/// A directory as the file browser shows it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Listing {
+    /// The directory (absolute).
+    pub dir: PathBuf,
+    /// Its parent, if it has one.
+    pub parent: Option<PathBuf>,
+    /// Subdirectories (not hidden), sorted.
+    pub dirs: Vec<PathBuf>,
+    /// HDF5 files (`.hdf5`, `.h5`) with their sizes in bytes, sorted.
+    pub files: Vec<(PathBuf, u64)>,
 }

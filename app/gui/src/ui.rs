@@ -95,6 +95,11 @@ pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, command
         if ui.button("Open").clicked() && !state.open_path.trim().is_empty() {
             commands.push(Command::Open(state.open_path.trim().into()));
         }
+        if ui.button("Browse…").on_hover_text("Pick a file from a folder").clicked() {
+            let start =
+                model.file.as_ref().and_then(|f| f.prepared_from.as_ref().unwrap_or(&f.path).parent().map(std::path::Path::to_path_buf));
+            commands.push(Command::Browse(start.filter(|p| !p.as_os_str().is_empty()).unwrap_or_else(|| ".".into())));
+        }
         ui.separator();
         let open = model.file.is_some();
         if ui
@@ -315,4 +320,41 @@ fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, stat
         .map(|(k, (name, s))| Line::new(format!("signal {name}"), series(s.iter().map(move |&v| v as f64 + 0.02 * k as f64))))
         .collect();
     draw(ui, "signals", signals);
+}
+
+/// The file browser (while one is open): the folder's subfolders and HDF5 files; a click goes into
+/// a folder or opens a file. The listing comes from the backend, so no frame reads the disk.
+pub fn file_browser(ctx: &egui::Context, model: &AppModel, commands: &mut Vec<Command>) {
+    let Some(listing) = &model.browser else { return };
+    let mut open = true;
+    egui::Window::new("Open a file").open(&mut open).default_size([520.0, 420.0]).collapsible(false).show(ctx, |ui| {
+        ui.label(RichText::new(listing.dir.display().to_string()).monospace());
+        egui::ScrollArea::vertical().max_height(360.0).show(ui, |ui| {
+            if let Some(parent) = &listing.parent
+                && ui.selectable_label(false, "⬆ ..").clicked()
+            {
+                commands.push(Command::Browse(parent.clone()));
+            }
+            for dir in &listing.dirs {
+                let name = dir.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                if ui.selectable_label(false, format!("📁 {name}")).clicked() {
+                    commands.push(Command::Browse(dir.clone()));
+                }
+            }
+            for (file, bytes) in &listing.files {
+                let name = file.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                #[allow(clippy::cast_precision_loss)]
+                let size = *bytes as f64 / 1e6;
+                if ui.selectable_label(false, format!("{name}  ({size:.1} MB)")).clicked() {
+                    commands.push(Command::Open(file.clone()));
+                }
+            }
+            if listing.dirs.is_empty() && listing.files.is_empty() {
+                ui.label("No folders or HDF5 files here.");
+            }
+        });
+    });
+    if !open {
+        commands.push(Command::CloseBrowser);
+    }
 }

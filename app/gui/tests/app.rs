@@ -459,3 +459,31 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     let written = mimicgen_io::RobomimicDataset::open(&out).unwrap();
     assert_eq!(written.demo_names().len(), report.successes);
 }
+
+/// The file browser lists folders and HDF5 files through the backend; a click goes up a folder,
+/// into one, or opens a file.
+#[test]
+fn the_file_browser_opens_a_file_from_a_folder() {
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    h.get_by_label("Browse…").click();
+    h.step();
+    settle(&mut h);
+    let listing = h.state().model.browser.clone().unwrap();
+    assert_eq!(listing.dir, fixture().parent().unwrap().canonicalize().unwrap());
+    assert!(listing.files.iter().any(|(p, _)| p.ends_with("generated_D0_first3.hdf5")));
+    h.get_by_label("⬆ ..").click();
+    h.step();
+    settle(&mut h);
+    h.get_by_label("📁 data").click();
+    h.step();
+    settle(&mut h);
+    h.get_by_label_contains("generated_D0_first3.hdf5").click();
+    h.step();
+    settle(&mut h);
+    let model = &h.state().model;
+    assert!(model.browser.is_none(), "the browser closes on open");
+    let file = model.file.as_ref().unwrap();
+    assert!(file.path.ends_with("generated_D0_first3.hdf5"), "{}", file.path.display());
+    assert_eq!(file.demos.len(), 3);
+}
