@@ -524,6 +524,16 @@ impl Worker {
         Ok(format!("{} in 3D", source.name))
     }
 
+    /// Logs a planned attempt to the 3D view, if it is open.
+    fn show_plan_3d(&mut self, plan: &Plan) -> Result<(), String> {
+        if self.viewer.is_none() {
+            return Ok(());
+        }
+        let logger = self.fresh_logger()?;
+        logger.log_plan(plan).map_err(|e| viz_error(&e))?;
+        logger.stream().flush_blocking().map_err(|e| e.to_string())
+    }
+
     /// Logs a tried attempt to the 3D view, if it is open.
     fn show_attempt_3d(&mut self, attempt: &Attempt) -> Result<(), String> {
         if self.viewer.is_none() {
@@ -566,12 +576,14 @@ impl Worker {
         let plan = previewer.plan(request.index, &overrides)?;
         let executed = if request.execute { Some(previewer.try_attempt(request.index, &overrides)?) } else { None };
         let view = preview_view(previewer, &plan, executed.as_ref());
-        if let Some(attempt) = &executed
-            && let Err(e) = self.show_attempt_3d(attempt)
-        {
-            return Ok(PreviewView { failure_3d: Some(e), ..view });
+        let shown = match &executed {
+            Some(attempt) => self.show_attempt_3d(attempt),
+            None => self.show_plan_3d(&plan),
+        };
+        match shown {
+            Ok(()) => Ok(view),
+            Err(e) => Ok(PreviewView { failure_3d: Some(e), ..view }),
         }
-        Ok(view)
     }
 
     /// Answers one request.

@@ -80,7 +80,8 @@ pub fn keys(ctx: &egui::Context, commands: &mut Vec<Command>) {
 
 /// The top bar: open, detect, undo/redo, save, and what is going on.
 pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: &mut Vec<Command>) {
-    ui.horizontal(|ui| {
+    // Wraps on narrow windows rather than pushing "Save as" out of sight.
+    ui.horizontal_wrapped(|ui| {
         for (screen, name) in [(Screen::Annotate, "Annotate"), (Screen::Preview, "Preview"), (Screen::Generate, "Generate")] {
             if ui.add_enabled(model.file.is_some(), egui::Button::selectable(model.screen == screen, name)).clicked()
                 && model.screen != screen
@@ -90,7 +91,7 @@ pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, command
         }
         ui.separator();
         let label = ui.label("Source demos:");
-        ui.add(egui::TextEdit::singleline(&mut state.open_path).desired_width(280.0).hint_text("path/to/source.hdf5"))
+        ui.add(egui::TextEdit::singleline(&mut state.open_path).desired_width(240.0).hint_text("path/to/source.hdf5"))
             .labelled_by(label.id);
         if ui.button("Open").clicked() && !state.open_path.trim().is_empty() {
             commands.push(Command::Open(state.open_path.trim().into()));
@@ -132,7 +133,7 @@ pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, command
         }
         ui.separator();
         let label = ui.label("Save to:");
-        ui.add(egui::TextEdit::singleline(&mut state.save_path).desired_width(220.0).hint_text("annotated.hdf5")).labelled_by(label.id);
+        ui.add(egui::TextEdit::singleline(&mut state.save_path).desired_width(180.0).hint_text("annotated.hdf5")).labelled_by(label.id);
         if ui.add_enabled(open && !state.save_path.trim().is_empty(), egui::Button::new("Save as")).clicked() {
             commands.push(Command::Save(state.save_path.trim().into()));
         }

@@ -209,6 +209,7 @@ fn the_3d_view_streams_the_shown_demo_and_tried_attempts_to_rerun() {
     h.get_by_label("Preview").click();
     h.step();
     settle(&mut h);
+    assert!(h.state().model.error.is_none(), "the plan goes to the 3D view too: {:?}", h.state().model.error);
     h.get_by_label("Try it").click();
     h.step();
     settle(&mut h);

@@ -156,26 +156,27 @@ pub fn log_demo(rec: &RecordingStream, root: &str, demo: &SourceDemo, demo_index
     Ok(())
 }
 
-/// Logs one attempt under `world/attempt` (replaced by the next) and its executed path under
-/// `world/history/attempt_<k>` (kept, to compare many): the new scene's object frames, per
-/// subtask the chosen source segment, the transformed segment, the interpolation segment and the
-/// reference object's frames, the executed path, the gripper command and the outcome.
-/// `frame_offset` is the `frame` value of its first step.
-///
-/// # Errors
-/// [`VizError::Rerun`] from the stream.
-pub fn log_attempt(rec: &RecordingStream, attempt: &Attempt, source_names: &[String], frame_offset: usize) -> Result<(), VizError> {
+/// Logs an attempt's plan under `world/attempt` (replacing what was there): the new scene's object
+/// frames and, per subtask, the source, transformed and interpolation segments and the reference
+/// object's frames. Sets the `attempt`, `step` (0) and `frame` times.
+fn log_plans(
+    rec: &RecordingStream,
+    index: u64,
+    objects: &BTreeMap<String, Pose>,
+    plans: &[mimicgen_engine::SubtaskPlan],
+    source_names: &[String],
+    frame_offset: usize,
+) -> Result<(), VizError> {
     let root = "world/attempt";
     let err = |what: &str, e: &dyn std::fmt::Display| VizError::rerun(&format!("{root}/{what}"), e);
-    let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
-    rec.set_time_sequence(timelines::ATTEMPT, k);
+    rec.set_time_sequence(timelines::ATTEMPT, i64::try_from(index).unwrap_or(i64::MAX));
     rec.set_time_sequence(timelines::STEP, 0);
     rec.set_time_sequence(timelines::FRAME, as_i64(frame_offset));
     rec.log(root, &rerun::Clear::recursive()).map_err(|e| err("clear", &e))?;
-    rec.log(format!("{root}/objects"), &frame_arrows(attempt.initial_object_poses.iter().map(|(name, pose)| (name.clone(), pose))))
+    rec.log(format!("{root}/objects"), &frame_arrows(objects.iter().map(|(name, pose)| (name.clone(), pose))))
         .map_err(|e| err("objects", &e))?;
     let name_of = |d: usize| source_names.get(d).cloned().unwrap_or_else(|| format!("demo {d}"));
-    for (s, plan) in attempt.plans.iter().enumerate() {
+    for (s, plan) in plans.iter().enumerate() {
         let sub = format!("{root}/subtask_{s}");
         let strip = |poses: &mut dyn Iterator<Item = &Pose>| -> Vec<[f32; 3]> { poses.map(point).collect() };
         rec.log(
@@ -216,6 +217,36 @@ pub fn log_attempt(rec: &RecordingStream, attempt: &Attempt, source_names: &[Str
         }
         rec.log(format!("{sub}/object_frames"), &frame_arrows(frames)).map_err(|e| err("object_frames", &e))?;
     }
+    Ok(())
+}
+
+/// Logs a planned, not executed, attempt ([`mimicgen_engine::Plan`]) as [`log_attempt`] logs the
+/// plan part of an executed one, with an outcome line saying it is a plan.
+///
+/// # Errors
+/// [`VizError::Rerun`] from the stream.
+pub fn log_plan(rec: &RecordingStream, plan: &mimicgen_engine::Plan, source_names: &[String], frame_offset: usize) -> Result<(), VizError> {
+    log_plans(rec, plan.index, &plan.initial_object_poses, &plan.subtasks, source_names, frame_offset)?;
+    let name_of = |d: usize| source_names.get(d).cloned().unwrap_or_else(|| format!("demo {d}"));
+    let sources = plan.subtasks.iter().map(|s| name_of(s.src_demo)).collect::<Vec<_>>().join(", ");
+    let text = format!("attempt {}: planned, not executed (sources {sources})", plan.index);
+    rec.log("outcome", &rerun::TextLog::new(text).with_level(rerun::TextLogLevel::INFO)).map_err(|e| VizError::rerun("outcome", &e))
+}
+
+/// Logs one attempt under `world/attempt` (replaced by the next) and its executed path under
+/// `world/history/attempt_<k>` (kept, to compare many): the new scene's object frames, per
+/// subtask the chosen source segment, the transformed segment, the interpolation segment and the
+/// reference object's frames, the executed path, the gripper command and the outcome.
+/// `frame_offset` is the `frame` value of its first step.
+///
+/// # Errors
+/// [`VizError::Rerun`] from the stream.
+pub fn log_attempt(rec: &RecordingStream, attempt: &Attempt, source_names: &[String], frame_offset: usize) -> Result<(), VizError> {
+    let root = "world/attempt";
+    let err = |what: &str, e: &dyn std::fmt::Display| VizError::rerun(&format!("{root}/{what}"), e);
+    log_plans(rec, attempt.index, &attempt.initial_object_poses, &attempt.plans, source_names, frame_offset)?;
+    let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
+    let name_of = |d: usize| source_names.get(d).cloned().unwrap_or_else(|| format!("demo {d}"));
     let traj = &attempt.trajectory;
     let executed: Vec<[f32; 3]> = traj.eef_poses.iter().map(point).collect();
     let outcome_color = rgb(if attempt.success { SUCCESS_COLOR } else { FAILURE_COLOR });

@@ -130,6 +130,30 @@ impl RunLogger {
         Ok(())
     }
 
+    /// Logs a planned, not executed, attempt: its segments, and the scene at `plan.initial_state`
+    /// (when it fits the scene) at step 0.
+    ///
+    /// # Errors
+    /// [`VizError::Rerun`] from the stream, [`VizError::Sim`] for a state that does not fit.
+    pub fn log_plan(&mut self, plan: &mimicgen_engine::Plan) -> Result<(), VizError> {
+        record::log_plan(&self.rec, plan, &self.source_names, self.frame)?;
+        if self.config.scene != SceneLevel::None && !plan.initial_state.is_empty() {
+            let mut states = mimicgen_engine::Rows::new(plan.initial_state.len());
+            states.push(&plan.initial_state).map_err(|e| VizError::rerun("plan state", &e))?;
+            let k = i64::try_from(plan.index).unwrap_or(i64::MAX);
+            let frame = i64::try_from(self.frame).unwrap_or(i64::MAX);
+            self.scene.place_fixed_objects(&plan.initial_object_poses);
+            self.scene.log_states(
+                &self.rec,
+                &states,
+                1,
+                &[(timelines::STEP, vec![0]), (timelines::ATTEMPT, vec![k]), (timelines::FRAME, vec![frame])],
+            )?;
+        }
+        self.frame += 1;
+        Ok(())
+    }
+
     /// Flushes everything to the sink.
     ///
     /// # Errors

@@ -364,7 +364,8 @@ impl Generator {
         let objects = env.object_poses();
         let world_from_eef = env.eef_pose();
         let spans = self.segmentation.draw_spans(&mut rng);
-        let mut plan = Plan { index, world_from_eef, initial_object_poses: objects.clone(), subtasks: Vec::new() };
+        let mut plan =
+            Plan { index, world_from_eef, initial_object_poses: objects.clone(), initial_state: env.state(), subtasks: Vec::new() };
         let (mut selected, mut last_target) = (None, None);
         for subtask in 0..self.spec.subtasks.len() {
             let here = PlanInput {
@@ -503,6 +504,8 @@ pub struct Plan {
     pub world_from_eef: Pose,
     /// Object poses of the sampled scene.
     pub initial_object_poses: BTreeMap<String, Pose>,
+    /// The simulator state of the sampled scene (to draw it).
+    pub initial_state: Vec<f64>,
     /// Per-subtask plans; `first_step` counts planned waypoints.
     pub subtasks: Vec<SubtaskPlan>,
 }
