@@ -131,6 +131,12 @@ pub struct RunState {
 }
 
 impl RunState {
+    /// A run of `config` before its first update.
+    #[must_use]
+    pub fn new(config: RunConfig) -> Self {
+        Self { config, info: None, dimensions: Vec::new(), rows: Vec::new(), report: None, error: None, cancelling: false }
+    }
+
     /// Whether the run is still going.
     #[must_use]
     pub fn running(&self) -> bool {
@@ -514,15 +520,7 @@ impl AppModel {
                     return None;
                 }
                 let config = self.run_form.config(&file.path);
-                self.run = Some(RunState {
-                    config: config.clone(),
-                    info: None,
-                    dimensions: Vec::new(),
-                    rows: Vec::new(),
-                    report: None,
-                    error: None,
-                    cancelling: false,
-                });
+                self.run = Some(RunState::new(config.clone()));
                 self.busy = Some("starting the run".to_owned());
                 return Some(Request::Run(Box::new(config)));
             }
@@ -544,16 +542,7 @@ impl AppModel {
                     self.error = Some("a run is going: cancel it or wait for it to end".to_owned());
                     return None;
                 }
-                let config = RunConfig { out: path.clone(), source: None, ..RunConfig::default() };
-                self.run = Some(RunState {
-                    config,
-                    info: None,
-                    dimensions: Vec::new(),
-                    rows: Vec::new(),
-                    report: None,
-                    error: None,
-                    cancelling: false,
-                });
+                self.run = Some(RunState::new(RunConfig { out: path.clone(), source: None, ..RunConfig::default() }));
                 self.busy = Some(format!("reading the run {}", path.display()));
                 return Some(Request::OpenRun { path });
             }
