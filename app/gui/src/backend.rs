@@ -20,7 +20,7 @@ use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
 use crate::protocol::{
     AttemptRow, DemoView, ExecutedView, Listing, LoadedFile, ObjectView, Point, PreviewRequest, PreviewView, ProposalView, RankView, Reply,
-    Request, RunUpdate, SubtaskPreview, ViewerSink,
+    Request, RunUpdate, SubtaskDiagnostics, SubtaskPreview, ViewerSink,
 };
 
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
@@ -146,6 +146,31 @@ fn objects(poses: &BTreeMap<String, Pose>) -> Vec<ObjectView> {
     poses.iter().map(|(name, p)| ObjectView { name: name.clone(), position: point(p), yaw: p.rotation.euler_angles().2 }).collect()
 }
 
+/// Each executed subtask of `attempt` in numbers (see [`SubtaskDiagnostics`]).
+fn diagnostics(attempt: &Attempt, subtasks: &[mimicgen_engine::SubtaskSpec]) -> Vec<SubtaskDiagnostics> {
+    let t = &attempt.trajectory;
+    let mm = |v: mimicgen_engine::pose::Vec3| v.norm() * 1000.0;
+    attempt
+        .plans
+        .iter()
+        .enumerate()
+        .filter_map(|(k, plan)| {
+            let first = plan.first_step;
+            let end = attempt.plans.get(k + 1).map_or(t.len(), |p| p.first_step).min(t.len());
+            let last = end.checked_sub(1).filter(|&l| l >= first)?;
+            let target_error_mm = mm(t.target_poses[last].translation.vector - t.eef_poses[last].translation.vector);
+            let track = |name: &Option<String>| name.as_ref().and_then(|n| t.object_poses.get(n));
+            let object_moved_mm =
+                track(&subtasks.get(k)?.object_ref).map(|poses| mm(poses[last].translation.vector - poses[first].translation.vector));
+            let held_object_slip_mm = k.checked_sub(1).and_then(|j| track(&subtasks.get(j)?.object_ref)).map(|poses| {
+                let eef_from_obj = |s: usize| t.eef_poses[s].inverse() * poses[s];
+                mm(eef_from_obj(last).translation.vector - eef_from_obj(first).translation.vector)
+            });
+            Some(SubtaskDiagnostics { subtask: k, steps: (first, end), target_error_mm, object_moved_mm, held_object_slip_mm })
+        })
+        .collect()
+}
+
 /// Turns a plan (and an executed attempt) into what the preview screen draws.
 fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) -> PreviewView {
     let demos = &previewer.generator().dataset().demos;
@@ -185,6 +210,7 @@ fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) 
         subtask_of_step: a.trajectory.subtask_labels.clone(),
         sources: a.src_demo_per_subtask.clone(),
         final_objects: objects(&a.trajectory.object_poses.iter().filter_map(|(n, p)| Some((n.clone(), *p.last()?))).collect()),
+        diagnostics: diagnostics(a, &spec.subtasks),
     });
     PreviewView {
         task: previewer.pipeline().task().name().to_owned(),

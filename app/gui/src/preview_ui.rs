@@ -73,6 +73,23 @@ pub fn controls(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>
             (format!("Tried: failed ({})", e.failure.as_deref().unwrap_or("")), Color32::from_rgb(200, 50, 50))
         };
         ui.label(RichText::new(text).color(color).strong());
+        let opt = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.1}"));
+        egui::Grid::new("diagnostics").striped(true).num_columns(5).show(ui, |ui| {
+            for head in ["subtask", "steps", "to target (mm)", "object moved (mm)", "held slip (mm)"] {
+                ui.label(RichText::new(head).small());
+            }
+            ui.end_row();
+            for d in &e.diagnostics {
+                ui.label(format!("{}", d.subtask));
+                ui.label(format!("{}..{}", d.steps.0, d.steps.1));
+                ui.label(format!("{:.1}", d.target_error_mm));
+                ui.label(opt(d.object_moved_mm));
+                ui.label(opt(d.held_object_slip_mm));
+                ui.end_row();
+            }
+        })
+        .response
+        .on_hover_text("At each subtask's end: the distance from the controller's last target to the gripper; how far the subtask's object moved during it (a grasp that pushed the cube); how far the object held from the previous subtask slid in the gripper");
     }
     ui.separator();
     egui::ScrollArea::vertical().show(ui, |ui| {

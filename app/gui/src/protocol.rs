@@ -341,6 +341,26 @@ pub struct ExecutedView {
     pub sources: Vec<usize>,
     /// The objects where the attempt ended.
     pub final_objects: Vec<ObjectView>,
+    /// What happened in each executed subtask, in numbers.
+    pub diagnostics: Vec<SubtaskDiagnostics>,
+}
+
+/// One executed subtask in numbers: how close the arm got to the last target, whether the
+/// subtask's object moved before the subtask ended (pushed before a grasp), and how far an object
+/// held from the previous subtask slid in the gripper.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubtaskDiagnostics {
+    /// The subtask.
+    pub subtask: usize,
+    /// Its executed steps (first, end exclusive).
+    pub steps: (usize, usize),
+    /// Distance between the controller's last target and the end effector at the subtask's end (mm).
+    pub target_error_mm: f64,
+    /// How far the subtask's reference object moved during the subtask (mm).
+    pub object_moved_mm: Option<f64>,
+    /// How far the previous subtask's object moved relative to the gripper during this subtask (mm):
+    /// slip of a held object.
+    pub held_object_slip_mm: Option<f64>,
 }
 
 impl Reply {

@@ -189,6 +189,14 @@ fn previews_a_new_scene_and_tries_the_attempt_in_simulation() {
     assert!(executed.path.len() > 50);
     assert_eq!(executed.success, executed.failure.is_none());
     h.get_by_label_contains("Tried: ");
+    // The executed subtasks in numbers: contiguous steps, finite errors, the held cube's slip in
+    // the second subtask.
+    let d = &executed.diagnostics;
+    assert_eq!(d.len(), 2);
+    assert_eq!((d[0].steps.0, d[0].steps.1, d[1].steps.1), (0, d[1].steps.0, executed.path.len()));
+    assert!(d.iter().all(|s| s.target_error_mm.is_finite() && s.target_error_mm < 100.0));
+    assert!(d[0].object_moved_mm.is_some() && d[1].held_object_slip_mm.is_some() && d[0].held_object_slip_mm.is_none());
+    h.get_by_label("held slip (mm)");
 }
 
 /// The 3D view gets the shown demo and every tried attempt; here it streams to a `.rrd` file, read
@@ -438,6 +446,11 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     assert!(!executed.success);
     assert_eq!(executed.failure, Some(format!("subtask {}: {}", failed.failed_subtask.unwrap(), failed.reason.as_ref().unwrap())));
     assert_eq!(executed.path.len(), failed.steps);
+    // What went wrong, in numbers: the grasp pushed the cube, and the cube was left behind while
+    // the gripper carried on (it "slipped" by the whole transport).
+    let d = &executed.diagnostics;
+    assert!(d[0].object_moved_mm.is_some_and(|mm| mm > 5.0), "{d:?}");
+    assert!(d[1].held_object_slip_mm.is_some_and(|mm| mm > 20.0), "{d:?}");
     // A long run, cancelled: it stops early and its dataset is complete.
     h.get_by_label("Generate").click();
     h.run_steps(2);
