@@ -337,6 +337,30 @@ fn matches(filter: AttemptFilter, row: &AttemptRow) -> bool {
     }
 }
 
+/// The successful attempt whose initial objects are nearest `failed`'s (mean distance per object,
+/// cm), preferring those that used the same source demo for the subtask that failed.
+pub fn nearest_success<'a>(rows: &'a [AttemptRow], failed: &AttemptRow) -> Option<(&'a AttemptRow, f64)> {
+    let distance = |r: &AttemptRow| {
+        let pairs: Vec<f64> = failed
+            .objects
+            .iter()
+            .filter_map(|o| {
+                let p = r.objects.iter().find(|q| q.name == o.name)?;
+                Some(((o.position[0] - p.position[0]).powi(2) + (o.position[1] - p.position[1]).powi(2)).sqrt())
+            })
+            .collect();
+        #[allow(clippy::cast_precision_loss)]
+        let mean = pairs.iter().sum::<f64>() / pairs.len().max(1) as f64;
+        100.0 * mean
+    };
+    let source = failed.failed_subtask.and_then(|k| failed.sources.get(k).map(|d| (k, *d)));
+    let same_source = |r: &&AttemptRow| source.is_none_or(|(k, d)| r.sources.get(k) == Some(&d));
+    let candidates = |filter: &dyn Fn(&&AttemptRow) -> bool| {
+        rows.iter().filter(|r| r.success).filter(|r| filter(r)).map(|r| (r, distance(r))).min_by(|a, b| a.1.total_cmp(&b.1))
+    };
+    candidates(&same_source).or_else(|| candidates(&|_| true))
+}
+
 fn attempt_table(ui: &mut egui::Ui, run: &RunState, state: &mut UiState, commands: &mut Vec<Command>) {
     ui.horizontal(|ui| {
         ui.strong("Attempts");
@@ -361,6 +385,20 @@ fn attempt_table(ui: &mut egui::Ui, run: &RunState, state: &mut UiState, command
                 commands.push(Command::ReRun(row.index));
             }
         });
+        if !row.success
+            && let Some((near, cm)) = nearest_success(&run.rows, row)
+        {
+            ui.horizontal(|ui| {
+                let same = row
+                    .failed_subtask
+                    .and_then(|k| row.sources.get(k))
+                    .map_or_else(String::new, |d| format!(" from the same source demo_{d}"));
+                ui.label(format!("nearest success{same}: attempt {} (objects {cm:.1} cm away on average)", near.index));
+                if ui.button("Re-run that one").on_hover_text("Try the nearest success in the preview, to compare").clicked() {
+                    commands.push(Command::ReRun(near.index));
+                }
+            });
+        }
     }
     egui::ScrollArea::vertical().id_salt("attempts").show_rows(ui, 18.0, rows.len(), |ui, range| {
         for row in &rows[range] {

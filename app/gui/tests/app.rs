@@ -435,6 +435,11 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     h.run_steps(2);
     h.get_by_label_contains(&format!("{:>5}  failure", failed.index)).click();
     h.run_steps(2);
+    // The nearest success (by where the objects were) is offered for comparison.
+    let (near, _) = mimicgen_gui::run_ui::nearest_success(&run.rows, &failed).unwrap();
+    assert!(near.success && near.index != failed.index);
+    h.get_by_label_contains(&format!("attempt {} (objects", near.index));
+    h.get_by_label("Re-run that one");
     h.get_by_label("Re-run in preview").click();
     h.step();
     settle(&mut h);
