@@ -19,8 +19,8 @@ use mimicgen_viz::rerun::RecordingStream;
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
 use crate::protocol::{
-    AttemptRow, DemoView, ExecutedView, Listing, LoadedFile, ObjectView, Point, PreviewRequest, PreviewView, ProposalView, RankView, Reply,
-    Request, RunUpdate, SubtaskDiagnostics, SubtaskPreview, ViewerSink,
+    AttemptRow, DemoView, ExecutedView, Listing, LoadedFile, ObjectView, OpenedRun, Point, PreviewRequest, PreviewView, ProposalView,
+    RankView, Reply, Request, RunUpdate, SubtaskDiagnostics, SubtaskPreview, ViewerSink,
 };
 
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
@@ -315,6 +315,21 @@ pub fn list_dir(path: &Path) -> Result<Listing, PipelineError> {
 /// # Errors
 /// A file that cannot be read, or demos without `mimicgen_attempt` (not made by `generate`).
 pub fn open_run(path: &Path, notify: &Notify) -> Result<(), PipelineError> {
+    let run = read_run(path)?;
+    let update = |u: RunUpdate| notify(Reply::Run(u));
+    update(RunUpdate::Started { info: run.info, dimensions: run.dimensions });
+    for row in run.rows {
+        update(RunUpdate::Attempt(Box::new(row)));
+    }
+    update(RunUpdate::Finished(Box::new(run.report)));
+    Ok(())
+}
+
+/// A finished run's outputs read whole (see [`open_run`]).
+///
+/// # Errors
+/// As [`open_run`].
+pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
     let label = path.display().to_string();
     let report_path = mimicgen_pipeline::sibling(path, "", "json");
     let report: Option<Report> = match std::fs::read_to_string(&report_path) {
@@ -404,12 +419,7 @@ pub fn open_run(path: &Path, notify: &Notify) -> Result<(), PipelineError> {
         guarantee: false,
         resumed_from: 0,
     };
-    let update = |u: RunUpdate| notify(Reply::Run(u));
-    update(RunUpdate::Started { info, dimensions: task.coverage_dimensions() });
     let kept = rows.len();
-    for row in rows {
-        update(RunUpdate::Attempt(Box::new(row)));
-    }
     let report = report.unwrap_or_else(|| Report {
         task: task.name().to_owned(),
         variant: String::new(),
@@ -431,8 +441,7 @@ pub fn open_run(path: &Path, notify: &Notify) -> Result<(), PipelineError> {
         resumed_from: 0,
         early_abort: false,
     });
-    update(RunUpdate::Finished(Box::new(report)));
-    Ok(())
+    Ok(OpenedRun { path: path.to_path_buf(), info, dimensions: task.coverage_dimensions(), rows, report })
 }
 
 /// The backend's state: the open file's demos and scene (for the 3D view), the previewer of the
@@ -619,6 +628,10 @@ impl Worker {
             Request::ListDir { path } => match list_dir(&path) {
                 Ok(listing) => Reply::Listing(Box::new(listing)),
                 Err(e) => Reply::Failed { what: format!("listing {}", path.display()), error: e.to_string() },
+            },
+            Request::OpenCompare { path } => match read_run(&path) {
+                Ok(run) => Reply::Compared(Box::new(run)),
+                Err(e) => Reply::Failed { what: format!("opening {} to compare", path.display()), error: e.to_string() },
             },
             Request::OpenRun { path } => match open_run(&path, &self.notify) {
                 Ok(()) => Reply::RunOpened,

@@ -9,7 +9,7 @@ use mimicgen_engine::RunStats;
 use mimicgen_engine::coverage::Dimension;
 use mimicgen_pipeline::{Report, RunConfig, RunInfo};
 
-use crate::protocol::{AttemptRow, Listing, LoadedFile, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink};
+use crate::protocol::{AttemptRow, Listing, LoadedFile, OpenedRun, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink};
 
 /// The app's screens.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -243,6 +243,10 @@ pub enum Command {
     ReRun(u64),
     /// Read a finished run's outputs (the dataset `generate` wrote, its `_failed.hdf5` and report).
     OpenRun(PathBuf),
+    /// Read a finished run's outputs to compare the current run's coverage with.
+    OpenCompare(PathBuf),
+    /// Stop comparing.
+    CloseCompare,
     /// Show the file browser at a directory.
     Browse(PathBuf),
     /// Close the file browser.
@@ -295,6 +299,8 @@ pub struct AppModel {
     pub run_form: RunForm,
     /// The last run started from the app.
     pub run: Option<RunState>,
+    /// A finished run shown beside the current one (coverage of two datasets side by side).
+    pub compare: Option<OpenedRun>,
     /// The file browser, while it is open: the directory it shows.
     pub browser: Option<Listing>,
     /// Whether the file browser was asked for (it opens when the listing arrives).
@@ -529,6 +535,11 @@ impl AppModel {
                 run.cancelling = true;
                 return Some(Request::CancelRun);
             }
+            Command::OpenCompare(path) => {
+                self.busy = Some(format!("reading {} to compare", path.display()));
+                return Some(Request::OpenCompare { path });
+            }
+            Command::CloseCompare => self.compare = None,
             Command::Browse(path) => {
                 self.browsing = true;
                 return Some(Request::ListDir { path });
@@ -591,6 +602,10 @@ impl AppModel {
             Reply::Progress { .. } => {}
             Reply::RunAccepted => self.status = "run started".to_owned(),
             Reply::RunOpened => {}
+            Reply::Compared(run) => {
+                self.status = format!("comparing with {}", run.path.display());
+                self.compare = Some(*run);
+            }
             Reply::Listing(listing) => {
                 if self.browsing {
                     self.browser = Some(*listing);

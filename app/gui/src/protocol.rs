@@ -47,6 +47,11 @@ pub enum Request {
     Run(Box<RunConfig>),
     /// Stop the run after the attempts already decided; its outputs are finished as valid datasets.
     CancelRun,
+    /// Read a finished run's outputs to show its coverage beside the run's.
+    OpenCompare {
+        /// The dataset `mimicgen generate` wrote.
+        path: PathBuf,
+    },
     /// List a directory (for the file browser).
     ListDir {
         /// The directory.
@@ -177,6 +182,8 @@ pub enum Reply {
     RunOpened,
     /// A directory's subdirectories and datasets.
     Listing(Box<Listing>),
+    /// A run's outputs, read to compare with.
+    Compared(Box<OpenedRun>),
     /// The run was asked to stop.
     Cancelling,
     /// What the running generation reports.
@@ -378,6 +385,7 @@ impl Reply {
             | Self::RunAccepted
             | Self::RunOpened
             | Self::Listing(_)
+            | Self::Compared(_)
             | Self::Cancelling
             | Self::Failed { .. } => true,
         }
@@ -395,4 +403,19 @@ pub struct Listing {
     pub dirs: Vec<PathBuf>,
     /// HDF5 files (`.hdf5`, `.h5`) with their sizes in bytes, sorted.
     pub files: Vec<(PathBuf, u64)>,
+}
+
+/// A finished run's outputs, read whole.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OpenedRun {
+    /// The dataset.
+    pub path: PathBuf,
+    /// The run (from its report, or what the files say).
+    pub info: RunInfo,
+    /// The task variant's reset region per object coordinate.
+    pub dimensions: Vec<Dimension>,
+    /// Every attempt kept in the files, by index.
+    pub rows: Vec<AttemptRow>,
+    /// Its report (or one made from the files).
+    pub report: Report,
 }

@@ -10,11 +10,11 @@ use std::collections::BTreeMap;
 use egui::{Color32, RichText};
 use egui_plot::{Bar, BarChart, Corner, Legend, Line, MarkerShape, Plot, PlotPoints, Points};
 use mimicgen_engine::Pose;
-use mimicgen_engine::coverage::{Coordinate, coverage, uniform_support_coverage};
+use mimicgen_engine::coverage::{Coordinate, Dimension, coverage, uniform_support_coverage};
 use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
 
 use crate::model::{AppModel, Command, RunState};
-use crate::protocol::AttemptRow;
+use crate::protocol::{AttemptRow, OpenedRun};
 use crate::ui::UiState;
 
 /// Colour of successes in the run's plots.
@@ -107,7 +107,22 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
         if ui.add_enabled(!running && !state.run_path.trim().is_empty(), egui::Button::new("Open run")).clicked() {
             commands.push(Command::OpenRun(state.run_path.trim().into()));
         }
+        if ui
+            .add_enabled(!state.run_path.trim().is_empty(), egui::Button::new("Compare"))
+            .on_hover_text("Show this run's coverage beside the current one's (D0 against D1, careful against hasty sources)")
+            .clicked()
+        {
+            commands.push(Command::OpenCompare(state.run_path.trim().into()));
+        }
     });
+    if let Some(other) = &model.compare {
+        ui.horizontal(|ui| {
+            ui.label(format!("comparing with {}", other.path.display()));
+            if ui.small_button("stop").clicked() {
+                commands.push(Command::CloseCompare);
+            }
+        });
+    }
 }
 
 /// Target, done and ETA of a run.
@@ -181,7 +196,7 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
         ))
         .italics());
     }
-    coverage_view(ui, run);
+    coverage_view(ui, run, model.compare.as_ref());
     ui.separator();
     attempt_table(ui, run, state, commands);
 }
@@ -209,54 +224,65 @@ fn scenes<'a>(rows: impl Iterator<Item = &'a AttemptRow>) -> Vec<BTreeMap<String
 
 /// Support coverage of the run's initial scenes (all, successes, failures) against uniformly
 /// spread scenes, and per-coordinate histograms over the reset region, successes and failures
-/// stacked: the numbers `mimicgen coverage` prints, from the same function.
-fn coverage_view(ui: &mut egui::Ui, run: &RunState) {
+/// stacked: the numbers `mimicgen coverage` prints, from the same function. With a run to compare
+/// with, its numbers and histograms follow on a second row.
+fn coverage_view(ui: &mut egui::Ui, run: &RunState, compare: Option<&OpenedRun>) {
     if run.dimensions.is_empty() || run.rows.is_empty() {
         return;
     }
-    let all = scenes(run.rows.iter());
-    let good = scenes(run.rows.iter().filter(|r| r.success));
-    let bad = scenes(run.rows.iter().filter(|r| !r.success));
-    let support = |s: &[BTreeMap<String, Pose>]| coverage(s, &run.dimensions, SUPPORT_BINS).ok();
+    egui::CollapsingHeader::new("Coverage of the initial scenes").default_open(true).show(ui, |ui| {
+        coverage_block(ui, "this run", &run.rows, &run.dimensions);
+        if let Some(other) = compare {
+            let name = other.path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+            coverage_block(ui, &format!("{name} ({} {})", other.info.task, other.info.variant), &other.rows, &other.dimensions);
+        }
+    });
+}
+
+fn coverage_block(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow], dimensions: &[Dimension]) {
+    let all = scenes(rows.iter());
+    let good = scenes(rows.iter().filter(|r| r.success));
+    let bad = scenes(rows.iter().filter(|r| !r.success));
+    let support = |s: &[BTreeMap<String, Pose>]| coverage(s, dimensions, SUPPORT_BINS).ok();
     let (Some(c_all), Some(c_good), Some(c_bad)) = (support(&all), support(&good), support(&bad)) else { return };
     let uniform = uniform_support_coverage(c_all.joint_bins_total, all.len());
-    egui::CollapsingHeader::new("Coverage of the initial scenes").default_open(true).show(ui, |ui| {
-        ui.label(format!(
-            "support coverage ({SUPPORT_BINS} bins per coordinate, {} joint bins): all {:.1} % (uniformly spread scenes: {:.1} %), successes {:.1} %, failures {:.1} %",
-            c_all.joint_bins_total,
-            100.0 * c_all.support_coverage(),
-            100.0 * uniform,
-            100.0 * c_good.support_coverage(),
-            100.0 * c_bad.support_coverage()
-        ));
-        let (Ok(h_good), Ok(h_bad)) = (coverage(&good, &run.dimensions, HISTOGRAM_BINS), coverage(&bad, &run.dimensions, HISTOGRAM_BINS)) else { return };
-        ui.horizontal_wrapped(|ui| {
-            for (k, dim) in h_good.dimensions.iter().enumerate() {
-                let width = (dim.high - dim.low) / HISTOGRAM_BINS as f64;
-                #[allow(clippy::cast_precision_loss)]
-                let bars = |h: &[usize]| -> Vec<Bar> {
-                    h.iter().enumerate().map(|(b, &n)| Bar::new(dim.low + (b as f64 + 0.5) * width, n as f64).width(width * 0.9)).collect()
-                };
-                let succeeded = BarChart::new("successes", bars(&h_good.histograms[k])).color(SUCCESS);
-                let failed = BarChart::new("failures", bars(&h_bad.histograms[k])).color(FAILURE).stack_on(&[&succeeded]);
-                let coordinate = match dim.coordinate {
-                    Coordinate::X => "x (m)",
-                    Coordinate::Y => "y (m)",
-                    Coordinate::Yaw => "yaw (rad)",
-                };
-                Plot::new(("coverage", k))
-                    .width(200.0)
-                    .height(110.0)
-                    .x_axis_label(format!("{} {coordinate}", dim.object))
-                    .show_axes([true, false])
-                    .allow_drag(false)
-                    .allow_scroll(false)
-                    .show(ui, |plot| {
-                        plot.bar_chart(succeeded);
-                        plot.bar_chart(failed);
-                    });
-            }
-        });
+    ui.label(format!(
+        "{title}: {} scenes; support coverage ({SUPPORT_BINS} bins per coordinate, {} joint bins): all {:.1} % (uniformly spread scenes: {:.1} %), successes {:.1} %, failures {:.1} %",
+        all.len(),
+        c_all.joint_bins_total,
+        100.0 * c_all.support_coverage(),
+        100.0 * uniform,
+        100.0 * c_good.support_coverage(),
+        100.0 * c_bad.support_coverage()
+    ));
+    let (Ok(h_good), Ok(h_bad)) = (coverage(&good, dimensions, HISTOGRAM_BINS), coverage(&bad, dimensions, HISTOGRAM_BINS)) else { return };
+    ui.horizontal_wrapped(|ui| {
+        for (k, dim) in h_good.dimensions.iter().enumerate() {
+            #[allow(clippy::cast_precision_loss)]
+            let width = (dim.high - dim.low) / HISTOGRAM_BINS as f64;
+            #[allow(clippy::cast_precision_loss)]
+            let bars = |h: &[usize]| -> Vec<Bar> {
+                h.iter().enumerate().map(|(b, &n)| Bar::new(dim.low + (b as f64 + 0.5) * width, n as f64).width(width * 0.9)).collect()
+            };
+            let succeeded = BarChart::new("successes", bars(&h_good.histograms[k])).color(SUCCESS);
+            let failed = BarChart::new("failures", bars(&h_bad.histograms[k])).color(FAILURE).stack_on(&[&succeeded]);
+            let coordinate = match dim.coordinate {
+                Coordinate::X => "x (m)",
+                Coordinate::Y => "y (m)",
+                Coordinate::Yaw => "yaw (rad)",
+            };
+            Plot::new(("coverage", title, k))
+                .width(200.0)
+                .height(110.0)
+                .x_axis_label(format!("{} {coordinate}", dim.object))
+                .show_axes([true, false])
+                .allow_drag(false)
+                .allow_scroll(false)
+                .show(ui, |plot| {
+                    plot.bar_chart(succeeded);
+                    plot.bar_chart(failed);
+                });
+        }
     });
 }
 

@@ -430,6 +430,13 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     assert_eq!(opened.rows.iter().map(key).collect::<Vec<_>>(), run.rows.iter().map(key).collect::<Vec<_>>());
     assert_eq!(opened.report.as_ref().unwrap(), report);
     assert_eq!(opened.config.source, run.config.source, "the report names the source, so its attempts can be re-run");
+    // Compared with itself, the second coverage row says the same as the first.
+    h.get_by_label("Compare").click();
+    h.step();
+    settle(&mut h);
+    assert_eq!(h.state().model.compare.as_ref().unwrap().rows.len(), 6);
+    h.get_by_label_contains("this run: 6 scenes; support coverage");
+    h.get_by_label_contains("app_run.hdf5 (stack D0): 6 scenes; support coverage");
     // Re-run the failed attempt in the preview: the same seed and index give the same outcome.
     h.get_by_label("Generate").click();
     h.run_steps(2);
