@@ -35,6 +35,10 @@ pub struct BenchAppArgs {
     /// Directory for the runs' datasets (default: a temporary one).
     #[arg(long)]
     dir: Option<PathBuf>,
+    /// Also open this finished run (a dataset `generate` wrote) on the generate screen and measure
+    /// its frames (attempt table, plots and coverage over every attempt).
+    #[arg(long, value_name = "DATASET")]
+    open_run: Option<PathBuf>,
 }
 
 fn percentile(sorted_ms: &[f64], p: f64) -> f64 {
@@ -202,9 +206,26 @@ pub fn run(args: &BenchAppArgs) -> anyhow::Result<()> {
     check(&frames)?;
     let preview: Vec<f64> = (0..args.frames).map(|_| frames.frame(Vec::new())).collect();
     let preview_vertices = frames.vertices;
+    let opened_run = match &args.open_run {
+        Some(path) => {
+            frames.app.command(Command::Show(Screen::Generate));
+            frames.app.command(Command::OpenRun(path.clone()));
+            let t = Instant::now();
+            let (_, _) = frames.until_idle(Duration::from_secs(600))?;
+            check(&frames)?;
+            let read_s = t.elapsed().as_secs_f64();
+            let rows = frames.app.model.run.as_ref().map_or(0, |r| r.rows.len());
+            let ms: Vec<f64> = (0..args.frames).map(|_| frames.frame(Vec::new())).collect();
+            Some(
+                json!({"dataset": path.display().to_string(), "attempts": rows, "read_s": read_s, "frames": summary(ms), "vertices_per_frame": frames.vertices}),
+            )
+        }
+        None => None,
+    };
     let run = if args.run > 0 { Some(run_in_app(&mut frames, args, &file)?) } else { None };
     let report = json!({
         "run": run,
+        "opened_run": opened_run,
         "file": file.display().to_string(),
         "demos": demos,
         "browsable_after_s": browsable_s,
