@@ -30,7 +30,7 @@ struct Embedded {
     viewer_time: Rc<Cell<Option<i64>>>,
     /// The cursor the viewer was last told, or last told us.
     synced: Option<usize>,
-    /// Whether the 3D view was asked for since the last file opened.
+    /// Whether the 3D view was asked for since it last streamed (not asked again after a failure).
     asked: bool,
     /// Kept alive for the viewer's background tasks.
     _runtime: tokio::runtime::Runtime,
@@ -68,13 +68,12 @@ impl eframe::App for Embedded {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
         let model = &self.window.app.model;
-        if model.file.is_some() && model.viewer.is_none() && model.in_flight == 0 && !self.asked {
+        if model.viewer.is_some() {
+            // Streaming. Opening another file drops the stream, and the view is asked for again.
+            self.asked = false;
+        } else if model.file.is_some() && model.in_flight == 0 && !self.asked {
             self.asked = true;
             self.window.app.command(Command::Open3d(ViewerSink::Embedded));
-        }
-        if self.window.app.model.file.is_some() && self.window.app.model.viewer.is_none() && self.window.app.model.in_flight == 0 {
-            // A newly opened file dropped the stream of the old one.
-            self.asked = self.window.app.model.error.is_some();
         }
         let viewer = &mut self.viewer;
         self.window.app.show_with(ui, Some(|ui: &mut egui::Ui| viewer.ui(ui, frame)));
