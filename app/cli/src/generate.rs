@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mimicgen_engine::demo::initial_object_poses;
 use mimicgen_engine::{Environment as _, TaskSpec};
 use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, WriterOptions};
-use mimicgen_pipeline::{Event, Pipeline, RunConfig};
+use mimicgen_pipeline::{Event, OffsetRange, Pipeline, RunConfig, Scoped, SpecOverrides};
 use mimicgen_sim::{Scene, SimEnv, registry};
 use rand::SeedableRng as _;
 
@@ -25,6 +25,7 @@ Examples:
   mimicgen generate --task stack_three --guarantee --num-demos 200 --out out/stack_three.hdf5
   mimicgen generate --source source_D0_prepared.hdf5 --config config_D1.json   # your MimicGen files: Stack D1
   mimicgen generate --num-demos 1000 --out out/big.hdf5 --resume      # continue a killed run exactly
+  mimicgen generate --action-noise 0.02 --selection 1:random --offset-range 0:0,10   # spec fields for this run
 
 The task and variant come from --task/--variant, else from the config's experiment.task.name
 (MimicGen's `Stack_D1`), else from the source file's env_args, else stack / D0; inputs that name
@@ -84,9 +85,55 @@ pub struct GenerateArgs {
     /// Continue the interrupted run that left `<out>.partial` (same arguments; --workers may differ).
     #[arg(long)]
     resume: bool,
+    /// Spec fields for this run over the spec's.
+    #[command(flatten)]
+    spec: SpecArgs,
     /// Rerun: where the recording goes and how much 3D scene it holds.
     #[command(flatten)]
     rerun: crate::view::RerunArgs,
+}
+
+/// Spec fields set on the command line over the task spec's, for every subtask (`VALUE`) or for
+/// subtask K only (`K:VALUE`); each flag may be repeated, a later value wins.
+#[derive(Debug, Clone, Default, clap::Args)]
+#[command(next_help_heading = "Spec fields (each: VALUE for every subtask, or K:VALUE for subtask K)")]
+pub struct SpecArgs {
+    /// Source selection: random, nearest_neighbor_object or nearest_neighbor_robot_distance
+    /// (e.g. `--selection nearest_neighbor_object --selection 1:random`).
+    #[arg(long, value_name = "[K:]STRATEGY")]
+    selection: Vec<Scoped<String>>,
+    /// How many nearest source demos the nearest-neighbour selection draws from.
+    #[arg(long, value_name = "[K:]N")]
+    nn_k: Vec<Scoped<usize>>,
+    /// Standard deviation of the Gaussian noise on each action's six pose dimensions.
+    #[arg(long, value_name = "[K:]STD")]
+    action_noise: Vec<Scoped<f64>>,
+    /// Range of steps added to a subtask's end, drawn per attempt (e.g. `--offset-range 0:10,20`).
+    #[arg(long, value_name = "[K:]LO,HI", allow_hyphen_values = true)]
+    offset_range: Vec<Scoped<OffsetRange>>,
+    /// Intermediate poses of the interpolation segment before each transformed segment.
+    #[arg(long, value_name = "[K:]N")]
+    interpolation_steps: Vec<Scoped<usize>>,
+    /// Steps holding the transformed segment's first pose after interpolating.
+    #[arg(long, value_name = "[K:]N")]
+    fixed_steps: Vec<Scoped<usize>>,
+    /// Choose a source demo at every subtask (true) or once per attempt (false).
+    #[arg(long, value_name = "BOOL")]
+    select_src_per_subtask: Option<bool>,
+}
+
+impl SpecArgs {
+    fn overrides(&self) -> SpecOverrides {
+        SpecOverrides {
+            selection: self.selection.clone(),
+            nn_k: self.nn_k.clone(),
+            action_noise: self.action_noise.clone(),
+            offset_range: self.offset_range.clone(),
+            interpolation_steps: self.interpolation_steps.clone(),
+            fixed_steps: self.fixed_steps.clone(),
+            select_src_per_subtask: self.select_src_per_subtask,
+        }
+    }
 }
 
 fn default_workers() -> usize {
@@ -111,6 +158,7 @@ impl GenerateArgs {
             early_abort: self.early_abort,
             overwrite: self.overwrite,
             resume: self.resume,
+            spec: self.spec.overrides(),
         }
     }
 }

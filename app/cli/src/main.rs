@@ -36,6 +36,7 @@ Examples:
   mimicgen tasks                              the tasks (stack, stack_three, square) and variants
   mimicgen generate --task stack --variant D0 --num-demos 100 --out stack_d0.hdf5
   mimicgen generate --task square --variant D1 --num-demos 1000 --out square_d1.hdf5
+  mimicgen generate --action-noise 0.02 --nn-k 1:5   spec fields for one run (K:VALUE: subtask K)
   mimicgen info source_D0.hdf5                 demos, lengths, obs/action shapes, objects, signals
   mimicgen export generated.hdf5 --mcap out.mcap   poses, actions, labels for Foxglove
   mimicgen view generated.hdf5 --demo 3 --spawn     one demo in the Rerun viewer";
@@ -48,7 +49,7 @@ enum Command {
         command: SpecCommand,
     },
     /// Generate demonstrations in simulation (MuJoCo, robosuite-like Panda + OSC_POSE).
-    Generate(generate::GenerateArgs),
+    Generate(Box<generate::GenerateArgs>),
     /// Subtask ends for source demos: proposed from the recording (--auto) or typed (--ends),
     /// written where MimicGen reads them.
     Annotate(annotate::AnnotateArgs),
@@ -60,6 +61,7 @@ Examples:
   mimicgen app my_sources.hdf5                   # MimicGen source demos, or a plain robomimic file
   mimicgen app --screen preview --try-it         # open on the preview screen and try attempt 0
   mimicgen app --run 100                         # start a 100-attempt run on the generate screen
+  mimicgen app --run 20 --attempt 1              # then attempt 1, beside the nearest success if it failed
   mimicgen app --demo 3 --screenshot annotate.png  # the docs' screenshots (under Xvfb too)")]
     App {
         /// Source demos to open (default: the bundled Stack D0 demos).
@@ -79,6 +81,10 @@ Examples:
         /// Start a run of this many attempts on the generate screen (to out/app_run.hdf5, replaced).
         #[arg(long, value_name = "ATTEMPTS")]
         run: Option<usize>,
+        /// After --run: select this attempt (the 3D view stays on it) and, if it failed, show it
+        /// beside the nearest successful attempt.
+        #[arg(long, requires = "run")]
+        attempt: Option<u64>,
         /// Once everything is shown, save the window to this PNG and exit.
         #[arg(long, value_name = "FILE.png")]
         screenshot: Option<PathBuf>,
@@ -219,7 +225,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             generate::demos(&args)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::App { file, screen, demo, step, try_it, run, screenshot } => {
+        Command::App { file, screen, demo, step, try_it, run, attempt, screenshot } => {
             let file = match file {
                 Some(f) => f,
                 None => mimicgen_pipeline::bundled::source_demos("stack")?,
@@ -229,7 +235,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 ScreenArg::Preview => mimicgen_gui::Screen::Preview,
                 ScreenArg::Generate => mimicgen_gui::Screen::Generate,
             };
-            let options = mimicgen_gui::RunOptions { file: Some(file), screen, demo, step, try_it, run, screenshot };
+            let options = mimicgen_gui::RunOptions { file: Some(file), screen, demo, step, try_it, run, attempt, screenshot };
             mimicgen_gui::run(options).map_err(|e| {
                 anyhow::anyhow!("cannot open the app's window ({e}); without a display, use the batch commands (`mimicgen generate`, `mimicgen annotate`)")
             })?;

@@ -175,9 +175,14 @@ fn diagnostics(attempt: &Attempt, subtasks: &[mimicgen_engine::SubtaskSpec]) -> 
 fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) -> PreviewView {
     let demos = &previewer.generator().dataset().demos;
     let spec = previewer.generator().spec();
+    // Once executed, the segments the attempt really ran: from subtask 1 on, the selection sees
+    // where the objects are then, which a plan made before executing cannot know.
+    let ran = executed.map_or(&[][..], |a| &a.plans[..]);
     let subtasks = plan
         .subtasks
         .iter()
+        .enumerate()
+        .map(|(k, s)| ran.get(k).unwrap_or(s))
         .zip(&spec.subtasks)
         .map(|(s, subtask)| {
             let mut ranking: Vec<RankView> = s
@@ -317,7 +322,7 @@ pub fn list_dir(path: &Path) -> Result<Listing, PipelineError> {
 pub fn open_run(path: &Path, notify: &Notify) -> Result<(), PipelineError> {
     let run = read_run(path)?;
     let update = |u: RunUpdate| notify(Reply::Run(u));
-    update(RunUpdate::Started { info: run.info, dimensions: run.dimensions });
+    update(RunUpdate::Started { info: Box::new(run.info), dimensions: run.dimensions });
     for row in run.rows {
         update(RunUpdate::Attempt(Box::new(row)));
     }
@@ -415,6 +420,7 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
         num_sources,
         workers: report.as_ref().map_or(1, |r| r.workers),
         seed: report.as_ref().map_or(0, |r| r.seed),
+        spec_overrides: report.as_ref().map(|r| r.spec_overrides.clone()).unwrap_or_default(),
         target: report.as_ref().map_or(rows.len(), |r| r.attempts),
         guarantee: false,
         resumed_from: 0,
@@ -440,6 +446,7 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
         cancelled: false,
         resumed_from: 0,
         early_abort: false,
+        spec_overrides: mimicgen_pipeline::SpecOverrides::default(),
     });
     Ok(OpenedRun { path: path.to_path_buf(), info, dimensions: task.coverage_dimensions(), rows, report })
 }
@@ -449,7 +456,7 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
 /// Rerun stream once the 3D view is open.
 pub struct Worker {
     loaded: Option<Annotations>,
-    previewer: Option<(PathBuf, Previewer)>,
+    previewer: Option<(RunConfig, Previewer)>,
     viewer: Option<(ViewerSink, RunLogger)>,
     embedded: Option<StreamFactory>,
     notify: Notify,
@@ -583,11 +590,18 @@ impl Worker {
     }
 
     fn preview(&mut self, request: &PreviewRequest) -> Result<PreviewView, PipelineError> {
+        // What the previewer is made from; the ends and seed it takes without rebuilding.
+        let config = RunConfig {
+            source: Some(request.source.clone()),
+            variant: request.variant.clone(),
+            spec: request.spec.clone(),
+            ..RunConfig::default()
+        };
         let previewer = match &mut self.previewer {
-            Some((path, previewer)) if *path == request.source => previewer,
+            Some((made_from, previewer)) if *made_from == config => previewer,
             slot => {
-                let config = RunConfig { source: Some(request.source.clone()), ..RunConfig::default() };
-                &mut slot.insert((request.source.clone(), Previewer::new(&config, &request.ends)?)).1
+                let previewer = Previewer::new(&config, &request.ends)?;
+                &mut slot.insert((config, previewer)).1
             }
         };
         previewer.configure(&request.ends, request.seed)?;
@@ -666,17 +680,31 @@ impl Worker {
             },
             Request::Preview(request) => match self.preview(&request) {
                 Ok(view) => Reply::Previewed(Box::new(view)),
-                Err(e) => Reply::Failed {
-                    what: format!(
-                        "{} attempt {} of {}",
-                        if request.execute { "trying" } else { "previewing" },
-                        request.index,
-                        request.source.display()
-                    ),
-                    error: e.to_string(),
-                },
+                Err(e) => preview_failed(&request, &e),
             },
+            Request::SideBySide(pair) => {
+                let [a, b] = *pair;
+                // The failure (`a`) last, so that it is what the 3D view shows.
+                let shown_b = self.preview(&b);
+                match (self.preview(&a), shown_b) {
+                    (Ok(a), Ok(b)) => Reply::SideBySide(Box::new([a, b])),
+                    (Err(e), _) => preview_failed(&a, &e),
+                    (_, Err(e)) => preview_failed(&b, &e),
+                }
+            }
         }
+    }
+}
+
+fn preview_failed(request: &PreviewRequest, e: &PipelineError) -> Reply {
+    Reply::Failed {
+        what: format!(
+            "{} attempt {} of {}",
+            if request.execute { "trying" } else { "previewing" },
+            request.index,
+            request.source.display()
+        ),
+        error: e.to_string(),
     }
 }
 

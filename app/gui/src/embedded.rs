@@ -21,6 +21,9 @@ use crate::{MimicgenApp, RunOptions, Window};
 
 /// The timeline the app's cursor and the viewer's share.
 const STEP: &str = "step";
+/// A run's recording: the attempt index, and every step of the run one after the other.
+const ATTEMPT: &str = "attempt";
+const FRAME: &str = "frame";
 
 /// The app and the viewer in one window.
 struct Embedded {
@@ -30,6 +33,8 @@ struct Embedded {
     viewer_time: Rc<Cell<Option<i64>>>,
     /// The cursor the viewer was last told, or last told us.
     synced: Option<usize>,
+    /// What the viewer was last told on the generate screen: stay on this attempt, or follow.
+    synced_attempt: Option<Option<u64>>,
     /// Whether the 3D view was asked for since it last streamed (not asked again after a failure).
     asked: bool,
     /// Kept alive for the viewer's background tasks.
@@ -37,7 +42,33 @@ struct Embedded {
 }
 
 impl Embedded {
+    /// On the generate screen, the run's recording follows its latest attempt, or stays on the
+    /// attempt selected in the table.
+    fn sync_attempt(&mut self) {
+        let model = &self.window.app.model;
+        let wanted = model.selected_attempt.filter(|_| model.stay_on_selected);
+        if model.screen != crate::Screen::Generate || model.viewer.is_none() || self.synced_attempt == Some(wanted) {
+            return;
+        }
+        let Some(db) = self.viewer.recording_db() else { return };
+        if !db.timelines().keys().any(|t| t.as_str() == ATTEMPT) {
+            // Not a run's recording (a tried attempt, a demo): nothing to follow.
+            return;
+        }
+        let time_commands = match wanted {
+            Some(index) => vec![
+                TimeControlCommand::SetActiveTimeline(ATTEMPT.into()),
+                TimeControlCommand::Pause,
+                TimeControlCommand::SetTime(TimeReal::from(i64::try_from(index).unwrap_or(i64::MAX))),
+            ],
+            None => vec![TimeControlCommand::SetActiveTimeline(FRAME.into()), TimeControlCommand::MoveEndAndFollow],
+        };
+        self.viewer.command_sender.send_system(SystemCommand::TimeControlCommands { store_id: db.store_id().clone(), time_commands });
+        self.synced_attempt = Some(wanted);
+    }
+
     fn sync_time(&mut self) {
+        self.sync_attempt();
         let model = &self.window.app.model;
         if model.screen != crate::Screen::Annotate || model.viewer.is_none() {
             return;
@@ -149,7 +180,7 @@ pub fn run(options: RunOptions) -> Result<(), eframe::Error> {
             let ctx = cc.egui_ctx.clone();
             let app = MimicgenApp::with_streams(move || ctx.request_repaint(), options.file.clone(), Some(streams(tx)));
             let window = Window::new(app, &options);
-            Ok(Box::new(Embedded { window, viewer, viewer_time, synced: None, asked: false, _runtime: runtime }))
+            Ok(Box::new(Embedded { window, viewer, viewer_time, synced: None, synced_attempt: None, asked: false, _runtime: runtime }))
         }),
     )
 }

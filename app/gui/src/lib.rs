@@ -127,7 +127,8 @@ impl MimicgenApp {
             }
             Screen::Generate => {
                 egui::Panel::left("run_form").default_size(300.0).show(ui, |ui| run_ui::form(ui, &self.model, &mut self.ui, &mut commands));
-                let beside = egui::Panel::bottom("run").default_size(420.0);
+                // Beside the 3D view, at most 60 % of the height, however much the run shows.
+                let beside = egui::Panel::bottom("run").default_size(420.0).max_size(0.6 * ctx.content_rect().height());
                 main_area(ui, viewer, beside, |ui| run_ui::progress(ui, &self.model, &mut self.ui, &mut commands));
             }
         }
@@ -170,6 +171,9 @@ pub struct RunOptions {
     /// Start a run of this many attempts (to `out/app_run.hdf5`, replacing it) on the generate
     /// screen.
     pub run: Option<usize>,
+    /// Once the run has ended, select this attempt (the 3D view stays on it) and, for a failed
+    /// one, show it beside the nearest success.
+    pub attempt: Option<u64>,
     /// Once everything asked for is shown, save the window to this PNG and close.
     pub screenshot: Option<PathBuf>,
 }
@@ -202,6 +206,10 @@ impl Window {
             steps.push(Command::Show(Screen::Generate));
             steps.push(Command::SetRunForm(model::RunForm { attempts, overwrite: true, ..model::RunForm::default() }));
             steps.push(Command::StartRun);
+        }
+        if let Some(k) = options.attempt {
+            steps.push(Command::SelectAttempt(k));
+            steps.push(Command::SideBySide { failed: k, success: None });
         }
         steps.reverse();
         Self { app, steps, screenshot: options.screenshot.clone(), idle_frames: 0, shot_requested: false }

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use mimicgen_engine::RunStats;
 use mimicgen_engine::coverage::Dimension;
-use mimicgen_pipeline::{Report, RunConfig, RunInfo};
+use mimicgen_pipeline::{Report, RunConfig, RunInfo, SpecOverrides};
 
 use crate::protocol::{AttemptRow, Listing, LoadedFile, OpenedRun, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink};
 
@@ -43,6 +43,10 @@ pub struct RunForm {
     pub out: String,
     /// Replace existing outputs.
     pub overwrite: bool,
+    /// Task variant (`None`: what the source file names).
+    pub variant: Option<String>,
+    /// Spec fields set for this run over the task spec's.
+    pub spec: SpecOverrides,
 }
 
 impl Default for RunForm {
@@ -56,6 +60,8 @@ impl Default for RunForm {
             early_abort: false,
             out: "out/app_run.hdf5".to_owned(),
             overwrite: false,
+            variant: None,
+            spec: SpecOverrides::default(),
         }
     }
 }
@@ -74,6 +80,8 @@ impl RunForm {
             guarantee: self.guarantee,
             early_abort: self.early_abort,
             overwrite: self.overwrite,
+            variant: self.variant.clone(),
+            spec: self.spec.clone(),
             ..RunConfig::default()
         }
     }
@@ -82,7 +90,7 @@ impl RunForm {
     #[must_use]
     pub fn command_line(&self, source: &Path) -> String {
         let quote = |s: &str| {
-            if s.chars().all(|c| c.is_ascii_alphanumeric() || "/._-+=:".contains(c)) {
+            if s.chars().all(|c| c.is_ascii_alphanumeric() || "/._-+=:,".contains(c)) {
                 s.to_owned()
             } else {
                 format!("'{}'", s.replace('\'', "'\\''"))
@@ -107,8 +115,46 @@ impl RunForm {
                 line.push_str(flag);
             }
         }
+        let variant = self.variant.iter().flat_map(|v| ["--variant".to_owned(), v.clone()]);
+        for arg in variant.chain(self.spec.to_args()) {
+            line.push(' ');
+            line.push_str(&quote(&arg));
+        }
         line
     }
+}
+
+/// The successful attempt whose initial objects are nearest `failed`'s (mean distance per object,
+/// cm), preferring those that used the same source demo for the subtask that failed.
+pub fn nearest_success<'a>(rows: &'a [AttemptRow], failed: &AttemptRow) -> Option<(&'a AttemptRow, f64)> {
+    let distance = |r: &AttemptRow| {
+        let pairs: Vec<f64> = failed
+            .objects
+            .iter()
+            .filter_map(|o| {
+                let p = r.objects.iter().find(|q| q.name == o.name)?;
+                Some(((o.position[0] - p.position[0]).powi(2) + (o.position[1] - p.position[1]).powi(2)).sqrt())
+            })
+            .collect();
+        #[allow(clippy::cast_precision_loss)]
+        let mean = pairs.iter().sum::<f64>() / pairs.len().max(1) as f64;
+        100.0 * mean
+    };
+    let source = failed.failed_subtask.and_then(|k| failed.sources.get(k).map(|d| (k, *d)));
+    let same_source = |r: &&AttemptRow| source.is_none_or(|(k, d)| r.sources.get(k) == Some(&d));
+    let candidates = |filter: &dyn Fn(&&AttemptRow) -> bool| {
+        rows.iter().filter(|r| r.success).filter(|r| filter(r)).map(|r| (r, distance(r))).min_by(|a, b| a.1.total_cmp(&b.1))
+    };
+    candidates(&same_source).or_else(|| candidates(&|_| true))
+}
+
+/// Two attempts of a run re-run to be seen side by side (a failure and the nearest success).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SideBySide {
+    /// The attempts: the failure, then the success.
+    pub indices: [u64; 2],
+    /// Both, executed, once the backend has them.
+    pub views: Option<Box<[PreviewView; 2]>>,
 }
 
 /// A run started from the app, as its updates arrive.
@@ -163,11 +209,15 @@ pub struct PreviewState {
     pub moved: BTreeMap<String, [f64; 2]>,
     /// The last preview the backend sent.
     pub view: Option<PreviewView>,
+    /// Task variant the scenes come from (the run form's, or a re-run run's).
+    pub variant: Option<String>,
+    /// Spec fields over the task spec's (the run form's, or a re-run run's).
+    pub spec: SpecOverrides,
 }
 
 impl Default for PreviewState {
     fn default() -> Self {
-        Self { seed: 1, index: 0, sources: Vec::new(), moved: BTreeMap::new(), view: None }
+        Self { seed: 1, index: 0, sources: Vec::new(), moved: BTreeMap::new(), view: None, variant: None, spec: SpecOverrides::default() }
     }
 }
 
@@ -241,6 +291,19 @@ pub enum Command {
     CancelRun,
     /// Show attempt `index` of the run on the preview screen and try it again.
     ReRun(u64),
+    /// Re-run a failed attempt and a successful one of the run and show them side by side.
+    SideBySide {
+        /// The failed attempt's index.
+        failed: u64,
+        /// The successful attempt's index (`None`: the nearest success, see [`nearest_success`]).
+        success: Option<u64>,
+    },
+    /// Stop showing two attempts side by side.
+    CloseSideBySide,
+    /// Select an attempt of the run (the 3D view stays on it: following the latest stops).
+    SelectAttempt(u64),
+    /// Let the 3D view follow the run's latest attempt (or stay on the selected one).
+    FollowLatest(bool),
     /// Read a finished run's outputs (the dataset `generate` wrote, its `_failed.hdf5` and report).
     OpenRun(PathBuf),
     /// Read a finished run's outputs to compare the current run's coverage with.
@@ -305,6 +368,12 @@ pub struct AppModel {
     pub browser: Option<Listing>,
     /// Whether the file browser was asked for (it opens when the listing arrives).
     pub browsing: bool,
+    /// The attempt of the run selected in the table.
+    pub selected_attempt: Option<u64>,
+    /// Whether the 3D view stays on the selected attempt (else it follows the run's latest).
+    pub stay_on_selected: bool,
+    /// Two attempts re-run to be seen side by side.
+    pub side_by_side: Option<SideBySide>,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
 }
@@ -345,6 +414,13 @@ impl AppModel {
         self.dirty = true;
     }
 
+    /// A new run: no attempt selected or side by side, the 3D view following.
+    fn forget_attempts(&mut self) {
+        self.selected_attempt = None;
+        self.stay_on_selected = false;
+        self.side_by_side = None;
+    }
+
     /// Applies a command; returns the backend request it needs.
     pub fn apply(&mut self, command: Command) -> Option<Request> {
         let request = self.apply_command(command);
@@ -368,7 +444,34 @@ impl AppModel {
             sources: p.sources.clone(),
             moved: p.moved.clone(),
             execute,
+            variant: p.variant.clone(),
+            spec: p.spec.clone(),
         }))
+    }
+
+    /// The request that executes attempt `index` of the last run as the run did (its seed, variant
+    /// and spec fields; the open file's ends), or why it cannot.
+    fn rerun_request(&self, index: u64) -> Result<PreviewRequest, String> {
+        let run = self.run.as_ref().ok_or("no run")?;
+        let open = self.file.as_ref().map(|f| f.path.clone());
+        if run.config.source != open {
+            return Err(format!(
+                "this run was made from {}; open that file to re-run its attempts",
+                run.config.source.as_ref().map_or_else(|| "an unknown source (no report)".to_owned(), |p| p.display().to_string())
+            ));
+        }
+        let (Some(source), Some(seed)) = (open, run.config.seed) else { return Err("the run's seed is not known".to_owned()) };
+        Ok(PreviewRequest {
+            source,
+            ends: self.ends.clone(),
+            seed,
+            index,
+            sources: Vec::new(),
+            moved: BTreeMap::new(),
+            execute: true,
+            variant: run.config.variant.clone(),
+            spec: run.config.spec.clone(),
+        })
     }
 
     fn apply_command(&mut self, command: Command) -> Option<Request> {
@@ -472,6 +575,8 @@ impl AppModel {
                 self.screen = screen;
                 self.playing = false;
                 if screen == Screen::Preview {
+                    self.preview.variant.clone_from(&self.run_form.variant);
+                    self.preview.spec.clone_from(&self.run_form.spec);
                     return self.preview_request(false);
                 }
             }
@@ -527,6 +632,7 @@ impl AppModel {
                 }
                 let config = self.run_form.config(&file.path);
                 self.run = Some(RunState::new(config.clone()));
+                self.forget_attempts();
                 self.busy = Some("starting the run".to_owned());
                 return Some(Request::Run(Box::new(config)));
             }
@@ -554,27 +660,46 @@ impl AppModel {
                     return None;
                 }
                 self.run = Some(RunState::new(RunConfig { out: path.clone(), source: None, ..RunConfig::default() }));
+                self.forget_attempts();
                 self.busy = Some(format!("reading the run {}", path.display()));
                 return Some(Request::OpenRun { path });
             }
-            Command::ReRun(index) => {
-                let run = self.run.as_ref()?;
-                let open = self.file.as_ref().map(|f| f.path.clone());
-                if run.config.source != open {
-                    self.error = Some(format!(
-                        "this run was made from {}; open that file to re-run its attempts",
-                        run.config.source.as_ref().map_or_else(|| "an unknown source (no report)".to_owned(), |p| p.display().to_string())
-                    ));
-                    return None;
+            Command::ReRun(index) => match self.rerun_request(index) {
+                Ok(request) => {
+                    self.preview.seed = request.seed;
+                    self.preview.index = index;
+                    self.preview.moved.clear();
+                    self.preview.sources.clear();
+                    self.preview.variant.clone_from(&request.variant);
+                    self.preview.spec.clone_from(&request.spec);
+                    self.screen = Screen::Preview;
+                    return self.preview_request(true);
                 }
-                let seed = run.config.seed?;
-                self.preview.seed = seed;
-                self.preview.index = index;
-                self.preview.moved.clear();
-                self.preview.sources.clear();
-                self.screen = Screen::Preview;
-                return self.preview_request(true);
+                Err(e) => self.error = Some(e),
+            },
+            Command::SideBySide { failed, success } => {
+                let rows = self.run.as_ref().map_or(&[][..], |r| &r.rows[..]);
+                let nearest =
+                    || rows.iter().find(|r| r.index == failed && !r.success).and_then(|f| nearest_success(rows, f)).map(|(r, _)| r.index);
+                let Some(success) = success.or_else(nearest) else {
+                    self.error = Some(format!("attempt {failed} is not a failure of the run with a success to compare it with"));
+                    return None;
+                };
+                match (self.rerun_request(failed), self.rerun_request(success)) {
+                    (Ok(a), Ok(b)) => {
+                        self.side_by_side = Some(SideBySide { indices: [failed, success], views: None });
+                        self.busy = Some(format!("re-running attempts {failed} and {success}"));
+                        return Some(Request::SideBySide(Box::new([a, b])));
+                    }
+                    (Err(e), _) | (_, Err(e)) => self.error = Some(e),
+                }
             }
+            Command::CloseSideBySide => self.side_by_side = None,
+            Command::SelectAttempt(index) => {
+                self.selected_attempt = Some(index);
+                self.stay_on_selected = true;
+            }
+            Command::FollowLatest(on) => self.stay_on_selected = !on && self.selected_attempt.is_some(),
             Command::Open3d(sink) => {
                 self.file.as_ref()?;
                 self.busy = Some("opening the 3D view".to_owned());
@@ -683,6 +808,12 @@ impl AppModel {
                 self.error = view.failure_3d.as_ref().map(|e| format!("sending the attempt to the 3D view: {e}"));
                 self.preview.view = Some(*view);
             }
+            Reply::SideBySide(views) => {
+                if let Some(pair) = self.side_by_side.as_mut().filter(|p| p.indices == [views[0].index, views[1].index]) {
+                    self.status = format!("re-ran attempts {} and {}", pair.indices[0], pair.indices[1]);
+                    pair.views = Some(views);
+                }
+            }
             Reply::Failed { what, error } => self.error = Some(format!("{what}: {error}")),
         }
     }
@@ -696,8 +827,10 @@ impl AppModel {
                 if run.config.source.is_none() && !info.source.as_os_str().is_empty() {
                     run.config.source = Some(info.source.clone());
                     run.config.seed = Some(info.seed);
+                    run.config.variant = Some(info.variant.clone());
+                    run.config.spec.clone_from(&info.spec_overrides);
                 }
-                run.info = Some(info);
+                run.info = Some(*info);
                 run.dimensions = dimensions;
             }
             RunUpdate::Attempt(row) => run.rows.push(*row),
@@ -785,6 +918,31 @@ mod tests {
         assert_eq!(m.in_flight, 4);
         m.on_reply(Reply::Failed { what: "w".into(), error: "e".into() });
         assert!(m.busy.is_some(), "busy until every request is answered");
+    }
+
+    #[test]
+    fn previews_use_the_forms_spec_and_reruns_the_runs() {
+        let mut m = model(50, vec![10]);
+        let noise = |v: f64| SpecOverrides { action_noise: vec![mimicgen_pipeline::Scoped::all(v)], ..SpecOverrides::default() };
+        m.apply(Command::SetRunForm(RunForm { spec: noise(0.01), variant: Some("D1".into()), ..RunForm::default() }));
+        let Some(Request::Preview(p)) = m.apply(Command::Show(Screen::Preview)) else { panic!("no preview asked") };
+        assert_eq!((p.spec.clone(), p.variant.as_deref()), (noise(0.01), Some("D1")));
+        let Some(Request::Run(config)) = m.apply(Command::StartRun) else { panic!("no run started") };
+        assert_eq!(config.spec, noise(0.01));
+        // The form changes after the run: a re-run still makes the run's attempt.
+        m.apply(Command::SetRunForm(RunForm { spec: noise(0.2), ..RunForm::default() }));
+        m.apply(Command::SelectAttempt(3));
+        assert!(m.stay_on_selected);
+        let Some(Request::Preview(p)) = m.apply(Command::ReRun(3)) else { panic!("no re-run asked") };
+        assert_eq!((p.index, p.execute, p.spec.clone(), p.variant.as_deref()), (3, true, noise(0.01), Some("D1")));
+        let Some(Request::SideBySide(pair)) = m.apply(Command::SideBySide { failed: 3, success: Some(4) }) else { panic!("no pair asked") };
+        assert_eq!(pair.iter().map(|p| (p.index, p.spec.clone())).collect::<Vec<_>>(), [(3, noise(0.01)), (4, noise(0.01))]);
+        m.apply(Command::FollowLatest(true));
+        assert!(!m.stay_on_selected);
+        // A new run forgets the selection and the pair.
+        m.on_reply(Reply::Run(RunUpdate::Failed("stopped".into())));
+        m.apply(Command::StartRun);
+        assert_eq!((m.selected_attempt, m.side_by_side.is_none()), (None, true));
     }
 
     #[test]

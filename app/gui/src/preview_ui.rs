@@ -7,7 +7,7 @@ use egui::{Color32, RichText};
 use egui_plot::{Corner, Legend, Line, LineStyle, MarkerShape, Plot, PlotPoint, PlotPoints, Points, Text};
 
 use crate::model::{AppModel, Command};
-use crate::protocol::{Point, PreviewView};
+use crate::protocol::{ExecutedView, Point, PreviewView};
 use crate::ui::{UiState, subtask_color};
 
 /// The id of preview plot `name` (`top`, `side`), where egui_plot keeps its transform (tests find
@@ -73,23 +73,7 @@ pub fn controls(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>
             (format!("Tried: failed ({})", e.failure.as_deref().unwrap_or("")), Color32::from_rgb(200, 50, 50))
         };
         ui.label(RichText::new(text).color(color).strong());
-        let opt = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.1}"));
-        egui::Grid::new("diagnostics").striped(true).num_columns(5).show(ui, |ui| {
-            for head in ["subtask", "steps", "to target (mm)", "object moved (mm)", "held slip (mm)"] {
-                ui.label(RichText::new(head).small());
-            }
-            ui.end_row();
-            for d in &e.diagnostics {
-                ui.label(format!("{}", d.subtask));
-                ui.label(format!("{}..{}", d.steps.0, d.steps.1));
-                ui.label(format!("{:.1}", d.target_error_mm));
-                ui.label(opt(d.object_moved_mm));
-                ui.label(opt(d.held_object_slip_mm));
-                ui.end_row();
-            }
-        })
-        .response
-        .on_hover_text("At each subtask's end: the distance from the controller's last target to the gripper; how far the subtask's object moved during it (a grasp that pushed the cube); how far the object held from the previous subtask slid in the gripper");
+        diagnostics(ui, "diagnostics", e);
     }
     ui.separator();
     egui::ScrollArea::vertical().show(ui, |ui| {
@@ -134,31 +118,56 @@ pub fn controls(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>
     });
 }
 
+/// What went wrong in numbers, per subtask of an executed attempt.
+pub fn diagnostics(ui: &mut egui::Ui, id: &str, e: &ExecutedView) {
+    let opt = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.1}"));
+    egui::Grid::new(id).striped(true).num_columns(5).show(ui, |ui| {
+            for head in ["subtask", "steps", "to target (mm)", "object moved (mm)", "held slip (mm)"] {
+                ui.label(RichText::new(head).small());
+            }
+            ui.end_row();
+            for d in &e.diagnostics {
+                ui.label(format!("{}", d.subtask));
+                ui.label(format!("{}..{}", d.steps.0, d.steps.1));
+                ui.label(format!("{:.1}", d.target_error_mm));
+                ui.label(opt(d.object_moved_mm));
+                ui.label(opt(d.held_object_slip_mm));
+                ui.end_row();
+            }
+        })
+        .response
+        .on_hover_text("At each subtask's end: the distance from the controller's last target to the gripper; how far the subtask's object moved during it (a grasp that pushed the cube); how far the object held from the previous subtask slid in the gripper");
+}
+
 fn xy(points: &[Point], axes: (usize, usize)) -> PlotPoints<'static> {
     points.iter().map(|p| [p[axes.0], p[axes.1]]).collect()
 }
 
 /// One view of the scene: `axes` picks the plotted coordinates ((0, 1) from above, (0, 2) from
-/// the side).
-fn view_plot(
+/// the side). With `drag` (the preview screen's), objects can be dragged in the view from above.
+/// Small views leave the legend out (`legend` false).
+pub fn view_plot(
     ui: &mut egui::Ui,
     id: &str,
     view: &PreviewView,
     axes: (usize, usize),
     size: egui::Vec2,
-    state: &mut UiState,
-    commands: &mut Vec<Command>,
+    legend: bool,
+    drag: Option<(&mut UiState, &mut Vec<Command>)>,
 ) {
     let names = ["x (m)", "y (m)", "z (m)"];
-    let top = axes == (0, 1);
-    let dragged = state.object_drag.clone();
-    let response = Plot::new(id)
+    let top = axes == (0, 1) && drag.is_some();
+    let dragged = drag.as_ref().and_then(|(state, _)| state.object_drag.clone());
+    let mut plot = Plot::new(id);
+    if legend {
+        plot = plot.legend(Legend::default().position(Corner::LeftBottom).background_alpha(0.6));
+    }
+    let response = plot
         .id(preview_plot_id(id))
         .allow_drag(!top)
         .width(size.x)
         .height(size.y)
         .data_aspect(1.0)
-        .legend(Legend::default().position(Corner::LeftBottom).background_alpha(0.6))
         .x_axis_label(names[axes.0])
         .y_axis_label(names[axes.1])
         .show(ui, |plot| {
@@ -213,9 +222,7 @@ fn view_plot(
             }
             (plot.response().clone(), plot.pointer_coordinate(), *plot.transform())
         });
-    if !top {
-        return;
-    }
+    let Some((state, commands)) = drag.filter(|_| top) else { return };
     let (response, pointer, transform) = response.inner;
     if response.drag_stopped() {
         if let Some((name, xy)) = state.object_drag.take() {
@@ -251,11 +258,11 @@ pub fn views(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands:
     ui.horizontal(|ui| {
         ui.vertical(|ui| {
             ui.strong("From above");
-            view_plot(ui, "top", view, (0, 1), size - egui::vec2(0.0, 20.0), state, commands);
+            view_plot(ui, "top", view, (0, 1), size - egui::vec2(0.0, 20.0), true, Some((&mut *state, &mut *commands)));
         });
         ui.vertical(|ui| {
             ui.strong("From the side");
-            view_plot(ui, "side", view, (0, 2), size - egui::vec2(0.0, 20.0), state, commands);
+            view_plot(ui, "side", view, (0, 2), size - egui::vec2(0.0, 20.0), true, None);
         });
     });
 }

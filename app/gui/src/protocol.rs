@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use mimicgen_engine::RunStats;
 use mimicgen_engine::coverage::Dimension;
-use mimicgen_pipeline::{Report, RunConfig, RunInfo};
+use mimicgen_pipeline::{Report, RunConfig, RunInfo, SpecOverrides};
 use serde::{Deserialize, Serialize};
 
 /// A request to the backend (file reads, detection, writes: everything that may take time).
@@ -31,6 +31,8 @@ pub enum Request {
     /// Plan attempt `index` of a run seeded `seed` over `source` with these ends, and with
     /// `execute` also run it in simulation ("try it").
     Preview(PreviewRequest),
+    /// Execute two attempts (a failure and a success to compare), one reply with both.
+    SideBySide(Box<[PreviewRequest; 2]>),
     /// Start streaming to Rerun: demo `demo` now, then every demo shown and attempt tried.
     Open3d {
         /// Where.
@@ -72,7 +74,7 @@ pub enum RunUpdate {
     /// (what the coverage view bins, as `mimicgen coverage` does).
     Started {
         /// The run.
-        info: RunInfo,
+        info: Box<RunInfo>,
         /// The reset region per object coordinate.
         dimensions: Vec<Dimension>,
     },
@@ -140,6 +142,10 @@ pub struct PreviewRequest {
     pub moved: BTreeMap<String, [f64; 2]>,
     /// Also execute the attempt.
     pub execute: bool,
+    /// Task variant (`None`: what the source file names).
+    pub variant: Option<String>,
+    /// Spec fields set over the task spec's (the run form's, or the re-run run's).
+    pub spec: SpecOverrides,
 }
 
 /// A reply from the backend. Each request gets exactly one reply that [`Reply::ends_request`];
@@ -176,6 +182,8 @@ pub enum Reply {
     },
     /// A preview (and, if asked, its execution) is ready.
     Previewed(Box<PreviewView>),
+    /// Both attempts of a [`Request::SideBySide`], executed.
+    SideBySide(Box<[PreviewView; 2]>),
     /// A run was started (its updates follow as [`Reply::Run`]).
     RunAccepted,
     /// A finished run's outputs were read (their updates came before).
@@ -382,6 +390,7 @@ impl Reply {
             | Self::Streaming { .. }
             | Self::Shown3d { .. }
             | Self::Previewed(_)
+            | Self::SideBySide(_)
             | Self::RunAccepted
             | Self::RunOpened
             | Self::Listing(_)

@@ -13,7 +13,9 @@ use mimicgen_engine::Pose;
 use mimicgen_engine::coverage::{Coordinate, Dimension, coverage, uniform_support_coverage};
 use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
 
-use crate::model::{AppModel, Command, RunState};
+use mimicgen_pipeline::{OffsetRange, Scoped, SpecOverrides};
+
+use crate::model::{AppModel, Command, RunState, SideBySide};
 use crate::protocol::{AttemptRow, OpenedRun};
 use crate::ui::UiState;
 
@@ -71,7 +73,22 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
             ui.label("");
             ui.checkbox(&mut f.overwrite, "replace existing outputs").on_hover_text("--overwrite");
             ui.end_row();
+            ui.label("Variant");
+            let variants = mimicgen_sim::registry::TASKS.iter().find(|t| t.name == file.task).map_or(&[][..], |t| t.variants);
+            egui::ComboBox::from_id_salt("variant").selected_text(f.variant.clone().unwrap_or_else(|| "the file's".to_owned())).show_ui(
+                ui,
+                |ui| {
+                    ui.selectable_value(&mut f.variant, None, "the file's");
+                    for v in variants {
+                        ui.selectable_value(&mut f.variant, Some((*v).to_owned()), *v);
+                    }
+                },
+            );
+            ui.end_row();
         });
+        egui::CollapsingHeader::new("Spec fields")
+            .default_open(!f.spec.is_empty())
+            .show(ui, |ui| spec_fields(ui, &mut f.spec, file.subtask_objects.len()));
     });
     if f != model.run_form {
         commands.push(Command::SetRunForm(f.clone()));
@@ -125,6 +142,96 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
     }
 }
 
+/// The value of `values` set for exactly `subtask` (the last one).
+fn scoped<T: Clone>(values: &[Scoped<T>], subtask: Option<usize>) -> Option<T> {
+    values.iter().rev().find(|s| s.subtask == subtask).map(|s| s.value.clone())
+}
+
+/// Sets (or with `None`, clears) the value of `values` for exactly `subtask`.
+fn set_scoped<T>(values: &mut Vec<Scoped<T>>, subtask: Option<usize>, value: Option<T>) {
+    values.retain(|s| s.subtask != subtask);
+    values.extend(value.map(|value| Scoped { subtask, value }));
+}
+
+/// A spec field the run may set: unchecked, the spec's value; checked, `widget` edits it.
+fn optional<T: Clone>(
+    ui: &mut egui::Ui,
+    name: &str,
+    flag: &str,
+    value: Option<T>,
+    default: T,
+    widget: impl FnOnce(&mut egui::Ui, &mut T),
+) -> Option<T> {
+    let mut set = value.is_some();
+    ui.checkbox(&mut set, name).on_hover_text(format!("{flag}; unchecked: the spec's value"));
+    let mut v = value.unwrap_or(default);
+    if set {
+        widget(ui, &mut v);
+    } else {
+        ui.label(RichText::new("spec's").weak());
+    }
+    ui.end_row();
+    set.then_some(v)
+}
+
+/// Selection per subtask, then noise, offsets and interpolation for all subtasks (the CLI takes
+/// those per subtask too: `--action-noise 1:0.02`).
+fn spec_fields(ui: &mut egui::Ui, spec: &mut SpecOverrides, subtasks: usize) {
+    const STRATEGIES: [&str; 3] = ["random", "nearest_neighbor_object", "nearest_neighbor_robot_distance"];
+    egui::Grid::new("spec_fields").num_columns(2).show(ui, |ui| {
+        for k in 0..subtasks {
+            let current = scoped(&spec.selection, Some(k));
+            ui.label(format!("subtask {k} selection"));
+            let mut chosen = current.clone();
+            egui::ComboBox::from_id_salt(("selection", k)).selected_text(chosen.clone().unwrap_or_else(|| "spec's".to_owned())).show_ui(
+                ui,
+                |ui| {
+                    ui.selectable_value(&mut chosen, None, "spec's");
+                    for s in STRATEGIES {
+                        ui.selectable_value(&mut chosen, Some(s.to_owned()), s);
+                    }
+                },
+            );
+            ui.end_row();
+            if chosen != current {
+                set_scoped(&mut spec.selection, Some(k), chosen.clone());
+            }
+            if chosen.as_deref() != Some("random") {
+                let nn_k = optional(ui, &format!("subtask {k} nn_k"), "--nn-k", scoped(&spec.nn_k, Some(k)), 3, |ui, v| {
+                    ui.add(egui::DragValue::new(v).range(1..=100));
+                });
+                set_scoped(&mut spec.nn_k, Some(k), nn_k);
+            } else {
+                set_scoped(&mut spec.nn_k, Some(k), None);
+            }
+        }
+        let noise = optional(ui, "action noise", "--action-noise", scoped(&spec.action_noise, None), 0.05, |ui, v| {
+            ui.add(egui::DragValue::new(v).range(0.0..=1.0).speed(0.005).max_decimals(3));
+        });
+        set_scoped(&mut spec.action_noise, None, noise);
+        let steps = optional(ui, "interpolation steps", "--interpolation-steps", scoped(&spec.interpolation_steps, None), 5, |ui, v| {
+            ui.add(egui::DragValue::new(v).range(0..=200));
+        });
+        set_scoped(&mut spec.interpolation_steps, None, steps);
+        let fixed = optional(ui, "fixed steps", "--fixed-steps", scoped(&spec.fixed_steps, None), 0, |ui, v| {
+            ui.add(egui::DragValue::new(v).range(0..=200));
+        });
+        set_scoped(&mut spec.fixed_steps, None, fixed);
+        let offsets = optional(ui, "end offset range", "--offset-range", scoped(&spec.offset_range, None), OffsetRange(0, 0), |ui, v| {
+            ui.horizontal(|ui| {
+                ui.add(egui::DragValue::new(&mut v.0).range(-100..=v.1));
+                ui.label("to");
+                ui.add(egui::DragValue::new(&mut v.1).range(v.0..=100));
+            });
+        });
+        set_scoped(&mut spec.offset_range, None, offsets);
+        let per_subtask = optional(ui, "source per subtask", "--select-src-per-subtask", spec.select_src_per_subtask, true, |ui, v| {
+            ui.checkbox(v, "choose at every subtask");
+        });
+        spec.select_src_per_subtask = per_subtask;
+    });
+}
+
 /// Target, done and ETA of a run.
 fn progress_line(run: &RunState) -> (f32, String) {
     let guarantee = run.config.guarantee;
@@ -165,6 +272,12 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
             report.failed_output.as_ref().map_or(String::new(), |f| format!(", failed attempts {f}"))
         ));
     }
+    if let Some(pair) = &model.side_by_side {
+        side_by_side(ui, run, pair, model.viewer.is_some(), commands);
+        ui.separator();
+        attempt_table(ui, model, run, state, commands);
+        return;
+    }
     let height = 190.0;
     let width = (ui.available_width() - 16.0) / 3.0;
     ui.horizontal(|ui| {
@@ -198,7 +311,57 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
     }
     coverage_view(ui, run, model.compare.as_ref());
     ui.separator();
-    attempt_table(ui, run, state, commands);
+    attempt_table(ui, model, run, state, commands);
+}
+
+/// A failed attempt and a successful one, re-run, side by side: outcome, sources, what went wrong
+/// in numbers, and both from above and from the side (from above only when `compact`: beside the
+/// 3D view, which shows them whole).
+fn side_by_side(ui: &mut egui::Ui, run: &RunState, pair: &SideBySide, compact: bool, commands: &mut Vec<Command>) {
+    ui.horizontal(|ui| {
+        ui.strong(format!("Attempt {} beside attempt {}", pair.indices[0], pair.indices[1]));
+        if ui.button("Back to the charts").clicked() {
+            commands.push(Command::CloseSideBySide);
+        }
+    });
+    let Some(views) = &pair.views else {
+        ui.label("Re-running both attempts...");
+        return;
+    };
+    ui.label(
+        RichText::new(
+            "Solid: transformed segments (colour per subtask); dashed: interpolation bridges; dotted: the source segments in their own scene; white: the executed path, diamonds where it left the objects; brown squares: the objects at the start.",
+        )
+        .small(),
+    );
+    let width = (ui.available_width() - 16.0) / 2.0;
+    let height = if compact { 150.0 } else { ((ui.available_height() - 260.0) / 2.0).clamp(120.0, 320.0) };
+    ui.horizontal_top(|ui| {
+        for (k, view) in views.iter().enumerate() {
+            ui.vertical(|ui| {
+                ui.set_width(width);
+                let row = run.rows.iter().find(|r| r.index == view.index);
+                if let Some(e) = &view.executed {
+                    let text = if e.success {
+                        format!("attempt {}: success in {} steps", view.index, e.path.len())
+                    } else {
+                        format!("attempt {}: failed ({})", view.index, e.failure.as_deref().unwrap_or(""))
+                    };
+                    ui.label(RichText::new(text).color(if e.success { SUCCESS } else { FAILURE }).strong());
+                    if row.is_some_and(|r| r.success != e.success) {
+                        ui.label(RichText::new("the re-run's outcome differs from the run's").color(FAILURE));
+                    }
+                    let sources: Vec<String> = e.sources.iter().map(|d| format!("demo_{d}")).collect();
+                    ui.label(format!("sources: {}", sources.join(",")));
+                    crate::preview_ui::diagnostics(ui, &format!("pair_diagnostics_{k}"), e);
+                }
+                crate::preview_ui::view_plot(ui, &format!("pair{k}_top"), view, (0, 1), egui::vec2(width, height), false, None);
+                if !compact {
+                    crate::preview_ui::view_plot(ui, &format!("pair{k}_side"), view, (0, 2), egui::vec2(width, height), false, None);
+                }
+            });
+        }
+    });
 }
 
 /// Bins per coordinate of the support coverage (the paper's appendix uses 3).
@@ -246,17 +409,21 @@ fn coverage_block(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow], dimension
     let support = |s: &[BTreeMap<String, Pose>]| coverage(s, dimensions, SUPPORT_BINS).ok();
     let (Some(c_all), Some(c_good), Some(c_bad)) = (support(&all), support(&good), support(&bad)) else { return };
     let uniform = uniform_support_coverage(c_all.joint_bins_total, all.len());
+    #[allow(clippy::cast_precision_loss)]
+    let rate = 100.0 * good.len() as f64 / all.len().max(1) as f64;
     ui.label(format!(
-        "{title}: {} scenes; support coverage ({SUPPORT_BINS} bins per coordinate, {} joint bins): all {:.1} % (uniformly spread scenes: {:.1} %), successes {:.1} %, failures {:.1} %",
+        "{title}: {} scenes, {} successes ({rate:.1} % of the attempts kept); support coverage ({SUPPORT_BINS} bins per coordinate, {} joint bins): all {:.1} % (uniformly spread scenes: {:.1} %), successes {:.1} %, failures {:.1} %",
         all.len(),
+        good.len(),
         c_all.joint_bins_total,
         100.0 * c_all.support_coverage(),
         100.0 * uniform,
         100.0 * c_good.support_coverage(),
-        100.0 * c_bad.support_coverage()
+        100.0 * c_bad.support_coverage(),
     ));
     let (Ok(h_good), Ok(h_bad)) = (coverage(&good, dimensions, HISTOGRAM_BINS), coverage(&bad, dimensions, HISTOGRAM_BINS)) else { return };
     ui.horizontal_wrapped(|ui| {
+        source_demo_plot(ui, title, rows);
         for (k, dim) in h_good.dimensions.iter().enumerate() {
             #[allow(clippy::cast_precision_loss)]
             let width = (dim.high - dim.low) / HISTOGRAM_BINS as f64;
@@ -284,6 +451,40 @@ fn coverage_block(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow], dimension
                 });
         }
     });
+}
+
+/// Which source demos the kept attempts used (any subtask), successes and failures stacked: the
+/// paper notes successes can come very unevenly from the sources.
+fn source_demo_plot(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow]) {
+    let demos = rows.iter().flat_map(|r| r.sources.iter().copied()).max().map_or(0, |d| d + 1);
+    let (mut good, mut bad) = (vec![0usize; demos], vec![0usize; demos]);
+    for r in rows {
+        let mut used = r.sources.clone();
+        used.sort_unstable();
+        used.dedup();
+        for d in used {
+            if r.success {
+                good[d] += 1;
+            } else {
+                bad[d] += 1;
+            }
+        }
+    }
+    #[allow(clippy::cast_precision_loss)]
+    let bars = |counts: &[usize]| -> Vec<Bar> { counts.iter().enumerate().map(|(d, &n)| Bar::new(d as f64, n as f64).width(0.7)).collect() };
+    let succeeded = BarChart::new("successes", bars(&good)).color(SUCCESS);
+    let failed = BarChart::new("failures", bars(&bad)).color(FAILURE).stack_on(&[&succeeded]);
+    Plot::new(("sources", title))
+        .width(200.0)
+        .height(110.0)
+        .x_axis_label("source demo")
+        .show_axes([true, false])
+        .allow_drag(false)
+        .allow_scroll(false)
+        .show(ui, |plot| {
+            plot.bar_chart(succeeded);
+            plot.bar_chart(failed);
+        });
 }
 
 fn rate_plot(ui: &mut egui::Ui, run: &RunState, size: egui::Vec2) {
@@ -363,31 +564,7 @@ fn matches(filter: AttemptFilter, row: &AttemptRow) -> bool {
     }
 }
 
-/// The successful attempt whose initial objects are nearest `failed`'s (mean distance per object,
-/// cm), preferring those that used the same source demo for the subtask that failed.
-pub fn nearest_success<'a>(rows: &'a [AttemptRow], failed: &AttemptRow) -> Option<(&'a AttemptRow, f64)> {
-    let distance = |r: &AttemptRow| {
-        let pairs: Vec<f64> = failed
-            .objects
-            .iter()
-            .filter_map(|o| {
-                let p = r.objects.iter().find(|q| q.name == o.name)?;
-                Some(((o.position[0] - p.position[0]).powi(2) + (o.position[1] - p.position[1]).powi(2)).sqrt())
-            })
-            .collect();
-        #[allow(clippy::cast_precision_loss)]
-        let mean = pairs.iter().sum::<f64>() / pairs.len().max(1) as f64;
-        100.0 * mean
-    };
-    let source = failed.failed_subtask.and_then(|k| failed.sources.get(k).map(|d| (k, *d)));
-    let same_source = |r: &&AttemptRow| source.is_none_or(|(k, d)| r.sources.get(k) == Some(&d));
-    let candidates = |filter: &dyn Fn(&&AttemptRow) -> bool| {
-        rows.iter().filter(|r| r.success).filter(|r| filter(r)).map(|r| (r, distance(r))).min_by(|a, b| a.1.total_cmp(&b.1))
-    };
-    candidates(&same_source).or_else(|| candidates(&|_| true))
-}
-
-fn attempt_table(ui: &mut egui::Ui, run: &RunState, state: &mut UiState, commands: &mut Vec<Command>) {
+fn attempt_table(ui: &mut egui::Ui, model: &AppModel, run: &RunState, state: &mut UiState, commands: &mut Vec<Command>) {
     ui.horizontal(|ui| {
         ui.strong("Attempts");
         for (filter, name) in [(AttemptFilter::All, "all"), (AttemptFilter::Successes, "successes"), (AttemptFilter::Failures, "failures")]
@@ -395,12 +572,23 @@ fn attempt_table(ui: &mut egui::Ui, run: &RunState, state: &mut UiState, command
             ui.radio_value(&mut state.attempt_filter, filter, name);
         }
         ui.checkbox(&mut state.longest_first, "longest first");
+        if model.viewer.is_some() {
+            ui.separator();
+            let mut follow = !model.stay_on_selected;
+            if ui
+                .add_enabled(model.selected_attempt.is_some(), egui::Checkbox::new(&mut follow, "3D: follow the latest attempt"))
+                .on_hover_text("Unchecked, the 3D view stays on the attempt selected in the table")
+                .changed()
+            {
+                commands.push(Command::FollowLatest(follow));
+            }
+        }
     });
     let mut rows: Vec<&AttemptRow> = run.rows.iter().filter(|r| matches(state.attempt_filter, r)).collect();
     if state.longest_first {
         rows.sort_by(|a, b| b.steps.cmp(&a.steps).then(a.index.cmp(&b.index)));
     }
-    if let Some(row) = state.selected_attempt.and_then(|i| run.rows.iter().find(|r| r.index == i)) {
+    if let Some(row) = model.selected_attempt.and_then(|i| run.rows.iter().find(|r| r.index == i)) {
         ui.horizontal(|ui| {
             let what = match (&row.reason, row.failed_subtask) {
                 (Some(reason), Some(k)) => format!("attempt {}: failed in subtask {k}: {reason}", row.index),
@@ -412,7 +600,7 @@ fn attempt_table(ui: &mut egui::Ui, run: &RunState, state: &mut UiState, command
             }
         });
         if !row.success
-            && let Some((near, cm)) = nearest_success(&run.rows, row)
+            && let Some((near, cm)) = crate::model::nearest_success(&run.rows, row)
         {
             ui.horizontal(|ui| {
                 let same = row
@@ -420,7 +608,10 @@ fn attempt_table(ui: &mut egui::Ui, run: &RunState, state: &mut UiState, command
                     .and_then(|k| row.sources.get(k))
                     .map_or_else(String::new, |d| format!(" from the same source demo_{d}"));
                 ui.label(format!("nearest success{same}: attempt {} (objects {cm:.1} cm away on average)", near.index));
-                if ui.button("Re-run that one").on_hover_text("Try the nearest success in the preview, to compare").clicked() {
+                if ui.button("Side by side").on_hover_text("Re-run both and show them next to each other").clicked() {
+                    commands.push(Command::SideBySide { failed: row.index, success: Some(near.index) });
+                }
+                if ui.button("Re-run that one").on_hover_text("Try the nearest success in the preview").clicked() {
                     commands.push(Command::ReRun(near.index));
                 }
             });
@@ -438,8 +629,8 @@ fn attempt_table(ui: &mut egui::Ui, run: &RunState, state: &mut UiState, command
                 row.reason.as_ref().map_or(String::new(), |r| format!("subtask {}: {r}", row.failed_subtask.unwrap_or_default()))
             );
             let label = RichText::new(text).monospace().color(if row.success { SUCCESS } else { FAILURE });
-            if ui.selectable_label(state.selected_attempt == Some(row.index), label).clicked() {
-                state.selected_attempt = Some(row.index);
+            if ui.selectable_label(model.selected_attempt == Some(row.index), label).clicked() {
+                commands.push(Command::SelectAttempt(row.index));
             }
         }
     });

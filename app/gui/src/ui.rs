@@ -37,8 +37,6 @@ pub struct UiState {
     pub attempt_filter: crate::run_ui::AttemptFilter,
     /// Sort the attempt table by length, longest first (else by index).
     pub longest_first: bool,
-    /// The attempt selected in the table.
-    pub selected_attempt: Option<u64>,
     /// The "open a run" path field.
     pub run_path: String,
     /// Time of the last playback step (s).

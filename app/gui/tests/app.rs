@@ -396,11 +396,23 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     h.state_mut().command(Command::SetRunForm(form.clone()));
     h.run_steps(2);
     h.get_by_label_contains("mimicgen generate --source");
+    // A spec field set in the form goes to the command line and the run (0.05 is the bundled
+    // spec's noise, so the run is the one the comments below describe).
+    h.get_by_label("Spec fields").click();
+    h.run_steps(2);
+    h.get_by_label("action noise").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.run_form.spec.to_args(), ["--action-noise", "0.05"]);
+    h.get_by_label_contains("--num-demos 6 --seed 1 --workers 1");
+    let line = mimicgen_gui::model::RunForm { spec: h.state().model.run_form.spec.clone(), ..form.clone() }
+        .command_line(&h.state().model.file.as_ref().unwrap().path);
+    assert!(line.ends_with("--keep-failed --action-noise 0.05"), "{line}");
     h.get_by_label("Start").click();
     h.step();
     until_run_ends(&mut h);
     let run = h.state().model.run.clone().unwrap();
     assert!(run.error.is_none(), "{:?}", run.error);
+    assert_eq!(run.config.spec.action_noise.len(), 1);
     let report = run.report.as_ref().unwrap();
     assert_eq!((run.rows.len(), report.attempts), (6, 6));
     assert_eq!(report.successes, run.rows.iter().filter(|r| r.success).count());
@@ -443,17 +455,36 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     h.step();
     settle(&mut h);
     assert_eq!(h.state().model.compare.as_ref().unwrap().rows.len(), 6);
-    h.get_by_label_contains("this run: 6 scenes; support coverage");
-    h.get_by_label_contains("app_run.hdf5 (stack D0): 6 scenes; support coverage");
+    // Each row also says how many of its attempts succeeded.
+    let successes = run.rows.iter().filter(|r| r.success).count();
+    h.get_by_label_contains(&format!("this run: 6 scenes, {successes} successes ("));
+    h.get_by_label_contains(&format!("app_run.hdf5 (stack D0): 6 scenes, {successes} successes ("));
     // Re-run the failed attempt in the preview: the same seed and index give the same outcome.
     h.get_by_label("Generate").click();
     h.run_steps(2);
     h.get_by_label_contains(&format!("{:>5}  failure", failed.index)).click();
     h.run_steps(2);
     // The nearest success (by where the objects were) is offered for comparison.
-    let (near, _) = mimicgen_gui::run_ui::nearest_success(&run.rows, &failed).unwrap();
+    let (near, _) = mimicgen_gui::model::nearest_success(&run.rows, &failed).unwrap();
     assert!(near.success && near.index != failed.index);
     h.get_by_label_contains(&format!("attempt {} (objects", near.index));
+    assert!(h.state().model.stay_on_selected, "selecting an attempt keeps the 3D view on it");
+    // Side by side: both re-run, as the run had them, each with its numbers and views.
+    h.get_by_label("Side by side").click();
+    h.step();
+    settle(&mut h);
+    let pair = h.state().model.side_by_side.clone().unwrap();
+    assert_eq!(pair.indices, [failed.index, near.index]);
+    let views = pair.views.unwrap();
+    let outcome = |v: &mimicgen_gui::protocol::PreviewView| v.executed.as_ref().map(|e| (e.success, e.path.len()));
+    assert_eq!(outcome(&views[0]), Some((false, failed.steps)));
+    assert_eq!(outcome(&views[1]), Some((true, near.steps)));
+    h.get_by_label_contains(&format!("attempt {}: failed (subtask", failed.index));
+    h.get_by_label_contains(&format!("attempt {}: success in {} steps", near.index, near.steps));
+    assert!(h.query_by_label_contains("the re-run's outcome differs").is_none());
+    h.get_by_label("Back to the charts").click();
+    h.run_steps(2);
+    assert!(h.state().model.side_by_side.is_none());
     h.get_by_label("Re-run that one");
     h.get_by_label("Re-run in preview").click();
     h.step();

@@ -7,7 +7,7 @@ use mimicgen_engine::TaskSpec;
 use mimicgen_sim::{Task, registry};
 use serde::{Deserialize, Serialize};
 
-use crate::PipelineError;
+use crate::{PipelineError, SpecOverrides};
 
 /// A run as the user describes it: every field of `mimicgen generate`. `None` means "the default"
 /// or "what the inputs say".
@@ -43,6 +43,9 @@ pub struct RunConfig {
     pub overwrite: bool,
     /// Continue the interrupted run that left `<out>.partial`.
     pub resume: bool,
+    /// Spec fields set for this run over the spec's (`--action-noise`, `--selection`, ...).
+    #[serde(default)]
+    pub spec: SpecOverrides,
 }
 
 impl Default for RunConfig {
@@ -63,6 +66,7 @@ impl Default for RunConfig {
             early_abort: false,
             overwrite: false,
             resume: false,
+            spec: SpecOverrides::default(),
         }
     }
 }

@@ -31,10 +31,12 @@ pub mod bundled;
 mod config;
 mod error;
 pub mod memory;
+mod overrides;
 pub mod prepare;
 pub mod preview;
 mod run;
 
 pub use config::RunConfig;
 pub use error::PipelineError;
+pub use overrides::{OffsetRange, Scoped, SpecOverrides};
 pub use run::{AttemptEvent, DemoReport, Event, FailureReport, Outcome, PROGRESS_ATTR, Pipeline, RUN_ATTR, Report, RunInfo, sibling};

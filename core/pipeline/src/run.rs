@@ -14,7 +14,7 @@ use mimicgen_sim::{Scene, SimEnv, Task, registry};
 use serde::{Deserialize, Serialize};
 
 use crate::config::{check_controller, resolve_task};
-use crate::{PipelineError, RunConfig};
+use crate::{PipelineError, RunConfig, SpecOverrides};
 
 /// Root attribute of the output (and of its `.partial`) holding the run description.
 pub const RUN_ATTR: &str = "mimicgen_run";
@@ -68,7 +68,7 @@ pub enum Outcome {
 #[derive(Debug, Clone)]
 pub enum Event {
     /// The run has started.
-    Started(RunInfo),
+    Started(Box<RunInfo>),
     /// An attempt was decided (in index order).
     Attempt(Box<AttemptEvent>),
     /// The run has ended (completed or cancelled) and its outputs are complete.
@@ -90,6 +90,8 @@ pub struct RunInfo {
     pub workers: usize,
     /// Run seed.
     pub seed: u64,
+    /// Spec fields set over the spec's.
+    pub spec_overrides: SpecOverrides,
     /// Attempts to make, or successes to reach with `guarantee`.
     pub target: usize,
     /// Whether `target` counts successes.
@@ -176,6 +178,9 @@ pub struct Report {
     pub resumed_from: usize,
     /// Whether attempts ended at the first subtask that missed its signal.
     pub early_abort: bool,
+    /// Spec fields the run set over the spec's (`--action-noise` ...), so it can be made again.
+    #[serde(default, skip_serializing_if = "SpecOverrides::is_empty")]
+    pub spec_overrides: SpecOverrides,
 }
 
 /// A run ready to go: inputs read and checked, scene compiled, task resolved.
@@ -264,6 +269,7 @@ impl Pipeline {
                     .map_err(|e| PipelineError::engine("bundled spec", e))?
             }
         };
+        config.spec.apply(&mut spec)?;
         let g = &mut spec.generation;
         if let Some(n) = config.num_demos {
             g.num_trials = n;
@@ -476,17 +482,18 @@ impl Pipeline {
         let settings = &self.generator.spec().generation;
         let resumed_from = progress.next_attempt;
         let mut failures_kept = progress.failures_kept;
-        on_event(&Event::Started(RunInfo {
+        on_event(&Event::Started(Box::new(RunInfo {
             task: self.task.name().to_owned(),
             variant: self.variant.clone(),
             source: self.source_path.clone(),
             num_sources: self.generator.dataset().demos.len(),
             workers: self.config.workers,
             seed: settings.seed,
+            spec_overrides: self.config.spec.clone(),
             target: settings.num_trials,
             guarantee: settings.guarantee,
             resumed_from,
-        }));
+        })));
         let mut envs: Vec<SimEnv> =
             (0..self.config.workers).map(|_| SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task))).collect();
         let keep_failed = settings.keep_failed;
@@ -589,6 +596,7 @@ impl Pipeline {
             cancelled,
             resumed_from,
             early_abort: settings.early_abort,
+            spec_overrides: self.config.spec.clone(),
         };
         let report_path = self.report_path();
         let text = serde_json::to_string_pretty(&report).unwrap_or_default();

@@ -294,3 +294,30 @@ fn a_tried_attempt_is_the_attempt_a_run_makes() {
     let err = preview.configure(&bad, 3).unwrap_err().to_string();
     assert!(err.contains(&name), "{err}");
 }
+
+/// Spec fields given for a run (`--action-noise 1:0.2`, the app's form) change the spec the run
+/// uses, and its report's description; the same run without them does not have them.
+#[test]
+fn spec_overrides_reach_the_generator_and_the_report() {
+    use mimicgen_pipeline::{Scoped, SpecOverrides};
+    let dir = tempfile::tempdir().unwrap();
+    let overrides = SpecOverrides {
+        action_noise: vec![Scoped { subtask: Some(1), value: 0.2 }],
+        interpolation_steps: vec![Scoped::all(9)],
+        ..SpecOverrides::default()
+    };
+    let plain = Pipeline::prepare(&config(&dir.path().join("a.hdf5"), 2, 1)).unwrap();
+    let changed = Pipeline::prepare(&RunConfig { spec: overrides.clone(), ..config(&dir.path().join("a.hdf5"), 2, 1) }).unwrap();
+    let noise =
+        |p: &Pipeline| p.generator().spec().subtasks.iter().map(|s| (s.action_noise, s.num_interpolation_steps)).collect::<Vec<_>>();
+    assert_eq!(noise(&plain), [(0.05, 5), (0.05, 5)]);
+    assert_eq!(noise(&changed), [(0.05, 9), (0.2, 9)]);
+    let (report, _) = run(&RunConfig { spec: overrides, ..config(&dir.path().join("b.hdf5"), 1, 1) }).unwrap();
+    assert_eq!(report.attempts, 1);
+    let written = std::fs::read_to_string(dir.path().join("b.json")).unwrap();
+    let read: mimicgen_pipeline::Report = serde_json::from_str(&written).unwrap();
+    assert!((read.spec_overrides.action_noise[0].value - 0.2).abs() < 1e-12, "the report keeps the spec fields the run set");
+    let bad = SpecOverrides { fixed_steps: vec![Scoped { subtask: Some(5), value: 1 }], ..SpecOverrides::default() };
+    let err = Pipeline::prepare(&RunConfig { spec: bad, ..config(&dir.path().join("c.hdf5"), 1, 1) }).unwrap_err().to_string();
+    assert!(err.contains("--fixed-steps") && err.contains("subtask 5"), "{err}");
+}

@@ -1,0 +1,293 @@
+//! Spec fields set for one run (`mimicgen generate --action-noise 0.02`, the app's run form) over
+//! the task spec's values, for every subtask or for one (`--action-noise 1:0.02`).
+
+use std::fmt;
+use std::str::FromStr;
+
+use mimicgen_engine::{SelectionStrategy, TaskSpec};
+use serde::{Deserialize, Serialize};
+
+use crate::PipelineError;
+
+/// A value for every subtask (`VALUE`) or for subtask `K` only (`K:VALUE`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scoped<T> {
+    /// The subtask, or `None` for all.
+    pub subtask: Option<usize>,
+    /// The value.
+    pub value: T,
+}
+
+impl<T> Scoped<T> {
+    /// `value` for every subtask.
+    pub fn all(value: T) -> Self {
+        Self { subtask: None, value }
+    }
+}
+
+impl<T: FromStr> FromStr for Scoped<T>
+where
+    T::Err: fmt::Display,
+{
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (subtask, value) = match s.split_once(':') {
+            Some((k, v)) if !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit()) => {
+                (Some(k.parse().map_err(|e| format!("subtask {k:?}: {e}"))?), v)
+            }
+            _ => (None, s),
+        };
+        let value = value.trim().parse().map_err(|e: T::Err| format!("{value:?}: {e}"))?;
+        Ok(Self { subtask, value })
+    }
+}
+
+impl<T: fmt::Display> fmt::Display for Scoped<T> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.subtask {
+            Some(k) => write!(f, "{k}:{}", self.value),
+            None => write!(f, "{}", self.value),
+        }
+    }
+}
+
+/// An inclusive range of steps added to a subtask's end, `LO,HI` (MimicGen's
+/// `subtask_term_offset_range`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct OffsetRange(pub i64, pub i64);
+
+impl FromStr for OffsetRange {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (lo, hi) = s.split_once(',').ok_or_else(|| "expected LO,HI (for example 0,10)".to_owned())?;
+        let parse = |v: &str| v.trim().parse::<i64>().map_err(|e| format!("{v:?}: {e}"));
+        Ok(Self(parse(lo)?, parse(hi)?))
+    }
+}
+
+impl fmt::Display for OffsetRange {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{},{}", self.0, self.1)
+    }
+}
+
+/// Spec fields that override the task spec's, applied in order (a later value for the same subtask
+/// wins). Empty: the spec as it is.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SpecOverrides {
+    /// Source selection strategy: `random`, `nearest_neighbor_object` or
+    /// `nearest_neighbor_robot_distance`.
+    pub selection: Vec<Scoped<String>>,
+    /// How many nearest demos the nearest-neighbour strategies draw from.
+    pub nn_k: Vec<Scoped<usize>>,
+    /// Standard deviation of the action noise.
+    pub action_noise: Vec<Scoped<f64>>,
+    /// Range of steps added to a subtask's end.
+    pub offset_range: Vec<Scoped<OffsetRange>>,
+    /// Intermediate poses of the interpolation segment.
+    pub interpolation_steps: Vec<Scoped<usize>>,
+    /// Steps holding the first pose of the transformed segment after interpolating.
+    pub fixed_steps: Vec<Scoped<usize>>,
+    /// Choose a source demo at each subtask (else once per attempt).
+    pub select_src_per_subtask: Option<bool>,
+}
+
+impl SpecOverrides {
+    /// Whether it changes nothing.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// The `mimicgen generate` flags that give these overrides.
+    #[must_use]
+    pub fn to_args(&self) -> Vec<String> {
+        fn push<T: fmt::Display>(args: &mut Vec<String>, flag: &str, values: &[Scoped<T>]) {
+            for v in values {
+                args.push(flag.to_owned());
+                args.push(v.to_string());
+            }
+        }
+        let mut args = Vec::new();
+        push(&mut args, "--selection", &self.selection);
+        push(&mut args, "--nn-k", &self.nn_k);
+        push(&mut args, "--action-noise", &self.action_noise);
+        push(&mut args, "--offset-range", &self.offset_range);
+        push(&mut args, "--interpolation-steps", &self.interpolation_steps);
+        push(&mut args, "--fixed-steps", &self.fixed_steps);
+        if let Some(on) = self.select_src_per_subtask {
+            args.push("--select-src-per-subtask".to_owned());
+            args.push(on.to_string());
+        }
+        args
+    }
+
+    /// Applies the overrides to `spec`.
+    ///
+    /// # Errors
+    /// [`PipelineError::Input`] naming the flag: a subtask the spec does not have, an unknown
+    /// strategy, `--nn-k` on a subtask with random selection, a negative or non-finite noise, an
+    /// empty offset range.
+    pub fn apply(&self, spec: &mut TaskSpec) -> Result<(), PipelineError> {
+        let count = spec.subtasks.len();
+        let targets = |flag: &str, subtask: Option<usize>| -> Result<std::ops::Range<usize>, PipelineError> {
+            match subtask {
+                None => Ok(0..count),
+                Some(k) if k < count => Ok(k..k + 1),
+                Some(k) => Err(PipelineError::input("", flag, format!("names subtask {k}, but the task has {count} (0 to {})", count - 1))),
+            }
+        };
+        for s in &self.selection {
+            for k in targets("--selection", s.subtask)? {
+                let (nn_k, pos_weight, rot_weight) = match spec.subtasks[k].selection {
+                    SelectionStrategy::Random => (3, 1.0, 1.0),
+                    SelectionStrategy::NearestNeighborObject { nn_k, pos_weight, rot_weight }
+                    | SelectionStrategy::NearestNeighborRobotDistance { nn_k, pos_weight, rot_weight } => (nn_k, pos_weight, rot_weight),
+                };
+                spec.subtasks[k].selection = match s.value.as_str() {
+                    "random" => SelectionStrategy::Random,
+                    "nearest_neighbor_object" => SelectionStrategy::NearestNeighborObject { nn_k, pos_weight, rot_weight },
+                    "nearest_neighbor_robot_distance" => SelectionStrategy::NearestNeighborRobotDistance { nn_k, pos_weight, rot_weight },
+                    other => {
+                        return Err(PipelineError::input(
+                            "",
+                            "--selection",
+                            format!("unknown strategy {other:?}; use random, nearest_neighbor_object or nearest_neighbor_robot_distance"),
+                        ));
+                    }
+                };
+            }
+        }
+        for s in &self.nn_k {
+            if s.value == 0 {
+                return Err(PipelineError::input("", "--nn-k", "must be at least 1"));
+            }
+            for k in targets("--nn-k", s.subtask)? {
+                match &mut spec.subtasks[k].selection {
+                    SelectionStrategy::Random => {
+                        // Applied to all subtasks, it is meant for those that use a neighbour strategy.
+                        if s.subtask.is_some() {
+                            return Err(PipelineError::input(
+                                "",
+                                "--nn-k",
+                                format!("subtask {k} selects its source at random; set --selection {k}:nearest_neighbor_object first"),
+                            ));
+                        }
+                    }
+                    SelectionStrategy::NearestNeighborObject { nn_k, .. }
+                    | SelectionStrategy::NearestNeighborRobotDistance { nn_k, .. } => {
+                        *nn_k = s.value;
+                    }
+                }
+            }
+        }
+        for s in &self.action_noise {
+            if !s.value.is_finite() || s.value < 0.0 {
+                return Err(PipelineError::input(
+                    "",
+                    "--action-noise",
+                    format!("must be a finite standard deviation >= 0, got {}", s.value),
+                ));
+            }
+            for k in targets("--action-noise", s.subtask)? {
+                spec.subtasks[k].action_noise = s.value;
+            }
+        }
+        for s in &self.offset_range {
+            let OffsetRange(lo, hi) = s.value;
+            if lo > hi {
+                return Err(PipelineError::input("", "--offset-range", format!("{lo},{hi} is empty (LO must not exceed HI)")));
+            }
+            for k in targets("--offset-range", s.subtask)? {
+                spec.subtasks[k].term_offset_range = Some((lo, hi));
+            }
+        }
+        for s in &self.interpolation_steps {
+            for k in targets("--interpolation-steps", s.subtask)? {
+                spec.subtasks[k].num_interpolation_steps = s.value;
+            }
+        }
+        for s in &self.fixed_steps {
+            for k in targets("--fixed-steps", s.subtask)? {
+                spec.subtasks[k].num_fixed_steps = s.value;
+            }
+        }
+        if let Some(on) = self.select_src_per_subtask {
+            spec.generation.select_src_per_subtask = on;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec() -> TaskSpec {
+        TaskSpec::from_toml_str(mimicgen_sim::registry::default_spec_toml("stack").unwrap(), "stack").unwrap()
+    }
+
+    #[test]
+    fn scoped_values_parse_and_print_back() {
+        let all: Scoped<f64> = "0.02".parse().unwrap();
+        assert_eq!(all, Scoped { subtask: None, value: 0.02 });
+        let one: Scoped<OffsetRange> = "1:-5,10".parse().unwrap();
+        assert_eq!(one, Scoped { subtask: Some(1), value: OffsetRange(-5, 10) });
+        assert_eq!(one.to_string(), "1:-5,10");
+        let negative: Scoped<OffsetRange> = "-5,10".parse().unwrap();
+        assert_eq!(negative.subtask, None);
+        assert!("1:abc".parse::<Scoped<f64>>().unwrap_err().contains("abc"));
+        assert!("0,".parse::<OffsetRange>().is_err());
+    }
+
+    #[test]
+    fn overrides_change_the_subtasks_they_name() {
+        let mut s = spec();
+        let overrides = SpecOverrides {
+            selection: vec![Scoped::all("nearest_neighbor_object".to_owned()), Scoped { subtask: Some(1), value: "random".to_owned() }],
+            nn_k: vec![Scoped::all(5)],
+            action_noise: vec![Scoped::all(0.02), Scoped { subtask: Some(1), value: 0.1 }],
+            offset_range: vec![Scoped { subtask: Some(0), value: OffsetRange(0, 10) }],
+            interpolation_steps: vec![Scoped::all(7)],
+            fixed_steps: vec![Scoped { subtask: Some(1), value: 2 }],
+            select_src_per_subtask: Some(true),
+        };
+        overrides.apply(&mut s).unwrap();
+        assert!(matches!(s.subtasks[0].selection, SelectionStrategy::NearestNeighborObject { nn_k: 5, .. }));
+        assert_eq!(s.subtasks[1].selection, SelectionStrategy::Random);
+        assert_eq!((s.subtasks[0].action_noise, s.subtasks[1].action_noise), (0.02, 0.1));
+        assert_eq!(s.subtasks[0].term_offset_range, Some((0, 10)));
+        assert_eq!(s.subtasks.iter().map(|t| t.num_interpolation_steps).collect::<Vec<_>>(), [7, 7]);
+        assert_eq!(s.subtasks.iter().map(|t| t.num_fixed_steps).collect::<Vec<_>>(), [0, 2]);
+        assert!(s.generation.select_src_per_subtask);
+        // The flags read back as the same overrides.
+        let args = overrides.to_args();
+        assert_eq!(args[..4], ["--selection", "nearest_neighbor_object", "--selection", "1:random"]);
+        assert!(args.windows(2).any(|w| w == ["--select-src-per-subtask", "true"]));
+    }
+
+    #[test]
+    fn bad_overrides_name_the_flag() {
+        let cases = [
+            (SpecOverrides { action_noise: vec![Scoped { subtask: Some(7), value: 0.1 }], ..Default::default() }, "--action-noise"),
+            (SpecOverrides { selection: vec![Scoped::all("closest".to_owned())], ..Default::default() }, "--selection"),
+            (SpecOverrides { action_noise: vec![Scoped::all(f64::NAN)], ..Default::default() }, "--action-noise"),
+            (SpecOverrides { offset_range: vec![Scoped::all(OffsetRange(5, 1))], ..Default::default() }, "--offset-range"),
+            (
+                SpecOverrides {
+                    selection: vec![Scoped::all("random".to_owned())],
+                    nn_k: vec![Scoped { subtask: Some(0), value: 4 }],
+                    ..Default::default()
+                },
+                "--nn-k",
+            ),
+        ];
+        for (overrides, flag) in cases {
+            let err = overrides.apply(&mut spec()).unwrap_err().to_string();
+            assert!(err.contains(flag), "{err}");
+        }
+    }
+}
