@@ -85,6 +85,11 @@ pub struct GenerateArgs {
     /// Continue the interrupted run that left `<out>.partial` (same arguments; --workers may differ).
     #[arg(long)]
     resume: bool,
+    /// Make only share PART of COUNT of the attempts (indices = PART modulo COUNT), e.g. on
+    /// several machines; `mimicgen merge` joins the shards into the whole run's dataset. The shard
+    /// also logs its attempts to OUT.attempts.jsonl for the merge.
+    #[arg(long, value_name = "PART/COUNT")]
+    shard: Option<mimicgen_engine::Shard>,
     /// Spec fields for this run over the spec's.
     #[command(flatten)]
     spec: SpecArgs,
@@ -159,6 +164,7 @@ impl GenerateArgs {
             overwrite: self.overwrite,
             resume: self.resume,
             spec: self.spec.overrides(),
+            shard: self.shard,
         }
     }
 }

@@ -114,6 +114,30 @@ Examples:
         #[arg(long)]
         recover: bool,
     },
+    /// Join the shards of a run (`generate --shard i/K`) into the dataset of the whole run.
+    #[command(after_help = "\
+Examples:
+  mimicgen generate --num-demos 1000 --seed 7 --shard 0/2 --out shards/s0.hdf5   # on machine A
+  mimicgen generate --num-demos 1000 --seed 7 --shard 1/2 --out shards/s1.hdf5   # on machine B
+  mimicgen merge shards/s0.hdf5 shards/s1.hdf5 --out stack.hdf5
+
+Shard i makes the attempts whose index is i modulo K; each attempt depends only on the run seed
+and its index, so the merged dataset equals `mimicgen generate --num-demos 1000 --seed 7` (same
+demos, arrays, masks, failed attempts and report counts), also with --guarantee (every shard
+runs to its own --num-demos successes; the merge keeps the whole run's first ones). Each shard's
+folder must hold its dataset, its .json report, its .attempts.jsonl log and, with --keep-failed,
+its _failed.hdf5.")]
+    Merge {
+        /// The shards' datasets, all K of them, in any order.
+        #[arg(required = true, value_name = "SHARD")]
+        shards: Vec<PathBuf>,
+        /// Output dataset (the failed attempts go to OUT_failed.hdf5, the report to OUT.json).
+        #[arg(long)]
+        out: PathBuf,
+        /// Replace existing outputs.
+        #[arg(long)]
+        overwrite: bool,
+    },
     /// Export a dataset's streams (poses, actions, labels) to MCAP for Foxglove.
     Export {
         /// The dataset.
@@ -211,6 +235,27 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             for (topic, n) in &summary.messages {
                 println!("  {topic:<24} {n} messages");
             }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Merge { shards, out, overwrite } => {
+            let bar = indicatif::ProgressBar::new(0).with_style(
+                indicatif::ProgressStyle::with_template("merging {bar:30} {pos}/{len} attempts, {elapsed} ({eta} left)")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
+            let report = mimicgen_pipeline::merge::merge(&shards, &out, overwrite, |done, total| {
+                bar.set_length(total as u64);
+                bar.set_position(done as u64);
+            })?;
+            bar.finish_and_clear();
+            println!("{}", serde_json::to_string_pretty(&report)?);
+            eprintln!(
+                "merged {} shards: {} of {} attempts succeeded ({:.1} %) -> {}",
+                shards.len(),
+                report.successes,
+                report.attempts,
+                100.0 * report.generation_rate,
+                report.output
+            );
             Ok(ExitCode::SUCCESS)
         }
         Command::BenchIo { demos, steps, dir } => {

@@ -447,6 +447,7 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
         resumed_from: 0,
         early_abort: false,
         spec_overrides: mimicgen_pipeline::SpecOverrides::default(),
+        shard: None,
     });
     Ok(OpenedRun { path: path.to_path_buf(), info, dimensions: task.coverage_dimensions(), rows, report })
 }

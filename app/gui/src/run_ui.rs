@@ -471,7 +471,8 @@ fn source_demo_plot(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow]) {
         }
     }
     #[allow(clippy::cast_precision_loss)]
-    let bars = |counts: &[usize]| -> Vec<Bar> { counts.iter().enumerate().map(|(d, &n)| Bar::new(d as f64, n as f64).width(0.7)).collect() };
+    let bars =
+        |counts: &[usize]| -> Vec<Bar> { counts.iter().enumerate().map(|(d, &n)| Bar::new(d as f64, n as f64).width(0.7)).collect() };
     let succeeded = BarChart::new("successes", bars(&good)).color(SUCCESS);
     let failed = BarChart::new("failures", bars(&bad)).color(FAILURE).stack_on(&[&succeeded]);
     Plot::new(("sources", title))

@@ -623,9 +623,15 @@ impl RunStats {
 
     /// Counts one attempt.
     pub fn record(&mut self, attempt: &Attempt) {
+        self.record_outcome(attempt.success, &attempt.src_demo_per_subtask, attempt.failure.as_ref());
+    }
+
+    /// Counts one attempt from its outcome: whether it succeeded, the source demo of each subtask,
+    /// and where it failed (what [`Self::record`] reads of an [`Attempt`]).
+    pub fn record_outcome(&mut self, success: bool, sources: &[usize], failure: Option<&Failure>) {
         self.attempts += 1;
-        self.successes += usize::from(attempt.success);
-        let mut used: Vec<usize> = attempt.src_demo_per_subtask.clone();
+        self.successes += usize::from(success);
+        let mut used: Vec<usize> = sources.to_vec();
         used.sort_unstable();
         used.dedup();
         for d in used {
@@ -633,9 +639,9 @@ impl RunStats {
                 self.per_source_demo.resize(d + 1, DemoUse::default());
             }
             self.per_source_demo[d].attempts += 1;
-            self.per_source_demo[d].successes += usize::from(attempt.success);
+            self.per_source_demo[d].successes += usize::from(success);
         }
-        if let Some(failure) = &attempt.failure {
+        if let Some(failure) = failure {
             match self.failures.iter_mut().find(|f| f.subtask == failure.subtask && f.reason == failure.reason) {
                 Some(f) => f.count += 1,
                 None => {
@@ -644,6 +650,67 @@ impl RunStats {
                 }
             }
         }
+    }
+}
+
+/// One share of a run's attempt indices: those with `index % count == part`. Every attempt's
+/// randomness depends only on the run seed and its index, so shards run anywhere make the
+/// attempts a single run makes, and joined in index order they give its dataset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shard {
+    /// Which share, `0..count`.
+    pub part: usize,
+    /// How many shares.
+    pub count: usize,
+}
+
+impl Default for Shard {
+    fn default() -> Self {
+        Self::WHOLE
+    }
+}
+
+impl Shard {
+    /// Every index.
+    pub const WHOLE: Self = Self { part: 0, count: 1 };
+
+    /// Share `part` of `count`.
+    ///
+    /// # Errors
+    /// A message when `count` is 0 or `part` is not below it.
+    pub fn new(part: usize, count: usize) -> Result<Self, String> {
+        if count == 0 || part >= count {
+            return Err(format!("shard {part}/{count} does not exist: the shards of K are 0/K to {}/K", count.max(1) - 1));
+        }
+        Ok(Self { part, count })
+    }
+
+    /// Whether attempt `index` is in this share.
+    #[must_use]
+    pub fn contains(&self, index: usize) -> bool {
+        index % self.count == self.part
+    }
+
+    /// The first index of this share at or after `start`.
+    #[must_use]
+    pub fn first_at_or_after(&self, start: usize) -> usize {
+        start + (self.part + self.count - start % self.count) % self.count
+    }
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (part, count) = s.split_once('/').ok_or_else(|| format!("{s:?}: expected PART/COUNT, e.g. 0/4"))?;
+        let number = |v: &str| v.trim().parse::<usize>().map_err(|e| format!("{s:?}: {v:?}: {e}"));
+        Self::new(number(part)?, number(count)?)
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.part, self.count)
     }
 }
 
@@ -657,6 +724,10 @@ pub struct RunControl<'a> {
     /// Set to stop after the attempts already handed back: every attempt before the stop has been
     /// passed to the callback, in order, none after it.
     pub cancel: Option<&'a AtomicBool>,
+    /// Run only this share of the attempt indices. With `guarantee`, the share stops at its own
+    /// `num_trials` successes: then it holds every one of its attempts up to the single run's
+    /// last (that run reaches its successes no later than any share does).
+    pub shard: Shard,
 }
 
 /// Runs attempts on every environment in `envs` in parallel (one worker thread each) and passes
@@ -705,10 +776,13 @@ where
     }
     let cancelled = || control.cancel.is_some_and(|c| c.load(Ordering::Relaxed));
     let done = |stats: &RunStats| settings.guarantee && stats.successes >= settings.num_trials;
-    if done(&stats) || control.start >= cap || cancelled() {
+    if done(&stats) || control.shard.first_at_or_after(control.start) >= cap || cancelled() {
         return Ok(stats);
     }
-    let next = AtomicUsize::new(control.start);
+    let shard = control.shard;
+    let first = shard.first_at_or_after(control.start);
+    // Workers take this share's indices in order: `first`, `first + count`, ...
+    let next = AtomicUsize::new(first);
     let stop = AtomicBool::new(false);
     type Outcome<P> = Result<(Attempt, P), EngineError>;
     let (sender, receiver) = mpsc::sync_channel::<(usize, Outcome<P>)>(envs.len() * 2);
@@ -718,7 +792,7 @@ where
             let (next, stop, finish) = (&next, &stop, &finish);
             let spawned = std::thread::Builder::new().name(format!("mimicgen-worker-{worker}")).spawn_scoped(scope, move || {
                 loop {
-                    let index = next.fetch_add(1, Ordering::Relaxed);
+                    let index = next.fetch_add(shard.count, Ordering::Relaxed);
                     if index >= cap || stop.load(Ordering::Relaxed) {
                         break;
                     }
@@ -735,7 +809,7 @@ where
         }
         drop(sender);
         let mut pending: BTreeMap<usize, Outcome<P>> = BTreeMap::new();
-        let mut expected = control.start;
+        let mut expected = first;
         let outcome = 'receive: loop {
             if expected >= cap || done(&stats) || cancelled() {
                 break Ok(());
@@ -747,7 +821,7 @@ where
             };
             pending.insert(index, result);
             while let Some(result) = pending.remove(&expected) {
-                expected += 1;
+                expected += shard.count;
                 let (attempt, payload) = match result {
                     Ok(a) => a,
                     Err(e) => break 'receive Err(e),

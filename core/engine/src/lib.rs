@@ -43,7 +43,7 @@ pub(crate) mod testing;
 
 pub use demo::{Rows, SimPayload, SourceDataset, SourceDemo};
 pub use env::{EnvError, Environment};
-pub use generate::{Attempt, Failure, FailureReason, Generator, Overrides, Plan, RunControl, RunStats, SubtaskPlan, run, run_with};
+pub use generate::{Attempt, Failure, FailureReason, Generator, Overrides, Plan, RunControl, RunStats, Shard, SubtaskPlan, run, run_with};
 pub use pose::Pose;
 pub use spec::{GenerationSettings, SelectionStrategy, SubtaskSpec, TaskSpec};
 

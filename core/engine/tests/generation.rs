@@ -308,3 +308,59 @@ fn moved_objects_move_the_plan_and_the_attempt_and_nothing_else() {
     let err = g.plan(&mut env, 2, &Overrides { object_poses: [("cubeZ".to_owned(), moved_a)].into(), ..Overrides::default() }).unwrap_err();
     assert!(err.to_string().contains("cubeZ"), "{err}");
 }
+
+/// Shards of a run, joined in index order, are the run: with a fixed number of attempts, and with
+/// `guarantee`, where each shard stops at its own successes and the join is cut at the run's.
+#[test]
+fn shards_joined_in_index_order_are_the_whole_run() {
+    use mimicgen_engine::{RunControl, RunStats, Shard, run_with};
+    let sharded = |g: &Generator, shard: Shard, workers: usize| -> (Vec<Attempt>, RunStats) {
+        let mut envs: Vec<PickPlace> = (0..workers).map(|_| PickPlace::new(0.15)).collect();
+        let mut attempts = Vec::new();
+        let control = RunControl { shard, ..RunControl::default() };
+        let stats = run_with(
+            g,
+            &mut envs,
+            control,
+            |_, _| Ok(()),
+            |a, (), _| {
+                attempts.push(a);
+                ControlFlow::Continue(())
+            },
+        )
+        .unwrap();
+        (attempts, stats)
+    };
+    for guarantee in [false, true] {
+        let mut spec = kinematic::pick_place_spec(12, 5);
+        spec.generation.guarantee = guarantee;
+        spec.subtasks[0].action_noise = 0.4;
+        let g = generator(spec);
+        let (whole, whole_stats) = collect(&g, 1, 0.15);
+        for count in [2, 3] {
+            let mut joined: Vec<Attempt> = Vec::new();
+            for part in 0..count {
+                let shard = Shard::new(part, count).unwrap();
+                let (attempts, stats) = sharded(&g, shard, 2);
+                assert!(attempts.iter().all(|a| shard.contains(usize::try_from(a.index).unwrap())));
+                assert_eq!(stats.attempts, attempts.len());
+                if guarantee {
+                    assert_eq!(stats.successes, 12, "shard {shard} stops at its own successes");
+                }
+                joined.extend(attempts);
+            }
+            joined.sort_by_key(|a| a.index);
+            // Cut where the whole run stopped: its last attempt (with guarantee, its 12th success).
+            let last = whole.last().unwrap().index;
+            joined.retain(|a| a.index <= last);
+            assert_eq!(joined, whole, "guarantee {guarantee}, {count} shards");
+            let mut replayed = RunStats::new(g.dataset().demos.len());
+            for a in &joined {
+                replayed.record_outcome(a.success, &a.src_demo_per_subtask, a.failure.as_ref());
+            }
+            assert_eq!(replayed, whole_stats);
+        }
+    }
+    assert!("2/2".parse::<Shard>().is_err() && "1/0".parse::<Shard>().is_err() && "a/2".parse::<Shard>().is_err());
+    assert_eq!("1/3".parse::<Shard>().unwrap().first_at_or_after(5), 7);
+}

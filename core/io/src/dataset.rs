@@ -548,6 +548,23 @@ pub fn demo_steps(demo: &Group) -> usize {
 
 static EMPTY: Group = Group { attrs: BTreeMap::new(), members: BTreeMap::new() };
 
+/// String attributes `names` of a file's root (`None` for each one it lacks or that is not a
+/// string).
+///
+/// # Errors
+/// [`IoError::Hdf5`] when the file cannot be opened.
+pub fn root_string_attrs(path: impl AsRef<Path>, names: &[&str]) -> Result<Vec<Option<String>>> {
+    let label = path.as_ref().display().to_string();
+    let h5 = hdf5::File::open(path.as_ref()).map_err(|e| IoError::hdf5(&label, "/", "", &e))?;
+    Ok(names
+        .iter()
+        .map(|name| {
+            let a = h5.attr(name).ok()?;
+            tree::read_array(&label, "/", name, &a).ok()?.as_str().map(str::to_owned)
+        })
+        .collect())
+}
+
 /// Writes a [`Group`] tree as a new HDF5 file.
 ///
 /// # Errors

@@ -33,7 +33,8 @@ pub mod tree;
 pub mod writer;
 
 pub use dataset::{
-    DatasetReport, DemoReader, DemoSource, ReadOptions, RobomimicDataset, read_source_dataset, source_demo_from_group, write_tree,
+    DatasetReport, DemoReader, DemoSource, ReadOptions, RobomimicDataset, read_source_dataset, root_string_attrs, source_demo_from_group,
+    write_tree,
 };
 pub use error::{IoError, Result};
 pub use writer::{ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, Observation, WriterOptions};

@@ -333,14 +333,7 @@ impl DatasetWriter {
         if !partial.is_file() {
             return Err(IoError::Fs { file: label, reason: "no interrupted run to resume here (the file does not exist)".to_owned() });
         }
-        let h5 = hdf5::File::open(&partial).map_err(|e| IoError::hdf5(&label, "/", "", &e))?;
-        Ok(names
-            .iter()
-            .map(|name| {
-                let a = h5.attr(name).ok()?;
-                tree::read_array(&label, "/", name, &a).ok()?.as_str().map(str::to_owned)
-            })
-            .collect())
+        crate::dataset::root_string_attrs(&partial, names)
     }
 
     /// Sets a string attribute on the file's root (replacing an earlier value) and flushes.
@@ -378,6 +371,32 @@ impl DatasetWriter {
         let g = self.data.create_group(&name).map_err(|e| IoError::hdf5(&self.label, "data", &name, &e))?;
         tree::write_group(&self.label, &g, &group_path, &tree)?;
         let steps = i64::try_from(demo.actions.len()).unwrap_or(i64::MAX);
+        tree::write_attr(&self.label, &g, &group_path, "num_samples", &Array::int(steps))?;
+        self.h5.flush().map_err(|e| IoError::hdf5(&self.label, &group_path, "", &e))?;
+        self.total += steps;
+        self.names.push(name.clone());
+        Ok(name)
+    }
+
+    /// Appends a demo group read from another dataset (its `num_samples` attribute included) as
+    /// the next `data/demo_<i>`, arrays, chunking, compression and attributes as they were.
+    ///
+    /// # Errors
+    /// [`IoError::Missing`] when `demo` has no `num_samples`, [`IoError::Hdf5`] on write errors.
+    pub fn append_group(&mut self, demo: &Group) -> Result<String> {
+        let name = format!("demo_{}", self.names.len());
+        let group_path = format!("data/{name}");
+        let steps = demo.attrs.get("num_samples").and_then(Array::as_i64).ok_or_else(|| IoError::Missing {
+            file: self.label.clone(),
+            group: group_path.clone(),
+            field: "num_samples".into(),
+            hint: "only completely written demos can be copied".into(),
+        })?;
+        // `num_samples` last, as `append` writes it: a demo without it was not finished.
+        let mut body = demo.clone();
+        body.attrs.remove("num_samples");
+        let g = self.data.create_group(&name).map_err(|e| IoError::hdf5(&self.label, "data", &name, &e))?;
+        tree::write_group(&self.label, &g, &group_path, &body)?;
         tree::write_attr(&self.label, &g, &group_path, "num_samples", &Array::int(steps))?;
         self.h5.flush().map_err(|e| IoError::hdf5(&self.label, &group_path, "", &e))?;
         self.total += steps;

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use mimicgen_engine::TaskSpec;
+use mimicgen_engine::{Shard, TaskSpec};
 use mimicgen_sim::{Task, registry};
 use serde::{Deserialize, Serialize};
 
@@ -46,6 +46,10 @@ pub struct RunConfig {
     /// Spec fields set for this run over the spec's (`--action-noise`, `--selection`, ...).
     #[serde(default)]
     pub spec: SpecOverrides,
+    /// Make only this share of the attempts (`--shard 1/4`); `mimicgen merge` joins the shards
+    /// into the dataset of the whole run.
+    #[serde(default)]
+    pub shard: Option<Shard>,
 }
 
 impl Default for RunConfig {
@@ -67,6 +71,7 @@ impl Default for RunConfig {
             overwrite: false,
             resume: false,
             spec: SpecOverrides::default(),
+            shard: None,
         }
     }
 }

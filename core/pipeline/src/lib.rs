@@ -29,8 +29,10 @@
 pub mod annotate;
 pub mod bundled;
 mod config;
+pub mod coverage;
 mod error;
 pub mod memory;
+pub mod merge;
 mod overrides;
 pub mod prepare;
 pub mod preview;
@@ -39,4 +41,7 @@ mod run;
 pub use config::RunConfig;
 pub use error::PipelineError;
 pub use overrides::{OffsetRange, Scoped, SpecOverrides};
-pub use run::{AttemptEvent, DemoReport, Event, FailureReport, Outcome, PROGRESS_ATTR, Pipeline, RUN_ATTR, Report, RunInfo, sibling};
+pub use run::{
+    AttemptEvent, AttemptRecord, DemoReport, Event, FailureReport, Outcome, PROGRESS_ATTR, Pipeline, RUN_ATTR, Report, RunInfo,
+    attempt_log_path, read_attempt_log, sibling,
+};

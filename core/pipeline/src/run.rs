@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use mimicgen_engine::demo::initial_object_poses;
-use mimicgen_engine::{Attempt, EngineError, Generator, RunControl, RunStats, TaskSpec};
+use mimicgen_engine::{Attempt, EngineError, Failure, Generator, RunControl, RunStats, Shard, TaskSpec};
 use mimicgen_io::{DatasetWriter, Observation, WriterOptions};
 use mimicgen_sim::{Scene, SimEnv, Task, registry};
 use serde::{Deserialize, Serialize};
@@ -27,22 +27,44 @@ type KeptPayload = (BTreeMap<String, Observation>, String);
 
 /// What a run was asked to make; a resumed run must describe the same dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct RunDescription {
-    task: String,
-    variant: String,
-    source: String,
+pub(crate) struct RunDescription {
+    pub(crate) task: String,
+    pub(crate) variant: String,
+    pub(crate) source: String,
     /// FNV-1a of the source file's bytes, so a resumed run reads the same demos.
-    source_fingerprint: String,
-    spec: TaskSpec,
-    valid_fraction: Option<f64>,
+    pub(crate) source_fingerprint: String,
+    pub(crate) spec: TaskSpec,
+    pub(crate) valid_fraction: Option<f64>,
+    /// The share of the attempts a shard makes (absent for a whole run, and in a merged one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) shard: Option<Shard>,
 }
 
 /// How far a run has got, stored in the `.partial` file after every attempt.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct Progress {
-    next_attempt: usize,
-    failures_kept: usize,
-    stats: RunStats,
+pub(crate) struct Progress {
+    pub(crate) next_attempt: usize,
+    pub(crate) failures_kept: usize,
+    pub(crate) stats: RunStats,
+}
+
+/// One decided attempt, as a shard logs it (`<out>.attempts.jsonl`, a line each, in index order)
+/// so that `mimicgen merge` can cut the joined run where the whole run stops and count what it
+/// counts, failures that were not kept included.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AttemptRecord {
+    /// Attempt index.
+    pub index: usize,
+    /// Whether the task succeeded.
+    pub success: bool,
+    /// Source demo per subtask.
+    pub sources: Vec<usize>,
+    /// Where and why it failed.
+    pub failure: Option<Failure>,
+    /// Control steps.
+    pub steps: usize,
+    /// Its demo in the shard's dataset (a success) or failed-attempts file (a kept failure).
+    pub kept: Option<String>,
 }
 
 /// Where an attempt went.
@@ -181,6 +203,9 @@ pub struct Report {
     /// Spec fields the run set over the spec's (`--action-noise` ...), so it can be made again.
     #[serde(default, skip_serializing_if = "SpecOverrides::is_empty")]
     pub spec_overrides: SpecOverrides,
+    /// The share of the attempts this run made, if it was a shard.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<Shard>,
 }
 
 /// A run ready to go: inputs read and checked, scene compiled, task resolved.
@@ -206,6 +231,60 @@ impl std::fmt::Debug for Pipeline {
 fn fnv1a(bytes: &[u8]) -> String {
     let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
     format!("{hash:016x}")
+}
+
+/// A shard's attempt log: a JSON line per decided attempt, flushed after each (before the
+/// dataset's progress, so the log never lags behind it).
+struct AttemptLog {
+    file: std::io::BufWriter<std::fs::File>,
+    path: PathBuf,
+}
+
+impl AttemptLog {
+    fn create(path: PathBuf) -> Result<Self, PipelineError> {
+        let file =
+            std::fs::File::create(&path).map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
+        Ok(Self { file: std::io::BufWriter::new(file), path })
+    }
+
+    /// The log of an interrupted shard, cut to the attempts before `next`, to go on appending.
+    fn resume(path: PathBuf, next: usize) -> Result<Self, PipelineError> {
+        let kept: Vec<AttemptRecord> = read_attempt_log(&path)?.into_iter().filter(|r| r.index < next).collect();
+        let mut log = Self::create(path)?;
+        for r in &kept {
+            log.append(r)?;
+        }
+        Ok(log)
+    }
+
+    fn append(&mut self, record: &AttemptRecord) -> Result<(), PipelineError> {
+        use std::io::Write as _;
+        let fs = |e: std::io::Error| PipelineError::Fs { file: self.path.display().to_string(), reason: e.to_string() };
+        let line = serde_json::to_string(record).map_err(|e| PipelineError::input("", "attempt record", e.to_string()))?;
+        writeln!(self.file, "{line}").map_err(fs)?;
+        self.file.flush().map_err(fs)
+    }
+}
+
+/// Reads a shard's attempt log.
+///
+/// # Errors
+/// [`PipelineError::Fs`] when it cannot be read, [`PipelineError::Input`] naming the line that
+/// is not a record.
+pub fn read_attempt_log(path: &Path) -> Result<Vec<AttemptRecord>, PipelineError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| PipelineError::Fs { file: file.clone(), reason: e.to_string() })?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(n, l)| serde_json::from_str(l).map_err(|e| PipelineError::input(file.clone(), format!("line {}", n + 1), e.to_string())))
+        .collect()
+}
+
+/// Where a shard writing `out` logs its attempts.
+#[must_use]
+pub fn attempt_log_path(out: &Path) -> PathBuf {
+    sibling(out, "", "attempts.jsonl")
 }
 
 /// `<out stem><suffix>.<ext>` beside `out`.
@@ -317,6 +396,7 @@ impl Pipeline {
             source_fingerprint: fnv1a(&bytes),
             spec,
             valid_fraction: config.valid_fraction,
+            shard: config.shard,
         };
         Ok(Self { config: config.clone(), task, variant, source_path, generator, scene: Arc::new(scene), scene_xml, env_args, description })
     }
@@ -375,6 +455,12 @@ impl Pipeline {
         sibling(&self.config.out, "", "json")
     }
 
+    /// The attempt log of a shard (`None` for a whole run).
+    #[must_use]
+    pub fn attempt_log_path(&self) -> Option<PathBuf> {
+        self.config.shard.map(|_| attempt_log_path(&self.config.out))
+    }
+
     fn writer_options(&self) -> WriterOptions {
         WriterOptions {
             env_args: Some(self.env_args.clone()),
@@ -386,7 +472,8 @@ impl Pipeline {
 
     /// Opens the writers: fresh ones, or (with `resume`) those of the interrupted run, checked to
     /// describe the same dataset. Returns them with the progress to go on from.
-    fn open_writers(&self) -> Result<(DatasetWriter, Option<DatasetWriter>, Progress), PipelineError> {
+    #[allow(clippy::type_complexity)]
+    fn open_writers(&self) -> Result<(DatasetWriter, Option<DatasetWriter>, Progress, Option<AttemptLog>), PipelineError> {
         let out = &self.config.out;
         let failed = self.failed_path();
         let keep_failed = self.generator.spec().generation.keep_failed;
@@ -435,12 +522,15 @@ impl Pipeline {
             } else {
                 None
             };
-            return Ok((writer, failed_writer, progress));
+            let log = self.attempt_log_path().map(|p| AttemptLog::resume(p, progress.next_attempt)).transpose()?;
+            return Ok((writer, failed_writer, progress, log));
         }
         let report = self.report_path();
         let failed_partial = DatasetWriter::partial_path(&failed);
+        let log_path = self.attempt_log_path();
         let existing: Vec<&Path> = [out.as_path(), partial.as_path(), failed.as_path(), failed_partial.as_path(), report.as_path()]
             .into_iter()
+            .chain(log_path.as_deref())
             .filter(|p| p.exists())
             .collect();
         if let Some(first) = existing.first() {
@@ -464,7 +554,8 @@ impl Pipeline {
         writer.set_root_attr(RUN_ATTR, &description)?;
         writer.set_root_attr(PROGRESS_ATTR, &serde_json::to_string(&progress).unwrap_or_default())?;
         let failed_writer = if keep_failed { Some(DatasetWriter::create(&failed, failed_options)?) } else { None };
-        Ok((writer, failed_writer, progress))
+        let log = log_path.map(AttemptLog::create).transpose()?;
+        Ok((writer, failed_writer, progress, log))
     }
 
     /// Runs generation: `workers` threads each simulate attempts and compute the observations of
@@ -478,7 +569,7 @@ impl Pipeline {
     /// # Errors
     /// [`PipelineError`] for outputs that exist, fatal simulator errors and write failures.
     pub fn run(&self, cancel: &AtomicBool, mut on_event: impl FnMut(&Event)) -> Result<Report, PipelineError> {
-        let (mut writer, mut failed_writer, progress) = self.open_writers()?;
+        let (mut writer, mut failed_writer, progress, mut log) = self.open_writers()?;
         let settings = &self.generator.spec().generation;
         let resumed_from = progress.next_attempt;
         let mut failures_kept = progress.failures_kept;
@@ -516,7 +607,12 @@ impl Pipeline {
         let started = Instant::now();
         let mut write_error: Option<PipelineError> = None;
         let mut control_steps = 0usize;
-        let control = RunControl { start: progress.next_attempt, stats: Some(progress.stats), cancel: Some(cancel) };
+        let control = RunControl {
+            start: progress.next_attempt,
+            stats: Some(progress.stats),
+            cancel: Some(cancel),
+            shard: self.config.shard.unwrap_or_default(),
+        };
         let result = mimicgen_engine::run_with(&self.generator, &mut envs, control, finish, |attempt, payload, stats| {
             control_steps += attempt.trajectory.len();
             let step = (|| -> Result<Outcome, PipelineError> {
@@ -535,6 +631,19 @@ impl Pipeline {
                     }
                     _ => Outcome::Discarded,
                 };
+                if let Some(log) = &mut log {
+                    log.append(&AttemptRecord {
+                        index: usize::try_from(attempt.index).unwrap_or(usize::MAX),
+                        success: attempt.success,
+                        sources: attempt.src_demo_per_subtask.clone(),
+                        failure: attempt.failure.clone(),
+                        steps: attempt.trajectory.len(),
+                        kept: match &outcome {
+                            Outcome::Written { demo } | Outcome::KeptFailed { demo } => Some(demo.clone()),
+                            Outcome::Discarded => None,
+                        },
+                    })?;
+                }
                 let progress = Progress {
                     next_attempt: usize::try_from(attempt.index).unwrap_or(usize::MAX) + 1,
                     failures_kept,
@@ -597,6 +706,7 @@ impl Pipeline {
             resumed_from,
             early_abort: settings.early_abort,
             spec_overrides: self.config.spec.clone(),
+            shard: self.config.shard,
         };
         let report_path = self.report_path();
         let text = serde_json::to_string_pretty(&report).unwrap_or_default();

@@ -321,3 +321,68 @@ fn spec_overrides_reach_the_generator_and_the_report() {
     let err = Pipeline::prepare(&RunConfig { spec: bad, ..config(&dir.path().join("c.hdf5"), 1, 1) }).unwrap_err().to_string();
     assert!(err.contains("--fixed-steps") && err.contains("subtask 5"), "{err}");
 }
+
+/// `--shard i/K` runs joined by `merge` give the single run's files: the same root tree (demos,
+/// arrays, attributes, masks, progress), the same failed attempts, the same report counts; with a
+/// fixed number of attempts and with `guarantee`. Bad shard sets are refused, naming the file.
+#[test]
+fn merged_shards_equal_the_single_process_run() {
+    use mimicgen_engine::Shard;
+    use mimicgen_pipeline::merge::merge;
+    use mimicgen_pipeline::{Scoped, SpecOverrides};
+    let dir = tempfile::tempdir().unwrap();
+    // Noisier than the spec, so that some attempts fail and the failed file has something to join.
+    let noisy = SpecOverrides { action_noise: vec![Scoped { subtask: Some(0), value: 0.3 }], ..SpecOverrides::default() };
+    let base = |out: PathBuf, guarantee: bool| RunConfig {
+        keep_failed: true,
+        guarantee,
+        valid_fraction: Some(0.25),
+        spec: noisy.clone(),
+        ..config(&out, if guarantee { 5 } else { 9 }, 2)
+    };
+    let tree = |p: &Path| RobomimicDataset::open(p).unwrap().root;
+    let timeless = |r: &mimicgen_pipeline::Report| mimicgen_pipeline::Report {
+        wall_time_s: 0.0,
+        attempts_per_s: 0.0,
+        peak_rss_mib: None,
+        workers: 0,
+        output: String::new(),
+        failed_output: None,
+        ..r.clone()
+    };
+    for guarantee in [false, true] {
+        let single = dir.path().join(format!("single_{guarantee}.hdf5"));
+        let (whole, _) = run(&base(single.clone(), guarantee)).unwrap();
+        assert!(whole.successes < whole.attempts, "the test needs failures: {whole:?}");
+        for count in [2, 3] {
+            let mut shards = Vec::new();
+            for part in 0..count {
+                let out = dir.path().join(format!("shard_{guarantee}_{part}of{count}.hdf5"));
+                let shard = Shard::new(part, count).unwrap();
+                let (report, _) = run(&RunConfig { shard: Some(shard), workers: 1, ..base(out.clone(), guarantee) }).unwrap();
+                assert_eq!(report.shard, Some(shard));
+                shards.push(out);
+            }
+            let merged = dir.path().join(format!("merged_{guarantee}_{count}.hdf5"));
+            let report = merge(&shards, &merged, false, |_, _| {}).unwrap();
+            assert_eq!(tree(&merged), tree(&single), "guarantee {guarantee}, {count} shards");
+            let failed = |p: &Path| tree(&mimicgen_pipeline::sibling(p, "_failed", "hdf5"));
+            assert_eq!(failed(&merged), failed(&single));
+            assert_eq!(timeless(&report), timeless(&whole));
+            // A shard left out, or given twice, is refused.
+            let err = merge(&shards[1..], &dir.path().join("x.hdf5"), false, |_, _| {}).unwrap_err().to_string();
+            assert!(err.contains(&format!("shards 0/{count} are missing")), "{err}");
+            let twice = [shards.clone(), vec![shards[0].clone()]].concat();
+            let err = merge(&twice, &dir.path().join("x.hdf5"), false, |_, _| {}).unwrap_err().to_string();
+            assert!(err.contains("given twice"), "{err}");
+            let err = merge(&shards, &merged, false, |_, _| {}).unwrap_err().to_string();
+            assert!(err.contains("exists"), "{err}");
+        }
+    }
+    // A shard of another run (another seed) is refused, naming the file and what differs.
+    let other = dir.path().join("other.hdf5");
+    run(&RunConfig { shard: Some(Shard::new(1, 2).unwrap()), seed: Some(4), ..base(other.clone(), false) }).unwrap();
+    let first = dir.path().join("shard_false_0of2.hdf5");
+    let err = merge(&[first, other], &dir.path().join("y.hdf5"), false, |_, _| {}).unwrap_err().to_string();
+    assert!(err.contains("other.hdf5") && err.contains("spec"), "{err}");
+}

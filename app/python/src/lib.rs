@@ -1,0 +1,457 @@
+//! `mimicgen_rs._native`: the Rust side of the Python package. Thin: each function calls the
+//! pipeline crate (the one behind the CLI and the app) and converts at the edge: arrays become
+//! numpy arrays (moved, not copied), specs, reports and events cross as JSON the Python side
+//! turns into dicts, and every error is a `MimicgenError` with the CLI's message. Long calls
+//! release the GIL; the Python layer (`python/mimicgen_rs`) adds keyword arguments, docstrings
+//! and the Ray helpers.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use mimicgen_engine::TaskSpec;
+use mimicgen_io::tree::{Array, Group, Node, Values};
+use mimicgen_io::{DemoReader, DemoSource as _, ReadOptions};
+use mimicgen_pipeline::{Event, Outcome, Pipeline, Report, RunConfig};
+use numpy::{PyArray1, PyArrayMethods as _};
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+mod pyenv;
+
+pyo3::create_exception!(_native, MimicgenError, PyException, "An error of mimicgen_rs: the message names the file and field at fault.");
+
+/// Any error, as a `MimicgenError` with its whole message (the CLI's wording).
+fn error(e: impl std::fmt::Display) -> PyErr {
+    MimicgenError::new_err(e.to_string())
+}
+
+/// `text` (JSON) as Python objects.
+fn from_json<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// Python objects as JSON text.
+fn to_json(value: &Bound<'_, PyAny>) -> PyResult<String> {
+    value.py().import("json")?.call_method1("dumps", (value,))?.extract()
+}
+
+fn json_of(value: &impl serde::Serialize) -> PyResult<String> {
+    serde_json::to_string(value).map_err(error)
+}
+
+/// One HDF5 array as a numpy array of its shape (numbers, moved without copying) or a list of
+/// strings.
+fn array<'py>(py: Python<'py>, a: Array) -> PyResult<Bound<'py, PyAny>> {
+    fn shaped<'py, T: numpy::Element>(py: Python<'py>, v: Vec<T>, shape: &[usize]) -> PyResult<Bound<'py, PyAny>> {
+        let flat = PyArray1::from_vec(py, v);
+        if shape.len() == 1 {
+            return Ok(flat.into_any());
+        }
+        Ok(flat.reshape(shape.to_vec())?.into_any())
+    }
+    let shape = if a.shape.is_empty() { vec![a.values.len()] } else { a.shape.clone() };
+    match a.values {
+        Values::F64(v) => shaped(py, v, &shape),
+        Values::F32(v) => shaped(py, v, &shape),
+        Values::I64(v) => shaped(py, v, &shape),
+        Values::I32(v) => shaped(py, v, &shape),
+        Values::I16(v) => shaped(py, v, &shape),
+        Values::I8(v) => shaped(py, v, &shape),
+        Values::U64(v) => shaped(py, v, &shape),
+        Values::U32(v) => shaped(py, v, &shape),
+        Values::U16(v) => shaped(py, v, &shape),
+        Values::U8(v) => shaped(py, v, &shape),
+        Values::Bool(v) => shaped(py, v, &shape),
+        Values::Utf8(s) | Values::Ascii(s) | Values::Fixed { strings: s, .. } => Ok(PyList::new(py, s)?.into_any()),
+    }
+}
+
+/// Every dataset under `group` as `{"path/in/group": array}`.
+fn flatten<'py>(py: Python<'py>, group: Group, prefix: &str, out: &Bound<'py, PyDict>) -> PyResult<()> {
+    for (name, node) in group.members {
+        let path = if prefix.is_empty() { name } else { format!("{prefix}/{name}") };
+        match node {
+            Node::Group(g) => flatten(py, g, &path, out)?,
+            Node::Dataset(d) => out.set_item(path, array(py, d.array)?)?,
+        }
+    }
+    Ok(())
+}
+
+/// A robomimic / MimicGen HDF5 dataset opened for reading one demo at a time.
+#[pyclass(module = "mimicgen_rs._native")]
+struct Dataset {
+    reader: Mutex<DemoReader>,
+    path: PathBuf,
+    names: Vec<String>,
+    env_args: Option<String>,
+}
+
+impl Dataset {
+    fn load(&self, py: Python<'_>, name: &str, observations: bool) -> PyResult<Group> {
+        let reader = self.reader.lock().map_err(error)?;
+        let group = py.detach(|| {
+            if observations { reader.load_demo(name).map(std::borrow::Cow::into_owned) } else { load_without_obs(&self.path, name) }
+        });
+        group.map_err(error)
+    }
+}
+
+fn load_without_obs(path: &std::path::Path, name: &str) -> mimicgen_io::Result<Group> {
+    let reader = DemoReader::open_with(path, ReadOptions::default())?.without_observations();
+    reader.load_demo(name).map(std::borrow::Cow::into_owned)
+}
+
+#[pymethods]
+impl Dataset {
+    #[new]
+    #[pyo3(signature = (path, recover = false))]
+    fn new(py: Python<'_>, path: PathBuf, recover: bool) -> PyResult<Self> {
+        let reader = py.detach(|| DemoReader::open_with(&path, ReadOptions { recover })).map_err(error)?;
+        let names = reader.demo_names().to_vec();
+        let env_args = reader.data_attrs().get("env_args").and_then(Array::as_str).map(str::to_owned);
+        Ok(Self { reader: Mutex::new(reader), path, names, env_args })
+    }
+
+    /// Demo names in robomimic's order.
+    #[getter]
+    fn demo_names(&self) -> Vec<String> {
+        self.names.clone()
+    }
+
+    /// The `data` attribute `env_args` (robomimic's environment metadata JSON), if any.
+    #[getter]
+    fn env_args(&self) -> Option<String> {
+        self.env_args.clone()
+    }
+
+    /// The file.
+    #[getter]
+    fn path(&self) -> PathBuf {
+        self.path.clone()
+    }
+
+    fn __len__(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Every array of demo `name`, by its path in the demo group.
+    #[pyo3(signature = (name, observations = true))]
+    fn demo<'py>(&self, py: Python<'py>, name: &str, observations: bool) -> PyResult<Bound<'py, PyDict>> {
+        let group = self.load(py, name, observations)?;
+        let out = PyDict::new(py);
+        flatten(py, group, "", &out)?;
+        Ok(out)
+    }
+
+    /// The demo's `datagen_info`: `eef_pose` and `target_pose` (T, 4, 4), `gripper_action`
+    /// (T, 1), `object_poses` and `subtask_term_signals` as dicts by name.
+    fn datagen_info<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+        let mut group = self.load(py, name, false)?;
+        let Some(Node::Group(info)) = group.members.remove("datagen_info") else {
+            return Err(error(format!("{}: data/{name} has no datagen_info (not a MimicGen source file)", self.path.display())));
+        };
+        let out = PyDict::new(py);
+        for (key, node) in info.members {
+            match node {
+                Node::Dataset(d) => out.set_item(key, array(py, d.array)?)?,
+                Node::Group(g) => {
+                    let inner = PyDict::new(py);
+                    flatten(py, g, "", &inner)?;
+                    out.set_item(key, inner)?;
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// A task spec: the subtasks (object, end signal, offsets, selection, noise, interpolation) and
+/// the generation settings.
+#[pyclass(module = "mimicgen_rs._native")]
+#[derive(Clone)]
+struct Spec {
+    inner: TaskSpec,
+}
+
+#[pymethods]
+impl Spec {
+    /// Reads our TOML or a MimicGen experiment JSON.
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<Self> {
+        TaskSpec::load(&path).map(|inner| Self { inner }).map_err(error)
+    }
+
+    /// The spec bundled for a task (`stack`, `stack_three`, `square`).
+    #[staticmethod]
+    fn bundled(task: &str) -> PyResult<Self> {
+        let text = mimicgen_sim::registry::default_spec_toml(task).ok_or_else(|| error(format!("task {task:?} has no bundled spec")))?;
+        TaskSpec::from_toml_str(text, &format!("bundled {task} spec")).map(|inner| Self { inner }).map_err(error)
+    }
+
+    /// A spec from the dict `to_dict` gives (checked as a TOML file would be).
+    #[staticmethod]
+    fn from_dict(value: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let spec: TaskSpec = serde_json::from_str(&to_json(value)?).map_err(|e| error(format!("spec dict: {e}")))?;
+        let text = spec.to_toml_string().map_err(error)?;
+        TaskSpec::from_toml_str(&text, "spec dict").map(|inner| Self { inner }).map_err(error)
+    }
+
+    /// The spec as nested dicts and lists.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        from_json(py, &json_of(&self.inner)?)
+    }
+
+    /// The spec as our TOML.
+    fn to_toml(&self) -> PyResult<String> {
+        self.inner.to_toml_string().map_err(error)
+    }
+
+    /// Writes the spec as TOML.
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        std::fs::write(&path, self.to_toml()?).map_err(|e| error(format!("{}: {e}", path.display())))
+    }
+
+    fn __repr__(&self) -> String {
+        let objects: Vec<String> = self.inner.subtasks.iter().map(|s| s.object_ref.clone().unwrap_or_else(|| "-".to_owned())).collect();
+        format!("Spec({:?}, subtasks relative to [{}])", self.inner.name, objects.join(", "))
+    }
+}
+
+/// Proposed subtask ends of every demo of `path`, as `{demo: [{"end", "confidence", "reason"}]}`.
+#[pyfunction]
+#[pyo3(signature = (path, task = None, config = None))]
+fn propose_subtask_ends(py: Python<'_>, path: PathBuf, task: Option<String>, config: Option<PathBuf>) -> PyResult<String> {
+    let found = py.detach(|| mimicgen_pipeline::annotate::propose(&path, task.as_deref(), config.as_deref())).map_err(error)?;
+    let ends: BTreeMap<&str, serde_json::Value> = found
+        .demos
+        .iter()
+        .map(|d| {
+            let proposals: Vec<serde_json::Value> = d
+                .proposals
+                .iter()
+                .map(|p| serde_json::json!({"end": p.end, "confidence": p.confidence, "reason": p.reason}))
+                .collect();
+            (d.demo.as_str(), serde_json::Value::Array(proposals))
+        })
+        .collect();
+    json_of(&ends)
+}
+
+/// Writes `source` to `out` with the subtask ends `ends_json` (`{demo: [end, ...]}`) as the
+/// signals MimicGen reads.
+#[pyfunction]
+#[pyo3(signature = (source, out, ends_json, task = None, config = None))]
+fn write_subtask_ends(
+    py: Python<'_>,
+    source: PathBuf,
+    out: PathBuf,
+    ends_json: &str,
+    task: Option<String>,
+    config: Option<PathBuf>,
+) -> PyResult<()> {
+    let ends: BTreeMap<String, Vec<usize>> = serde_json::from_str(ends_json).map_err(|e| error(format!("ends: {e}")))?;
+    py.detach(|| {
+        let found = mimicgen_pipeline::annotate::propose(&source, task.as_deref(), config.as_deref())?;
+        mimicgen_pipeline::annotate::write_annotations(&source, &out, &found.spec, &ends)
+    })
+    .map_err(error)
+}
+
+/// The paper's support coverage of a dataset's initial scenes (what `mimicgen coverage --json`
+/// prints).
+#[pyfunction]
+#[pyo3(signature = (path, task = None, variant = None, bins = 3))]
+fn coverage(py: Python<'_>, path: PathBuf, task: Option<String>, variant: Option<String>, bins: usize) -> PyResult<String> {
+    let found = py.detach(|| mimicgen_pipeline::coverage::dataset_coverage(&path, task.as_deref(), variant.as_deref(), bins)).map_err(error)?;
+    let mut value = serde_json::to_value(&found).map_err(error)?;
+    value["support_coverage"] = serde_json::json!(found.coverage.support_coverage());
+    json_of(&value)
+}
+
+/// Joins the shards of a run into the whole run's dataset; returns the report.
+#[pyfunction]
+#[pyo3(signature = (shards, out, overwrite = false))]
+fn merge(py: Python<'_>, shards: Vec<PathBuf>, out: PathBuf, overwrite: bool) -> PyResult<String> {
+    let report = py.detach(|| mimicgen_pipeline::merge::merge(&shards, &out, overwrite, |_, _| {})).map_err(error)?;
+    json_of(&report)
+}
+
+/// What the generation thread sends: an event (as JSON), or the end.
+enum Message {
+    Event(String),
+    Done(Result<Report, String>),
+}
+
+/// An event of a run as JSON: `started` (the run), `attempt` (one decided attempt with the
+/// statistics so far).
+fn event_json(event: &Event) -> Option<String> {
+    let value = match event {
+        Event::Started(info) => {
+            let mut v = serde_json::to_value(info.as_ref()).ok()?;
+            v["kind"] = "started".into();
+            v
+        }
+        Event::Attempt(a) => serde_json::json!({
+            "kind": "attempt",
+            "index": a.attempt.index,
+            "success": a.attempt.success,
+            "outcome": match &a.outcome { Outcome::Written { .. } => "written", Outcome::KeptFailed { .. } => "kept_failed", Outcome::Discarded => "discarded" },
+            "demo": match &a.outcome { Outcome::Written { demo } | Outcome::KeptFailed { demo } => Some(demo.clone()), Outcome::Discarded => None },
+            "sources": a.attempt.src_demo_per_subtask,
+            "failure": a.attempt.failure.as_ref().map(|f| serde_json::json!({"subtask": f.subtask, "reason": f.reason.to_string()})),
+            "steps": a.attempt.trajectory.len(),
+            "stats": a.stats,
+            "elapsed_s": a.elapsed_s,
+        }),
+        Event::Finished(_) => return None,
+    };
+    serde_json::to_string(&value).ok()
+}
+
+/// A generation run going on in the background: iterate it for its events, `wait()` for its
+/// report, `cancel()` to stop it after the attempts already decided (the outputs stay valid).
+#[pyclass(module = "mimicgen_rs._native")]
+struct Run {
+    events: Mutex<Receiver<Message>>,
+    cancel: Arc<AtomicBool>,
+    report: Mutex<Option<Result<Report, String>>>,
+}
+
+impl Run {
+    fn start(config: RunConfig, env: Option<pyenv::Factory>) -> PyResult<Self> {
+        let (tx, rx) = mpsc::channel();
+        let cancel = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&cancel);
+        std::thread::Builder::new()
+            .name("mimicgen-python-run".to_owned())
+            .spawn(move || {
+                let on_event = |e: &Event| {
+                    if let Some(text) = event_json(e) {
+                        let _ = tx.send(Message::Event(text));
+                    }
+                };
+                let result = match env {
+                    None => Pipeline::prepare(&config).and_then(|p| p.run(&flag, on_event)).map_err(|e| e.to_string()),
+                    Some(factory) => pyenv::run(&config, &factory, &flag, on_event),
+                };
+                let _ = tx.send(Message::Done(result));
+            })
+            .map_err(error)?;
+        Ok(Self { events: Mutex::new(rx), cancel, report: Mutex::new(None) })
+    }
+
+    /// The next message, waiting without the GIL; Ctrl-C cancels the run, waits for its outputs
+    /// to be finished, and raises `KeyboardInterrupt`.
+    fn next_message(&self, py: Python<'_>) -> PyResult<Option<Message>> {
+        if self.report.lock().map_err(error)?.is_some() {
+            return Ok(None);
+        }
+        loop {
+            let got = {
+                let rx = self.events.lock().map_err(error)?;
+                py.detach(|| rx.recv_timeout(Duration::from_millis(100)))
+            };
+            match got {
+                Ok(m) => return Ok(Some(m)),
+                Err(RecvTimeoutError::Disconnected) => return Ok(None),
+                Err(RecvTimeoutError::Timeout) => {
+                    if let Err(interrupt) = py.check_signals() {
+                        self.cancel.store(true, Ordering::Relaxed);
+                        // Let the run finish its outputs (valid, marked cancelled), then raise.
+                        while let Some(m) = self.next_message_quietly(py)? {
+                            if let Message::Done(r) = m {
+                                *self.report.lock().map_err(error)? = Some(r);
+                                break;
+                            }
+                        }
+                        return Err(interrupt);
+                    }
+                }
+            }
+        }
+    }
+
+    fn next_message_quietly(&self, py: Python<'_>) -> PyResult<Option<Message>> {
+        let rx = self.events.lock().map_err(error)?;
+        Ok(py.detach(|| rx.recv().ok()))
+    }
+
+    fn finished_report(&self, py: Python<'_>) -> PyResult<Option<Bound<'_, PyAny>>> {
+        match self.report.lock().map_err(error)?.as_ref() {
+            None => Ok(None),
+            Some(Ok(r)) => Ok(Some(from_json(py, &json_of(r)?)?)),
+            Some(Err(e)) => Err(error(e)),
+        }
+    }
+}
+
+#[pymethods]
+impl Run {
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        match self.next_message(py)? {
+            Some(Message::Event(text)) => Ok(Some(from_json(py, &text)?)),
+            Some(Message::Done(result)) => {
+                let failed = result.as_ref().err().cloned();
+                *self.report.lock().map_err(error)? = Some(result);
+                match failed {
+                    Some(e) => Err(error(e)),
+                    None => Ok(None),
+                }
+            }
+            None => Ok(None),
+        }
+    }
+
+    /// Waits for the end (skipping the remaining events) and returns the report.
+    fn wait<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        while self.__next__(py)?.is_some() {}
+        self.finished_report(py)?.ok_or_else(|| error("the run ended without a report"))
+    }
+
+    /// Stops the run after the attempts already decided; its outputs are finished as valid
+    /// datasets (the report says `cancelled`).
+    fn cancel(&self) {
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+
+    /// The report once the run has ended (`None` before).
+    #[getter]
+    fn report<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.finished_report(py)
+    }
+}
+
+/// Starts a run of `config_json` (the pipeline's `RunConfig` as JSON); with `env_factory`, a
+/// Python callable returning an environment, that simulator is driven instead of MuJoCo.
+#[pyfunction]
+#[pyo3(signature = (config_json, env_factory = None))]
+fn generate(config_json: &str, env_factory: Option<Py<PyAny>>) -> PyResult<Run> {
+    let config: RunConfig = serde_json::from_str(config_json).map_err(|e| error(format!("run config: {e}")))?;
+    Run::start(config, env_factory.map(pyenv::Factory))
+}
+
+/// The Rust side of `mimicgen_rs`.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("MimicgenError", m.py().get_type::<MimicgenError>())?;
+    m.add_class::<Dataset>()?;
+    m.add_class::<Spec>()?;
+    m.add_class::<Run>()?;
+    m.add_function(wrap_pyfunction!(propose_subtask_ends, m)?)?;
+    m.add_function(wrap_pyfunction!(write_subtask_ends, m)?)?;
+    m.add_function(wrap_pyfunction!(coverage, m)?)?;
+    m.add_function(wrap_pyfunction!(merge, m)?)?;
+    m.add_function(wrap_pyfunction!(generate, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
