@@ -13,6 +13,7 @@ echo "== cargo fmt --check"; cargo fmt --all --check
 echo "== cargo clippy";      cargo clippy --workspace --all-targets --quiet -- -D warnings
 echo "== cargo doc";         RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 echo "== cargo test";        cargo test --workspace
+echo "== python wheel";      bash scripts/test_python.sh
 # robosuite itself must load and replay what we write: 20 generated Stack D0 demos, replayed open
 # loop in robosuite 1.4.1's own Stack env (MuJoCo 2.3.2) from their model_file and first state.
 echo "== robosuite replay"

@@ -4,6 +4,8 @@
 //! turns into dicts, and every error is a `MimicgenError` with the CLI's message. Long calls
 //! release the GIL; the Python layer (`python/mimicgen_rs`) adds keyword arguments, docstrings
 //! and the Ray helpers.
+// PyO3 hands functions their arguments by value (extracted from Python objects).
+#![allow(clippy::needless_pass_by_value)]
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -232,11 +234,8 @@ fn propose_subtask_ends(py: Python<'_>, path: PathBuf, task: Option<String>, con
         .demos
         .iter()
         .map(|d| {
-            let proposals: Vec<serde_json::Value> = d
-                .proposals
-                .iter()
-                .map(|p| serde_json::json!({"end": p.end, "confidence": p.confidence, "reason": p.reason}))
-                .collect();
+            let proposals: Vec<serde_json::Value> =
+                d.proposals.iter().map(|p| serde_json::json!({"end": p.end, "confidence": p.confidence, "reason": p.reason})).collect();
             (d.demo.as_str(), serde_json::Value::Array(proposals))
         })
         .collect();
@@ -268,7 +267,8 @@ fn write_subtask_ends(
 #[pyfunction]
 #[pyo3(signature = (path, task = None, variant = None, bins = 3))]
 fn coverage(py: Python<'_>, path: PathBuf, task: Option<String>, variant: Option<String>, bins: usize) -> PyResult<String> {
-    let found = py.detach(|| mimicgen_pipeline::coverage::dataset_coverage(&path, task.as_deref(), variant.as_deref(), bins)).map_err(error)?;
+    let found =
+        py.detach(|| mimicgen_pipeline::coverage::dataset_coverage(&path, task.as_deref(), variant.as_deref(), bins)).map_err(error)?;
     let mut value = serde_json::to_value(&found).map_err(error)?;
     value["support_coverage"] = serde_json::json!(found.coverage.support_coverage());
     json_of(&value)
@@ -285,7 +285,7 @@ fn merge(py: Python<'_>, shards: Vec<PathBuf>, out: PathBuf, overwrite: bool) ->
 /// What the generation thread sends: an event (as JSON), or the end.
 enum Message {
     Event(String),
-    Done(Result<Report, String>),
+    Done(Box<Result<Report, String>>),
 }
 
 /// An event of a run as JSON: `started` (the run), `attempt` (one decided attempt with the
@@ -340,7 +340,7 @@ impl Run {
                     None => Pipeline::prepare(&config).and_then(|p| p.run(&flag, on_event)).map_err(|e| e.to_string()),
                     Some(factory) => pyenv::run(&config, &factory, &flag, on_event),
                 };
-                let _ = tx.send(Message::Done(result));
+                let _ = tx.send(Message::Done(Box::new(result)));
             })
             .map_err(error)?;
         Ok(Self { events: Mutex::new(rx), cancel, report: Mutex::new(None) })
@@ -353,11 +353,9 @@ impl Run {
             return Ok(None);
         }
         loop {
-            let got = {
-                let rx = self.events.lock().map_err(error)?;
-                py.detach(|| rx.recv_timeout(Duration::from_millis(100)))
-            };
-            match got {
+            let events = &self.events;
+            let got = py.detach(|| events.lock().map(|rx| rx.recv_timeout(Duration::from_millis(100))).map_err(|e| e.to_string()));
+            match got.map_err(error)? {
                 Ok(m) => return Ok(Some(m)),
                 Err(RecvTimeoutError::Disconnected) => return Ok(None),
                 Err(RecvTimeoutError::Timeout) => {
@@ -366,7 +364,7 @@ impl Run {
                         // Let the run finish its outputs (valid, marked cancelled), then raise.
                         while let Some(m) = self.next_message_quietly(py)? {
                             if let Message::Done(r) = m {
-                                *self.report.lock().map_err(error)? = Some(r);
+                                *self.report.lock().map_err(error)? = Some(*r);
                                 break;
                             }
                         }
@@ -378,11 +376,11 @@ impl Run {
     }
 
     fn next_message_quietly(&self, py: Python<'_>) -> PyResult<Option<Message>> {
-        let rx = self.events.lock().map_err(error)?;
-        Ok(py.detach(|| rx.recv().ok()))
+        let events = &self.events;
+        py.detach(|| events.lock().map(|rx| rx.recv().ok()).map_err(|e| e.to_string())).map_err(error)
     }
 
-    fn finished_report(&self, py: Python<'_>) -> PyResult<Option<Bound<'_, PyAny>>> {
+    fn finished_report<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         match self.report.lock().map_err(error)?.as_ref() {
             None => Ok(None),
             Some(Ok(r)) => Ok(Some(from_json(py, &json_of(r)?)?)),
@@ -401,8 +399,8 @@ impl Run {
         match self.next_message(py)? {
             Some(Message::Event(text)) => Ok(Some(from_json(py, &text)?)),
             Some(Message::Done(result)) => {
-                let failed = result.as_ref().err().cloned();
-                *self.report.lock().map_err(error)? = Some(result);
+                let failed = result.as_ref().as_ref().err().cloned();
+                *self.report.lock().map_err(error)? = Some(*result);
                 match failed {
                     Some(e) => Err(error(e)),
                     None => Ok(None),

@@ -12,6 +12,7 @@ use crate::{PipelineError, SpecOverrides};
 /// A run as the user describes it: every field of `mimicgen generate`. `None` means "the default"
 /// or "what the inputs say".
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct RunConfig {
     /// Task (`stack`); default: what the config or the source file names, else `stack`.
     pub task: Option<String>,

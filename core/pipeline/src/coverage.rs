@@ -58,8 +58,10 @@ pub fn dataset_coverage(path: &Path, task: Option<&str>, variant: Option<&str>, 
                 .dataset_at(&format!("datagen_info/object_poses/{}", d.object))
                 .and_then(|x| x.array.values.to_f64())
                 .ok_or_else(|| PipelineError::input(file.clone(), field.clone(), "missing: the initial scene needs the object's poses"))?;
-            let first: [f64; 16] =
-                values.get(..16).and_then(|v| v.try_into().ok()).ok_or_else(|| PipelineError::input(file.clone(), field.clone(), "is empty"))?;
+            let first: [f64; 16] = values
+                .get(..16)
+                .and_then(|v| v.try_into().ok())
+                .ok_or_else(|| PipelineError::input(file.clone(), field.clone(), "is empty"))?;
             let pose = pose_from_matrix(&Mat4::from_row_slice(&first), &format!("{file}: {field}[0]"))
                 .map_err(|e| PipelineError::engine(file.clone(), e))?;
             scene.insert(d.object.clone(), pose);

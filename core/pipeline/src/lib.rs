@@ -42,6 +42,6 @@ pub use config::RunConfig;
 pub use error::PipelineError;
 pub use overrides::{OffsetRange, Scoped, SpecOverrides};
 pub use run::{
-    AttemptEvent, AttemptRecord, DemoReport, Event, FailureReport, Outcome, PROGRESS_ATTR, Pipeline, RUN_ATTR, Report, RunInfo,
+    AttemptEvent, AttemptRecord, DemoReport, Event, FailureReport, Observed, Outcome, PROGRESS_ATTR, Pipeline, RUN_ATTR, Report, RunInfo,
     attempt_log_path, read_attempt_log, sibling,
 };

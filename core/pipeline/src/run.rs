@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use mimicgen_engine::demo::initial_object_poses;
-use mimicgen_engine::{Attempt, EngineError, Failure, Generator, RunControl, RunStats, Shard, TaskSpec};
+use mimicgen_engine::{Attempt, EngineError, Environment, Failure, Generator, RunControl, RunStats, Shard, TaskSpec};
 use mimicgen_io::{DatasetWriter, Observation, WriterOptions};
 use mimicgen_sim::{Scene, SimEnv, Task, registry};
 use serde::{Deserialize, Serialize};
@@ -23,7 +23,9 @@ pub const RUN_ATTR: &str = "mimicgen_run";
 pub const PROGRESS_ATTR: &str = "mimicgen_progress";
 
 /// What a worker hands back with an attempt that may be kept: its observations and `model_file`.
-type KeptPayload = (BTreeMap<String, Observation>, String);
+/// What a worker makes of an attempt that may be kept: its observations, and the episode's
+/// `model_file` where the simulator has one.
+pub type Observed = (BTreeMap<String, Observation>, Option<String>);
 
 /// What a run was asked to make; a resumed run must describe the same dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -568,7 +570,38 @@ impl Pipeline {
     ///
     /// # Errors
     /// [`PipelineError`] for outputs that exist, fatal simulator errors and write failures.
-    pub fn run(&self, cancel: &AtomicBool, mut on_event: impl FnMut(&Event)) -> Result<Report, PipelineError> {
+    pub fn run(&self, cancel: &AtomicBool, on_event: impl FnMut(&Event)) -> Result<Report, PipelineError> {
+        let mut envs: Vec<SimEnv> =
+            (0..self.config.workers).map(|_| SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task))).collect();
+        // On the workers: observations and the episode's model_file.
+        let observe = |env: &mut SimEnv, attempt: &Attempt| -> Result<Observed, EngineError> {
+            let initial = initial_object_poses(&attempt.trajectory.object_poses);
+            env.place_fixed_objects(&initial);
+            let obs = env
+                .observations_for_states(&attempt.trajectory.states)
+                .map_err(|e| EngineError::Env { attempt: attempt.index, source: e })?;
+            let xml = self
+                .scene
+                .xml_with_fixed_objects(&self.scene_xml, &initial)
+                .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;
+            Ok((obs, Some(xml)))
+        };
+        self.run_on(&mut envs, observe, cancel, on_event)
+    }
+
+    /// [`Pipeline::run`] on other simulators (one driven from Python, say), one per worker:
+    /// `observe` makes the observations (and `model_file`) of each attempt that may be kept, on
+    /// the worker that ran it. Writers, resume, shards, events and report are `run`'s.
+    ///
+    /// # Errors
+    /// As [`Pipeline::run`].
+    pub fn run_on<E: Environment + Send>(
+        &self,
+        envs: &mut [E],
+        observe: impl Fn(&mut E, &Attempt) -> Result<Observed, EngineError> + Sync,
+        cancel: &AtomicBool,
+        mut on_event: impl FnMut(&Event),
+    ) -> Result<Report, PipelineError> {
         let (mut writer, mut failed_writer, progress, mut log) = self.open_writers()?;
         let settings = &self.generator.spec().generation;
         let resumed_from = progress.next_attempt;
@@ -585,24 +618,13 @@ impl Pipeline {
             guarantee: settings.guarantee,
             resumed_from,
         })));
-        let mut envs: Vec<SimEnv> =
-            (0..self.config.workers).map(|_| SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task))).collect();
         let keep_failed = settings.keep_failed;
-        // On the workers: observations and the episode's model_file of every attempt that may be kept.
-        let finish = |env: &mut SimEnv, attempt: &Attempt| -> Result<Option<KeptPayload>, EngineError> {
+        // Only attempts that may be kept are observed.
+        let finish = |env: &mut E, attempt: &Attempt| -> Result<Option<Observed>, EngineError> {
             if !attempt.success && !keep_failed {
                 return Ok(None);
             }
-            let initial = initial_object_poses(&attempt.trajectory.object_poses);
-            env.place_fixed_objects(&initial);
-            let obs = env
-                .observations_for_states(&attempt.trajectory.states)
-                .map_err(|e| EngineError::Env { attempt: attempt.index, source: e })?;
-            let xml = self
-                .scene
-                .xml_with_fixed_objects(&self.scene_xml, &initial)
-                .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;
-            Ok(Some((obs, xml)))
+            observe(env, attempt).map(Some)
         };
         let started = Instant::now();
         let mut write_error: Option<PipelineError> = None;
@@ -613,7 +635,7 @@ impl Pipeline {
             cancel: Some(cancel),
             shard: self.config.shard.unwrap_or_default(),
         };
-        let result = mimicgen_engine::run_with(&self.generator, &mut envs, control, finish, |attempt, payload, stats| {
+        let result = mimicgen_engine::run_with(&self.generator, envs, control, finish, |attempt, payload, stats| {
             control_steps += attempt.trajectory.len();
             let step = (|| -> Result<Outcome, PipelineError> {
                 let target = if attempt.success {
@@ -626,7 +648,7 @@ impl Pipeline {
                 };
                 let outcome = match (target, payload) {
                     (Some((w, success)), Some((obs, xml))) => {
-                        let demo = w.append_attempt(&attempt, obs, Some(xml))?;
+                        let demo = w.append_attempt(&attempt, obs, xml)?;
                         if success { Outcome::Written { demo } } else { Outcome::KeptFailed { demo } }
                     }
                     _ => Outcome::Discarded,

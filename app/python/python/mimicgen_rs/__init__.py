@@ -1,0 +1,199 @@
+"""MimicGen data generation from Python, on the Rust pipeline behind the ``mimicgen`` CLI.
+
+Read datasets, load and edit task specs, propose and write subtask ends, generate (on the
+bundled MuJoCo backend, or on your own simulator), measure coverage, and join shards::
+
+    import mimicgen_rs as mg
+
+    run = mg.generate("out/stack.hdf5", num_demos=20, seed=1, workers=2)
+    for event in run:                       # events as the run goes
+        if event["kind"] == "attempt":
+            print(event["index"], event["success"], event["stats"]["successes"])
+    print(run.report["generation_rate"])    # or: report = run.wait()
+
+    ds = mg.Dataset("out/stack.hdf5")
+    info = ds.datagen_info(ds.demo_names[0])  # eef_pose (T, 4, 4), object_poses, signals...
+
+Long calls release the GIL. Ctrl-C during a run stops it after the attempts already decided
+and leaves a valid (partial) dataset; the report then says ``cancelled``. Errors are
+``MimicgenError`` with the CLI's message, naming the file and field at fault.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Protocol, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _native
+from ._native import Dataset, MimicgenError, Run, Spec
+
+__all__ = [
+    "Dataset",
+    "Environment",
+    "MimicgenError",
+    "Run",
+    "Spec",
+    "coverage",
+    "generate",
+    "merge",
+    "propose_subtask_ends",
+    "write_subtask_ends",
+]
+__version__ = _native.__version__
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: Spec fields a run may set over its spec's, as `mimicgen generate` takes them.
+SPEC_FIELDS = ("selection", "nn_k", "action_noise", "offset_range", "interpolation_steps", "fixed_steps")
+
+
+class Environment(Protocol):
+    """What the engine asks of a simulator you bring (``generate(..., env=factory)``).
+
+    Poses are 4x4 homogeneous matrices (``world_from_frame``), actions are arrays of
+    ``action_dim()`` numbers (six pose dimensions, then the gripper). The engine resets, reads
+    the end effector, objects and signals, converts target poses to actions, steps, and keeps
+    states to replay; your environment owns its own random numbers, seeded by ``reset``.
+    """
+
+    def action_dim(self) -> int: ...
+    def reset(self, seed: int) -> None: ...
+    def eef_pose(self) -> np.ndarray: ...
+    def object_poses(self) -> Dict[str, np.ndarray]: ...
+    def subtask_term_signals(self) -> Dict[str, int]: ...
+    def is_success(self) -> bool: ...
+    def target_pose_to_action(self, target_pose: np.ndarray) -> Sequence[float]: ...
+    def action_to_target_pose(self, action: np.ndarray) -> np.ndarray: ...
+    def step(self, action: np.ndarray) -> None: ...
+    def get_state(self) -> np.ndarray: ...
+    def set_state(self, state: np.ndarray) -> None: ...
+    # Optional: place_objects(poses: dict) for scenes set by hand, and observations() -> dict of
+    # arrays, called after set_state on every stored state of a kept attempt.
+
+
+def _path(p: Optional[PathLike]) -> Optional[str]:
+    return None if p is None else os.fspath(p)
+
+
+def _scoped(field: str, value: Any) -> List[Dict[str, Any]]:
+    """``0.02`` (every subtask) or ``{1: 0.02}`` (subtask 1) as the pipeline's scoped values."""
+    def one(v: Any) -> Any:
+        if field == "offset_range":
+            lo, hi = v
+            return [int(lo), int(hi)]
+        return v
+
+    if isinstance(value, Mapping):
+        return [{"subtask": int(k), "value": one(v)} for k, v in value.items()]
+    return [{"subtask": None, "value": one(value)}]
+
+
+def _spec_overrides(spec: Optional[Mapping[str, Any]]) -> Dict[str, Any]:
+    out: Dict[str, Any] = {}
+    for key, value in (spec or {}).items():
+        if key == "select_src_per_subtask":
+            out[key] = bool(value)
+        elif key in SPEC_FIELDS:
+            out[key] = _scoped(key, value)
+        else:
+            raise MimicgenError(f"spec: unknown field {key!r}; known: {', '.join(SPEC_FIELDS + ('select_src_per_subtask',))}")
+    return out
+
+
+def _shard(shard: Union[None, str, Tuple[int, int]]) -> Optional[Dict[str, int]]:
+    if shard is None:
+        return None
+    if isinstance(shard, str):
+        part, _, count = shard.partition("/")
+        shard = (int(part), int(count))
+    part, count = shard
+    if not 0 <= part < count:
+        raise MimicgenError(f"shard {part}/{count} does not exist: the shards of K are 0/K to {count - 1}/K")
+    return {"part": int(part), "count": int(count)}
+
+
+def generate(
+    out: PathLike,
+    *,
+    task: Optional[str] = None,
+    variant: Optional[str] = None,
+    source: Optional[PathLike] = None,
+    config: Optional[PathLike] = None,
+    num_demos: Optional[int] = None,
+    seed: Optional[int] = None,
+    workers: int = 1,
+    keep_failed: bool = False,
+    guarantee: bool = False,
+    max_attempts: Optional[int] = None,
+    valid_fraction: Optional[float] = None,
+    early_abort: bool = False,
+    overwrite: bool = False,
+    resume: bool = False,
+    shard: Union[None, str, Tuple[int, int]] = None,
+    spec: Optional[Mapping[str, Any]] = None,
+    env: Optional[Any] = None,
+) -> Run:
+    """Start a generation run in the background; the arguments are ``mimicgen generate``'s.
+
+    ``spec`` sets spec fields for this run: ``{"action_noise": 0.02, "nn_k": {1: 5},
+    "selection": "nearest_neighbor_object", "offset_range": (0, 10)}`` (a value for every
+    subtask, or a dict by subtask index). ``shard="0/4"`` makes share 0 of 4 (join them with
+    :func:`merge`). ``env`` is a callable returning an :class:`Environment` (one per worker) to
+    drive instead of the bundled MuJoCo backend.
+
+    Returns a :class:`Run`: iterate it for events, ``wait()`` for the report, ``cancel()``.
+    """
+    cfg = {
+        "task": task,
+        "variant": variant,
+        "config": _path(config),
+        "source": _path(source),
+        "out": os.fspath(out),
+        "workers": int(workers),
+        "num_demos": num_demos,
+        "seed": seed,
+        "keep_failed": keep_failed,
+        "guarantee": guarantee,
+        "max_attempts": max_attempts,
+        "valid_fraction": valid_fraction,
+        "early_abort": early_abort,
+        "overwrite": overwrite,
+        "resume": resume,
+        "spec": _spec_overrides(spec),
+        "shard": _shard(shard),
+    }
+    if env is not None and not callable(env):
+        raise MimicgenError("env: pass a callable that returns a new environment (one per worker), e.g. a class")
+    return _native.generate(json.dumps(cfg), env)
+
+
+def propose_subtask_ends(path: PathLike, task: Optional[str] = None, config: Optional[PathLike] = None) -> Dict[str, List[Dict[str, Any]]]:
+    """Proposed subtask ends of every demo: ``{demo: [{"end", "confidence", "reason"}, ...]}``."""
+    return json.loads(_native.propose_subtask_ends(os.fspath(path), task, _path(config)))
+
+
+def write_subtask_ends(
+    source: PathLike,
+    out: PathLike,
+    ends: Mapping[str, Iterable[int]],
+    task: Optional[str] = None,
+    config: Optional[PathLike] = None,
+) -> None:
+    """Write ``source`` to ``out`` with the subtask ends ``{demo: [end, ...]}`` (exclusive, one per
+    subtask but the last) as the signals MimicGen reads."""
+    as_json = json.dumps({str(k): [int(e) for e in v] for k, v in ends.items()})
+    _native.write_subtask_ends(os.fspath(source), os.fspath(out), as_json, task, _path(config))
+
+
+def coverage(path: PathLike, task: Optional[str] = None, variant: Optional[str] = None, bins: int = 3) -> Dict[str, Any]:
+    """The paper's support coverage of a dataset's initial scenes (``mimicgen coverage --json``)."""
+    return json.loads(_native.coverage(os.fspath(path), task, variant, int(bins)))
+
+
+def merge(shards: Sequence[PathLike], out: PathLike, overwrite: bool = False) -> Dict[str, Any]:
+    """Join the shards of a run (``generate(..., shard="i/K")``) into the whole run's dataset;
+    returns its report."""
+    return json.loads(_native.merge([os.fspath(s) for s in shards], os.fspath(out), overwrite))

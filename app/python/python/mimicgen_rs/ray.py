@@ -1,0 +1,104 @@
+"""Spread a run over a Ray cluster: one Ray task per shard, retried if its worker dies, the
+outputs gathered to the driver and merged into the dataset one process makes with the same seed.
+
+    import ray, mimicgen_rs.ray
+    ray.init()                                   # or ray.init(address="auto") on a cluster
+    report = mimicgen_rs.ray.generate("stack.hdf5", shards=8, num_demos=1000, seed=7)
+
+On a multi-node cluster: every node needs the wheel installed (``pip install mimicgen_rs-*.whl``,
+or ``ray.init(runtime_env={"pip": [...]})``) and the ``source`` file (when given) at the same
+path; the shards' files come back to the driver through Ray's object store, so no shared file
+system is needed, and the driver writes the merged dataset.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import time
+from typing import Any, Dict, List, Optional
+
+import mimicgen_rs
+
+#: For tests of retries: a directory; the first try of shard 0 writes a marker there and kills
+#: its worker process, as a lost node would.
+CRASH_ONCE_ENV = "MIMICGEN_RAY_CRASH_ONCE"
+
+
+def _run_shard(part: int, count: int, kwargs: Dict[str, Any]) -> Dict[str, bytes]:
+    """Runs one shard in a scratch directory; returns its files by name."""
+    marker_dir = os.environ.get(CRASH_ONCE_ENV)
+    if marker_dir and part == 0:
+        marker = os.path.join(marker_dir, "crashed_once")
+        if not os.path.exists(marker):
+            open(marker, "w").close()
+            os._exit(1)
+    with tempfile.TemporaryDirectory(prefix=f"mimicgen_shard{part}_") as scratch:
+        out = os.path.join(scratch, f"shard_{part}.hdf5")
+        mimicgen_rs.generate(out, shard=(part, count), overwrite=True, **kwargs).wait()
+        files = {}
+        for name in os.listdir(scratch):
+            with open(os.path.join(scratch, name), "rb") as f:
+                files[name] = f.read()
+        return files
+
+
+def generate(
+    out: str,
+    *,
+    shards: int,
+    overwrite: bool = False,
+    max_retries: int = 3,
+    progress: bool = True,
+    **kwargs: Any,
+) -> Dict[str, Any]:
+    """Run ``mimicgen_rs.generate(out, **kwargs)`` as ``shards`` Ray tasks and merge them.
+
+    Each task makes shard ``i/shards`` with 1 worker thread (Ray schedules one per CPU); a task
+    whose worker dies is retried up to ``max_retries`` times, from scratch, which gives the same
+    files. Returns the merged run's report (the same counts as a single process's).
+    """
+    import ray
+
+    if shards < 1:
+        raise mimicgen_rs.MimicgenError(f"shards: must be at least 1, got {shards}")
+    if "shard" in kwargs or "out" in kwargs:
+        raise mimicgen_rs.MimicgenError("shard/out: mimicgen_rs.ray.generate makes the shards itself")
+    kwargs.setdefault("workers", 1)
+    for key in ("source", "config"):
+        if kwargs.get(key) is not None:
+            kwargs[key] = os.path.abspath(os.fspath(kwargs[key]))
+    task = ray.remote(max_retries=max_retries, num_cpus=1)(_run_shard)
+    pending = {task.remote(i, shards, kwargs): i for i in range(shards)}
+    started = time.monotonic()
+    results: Dict[int, Dict[str, bytes]] = {}
+    while pending:
+        done, _ = ray.wait(list(pending), num_returns=1)
+        for ref in done:
+            part = pending.pop(ref)
+            results[part] = ray.get(ref)
+            if progress:
+                print(f"mimicgen_rs.ray: shard {part}/{shards} done ({len(results)} of {shards}, {time.monotonic() - started:.1f} s)", file=sys.stderr)
+    gathered = os.path.join(os.path.dirname(os.path.abspath(out)) or ".", f".{os.path.basename(out)}.shards")
+    os.makedirs(gathered, exist_ok=True)
+    paths: List[str] = []
+    for part in range(shards):
+        for name, data in results[part].items():
+            with open(os.path.join(gathered, name), "wb") as f:
+                f.write(data)
+        paths.append(os.path.join(gathered, f"shard_{part}.hdf5"))
+    report = mimicgen_rs.merge(paths, out, overwrite=overwrite)
+    for name in os.listdir(gathered):
+        os.remove(os.path.join(gathered, name))
+    os.rmdir(gathered)
+    return report
+
+
+def available() -> Optional[str]:
+    """Ray's version when it is installed, else ``None``."""
+    try:
+        import ray
+    except ImportError:
+        return None
+    return str(ray.__version__)
