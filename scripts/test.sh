@@ -22,3 +22,7 @@ replay_dir="$(mktemp -d)"
 trap 'rm -rf "$replay_dir"' EXIT
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --num-demos 24 --seed 1 --workers 2 --out "$replay_dir/stack_d0.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/stack_d0.hdf5" --num 20 --min-success 17
+# Our engine driving robosuite's own Stack through the Python package (a simulator written in
+# Python): 6 attempts from the reference's source demos (BENCHMARKS.md has 50).
+echo "== robosuite driven by the engine"
+bash scripts/bench_robosuite.sh --num 6 --seed 1 --min-success 5 --out "$replay_dir/rs_driven.hdf5"

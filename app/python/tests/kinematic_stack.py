@@ -5,29 +5,10 @@ cubeA, and success when cubeA is released on top of cubeB."""
 
 import numpy as np
 
+from mimicgen_rs.geometry import delta_action, delta_target, rotation
+
 MAX_DPOS = 0.05  # metres per unit action, as robosuite's OSC_POSE
 MAX_DROT = 0.5  # radians per unit action
-
-
-def rotation(axis_angle):
-    angle = float(np.linalg.norm(axis_angle))
-    if angle < 1e-12:
-        return np.eye(3)
-    k = np.asarray(axis_angle) / angle
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
-
-
-def axis_angle(R):
-    cos = np.clip((np.trace(R) - 1) / 2, -1.0, 1.0)
-    angle = np.arccos(cos)
-    if angle < 1e-9:
-        return np.zeros(3)
-    if np.pi - angle < 1e-6:
-        w, v = np.linalg.eigh((R + R.T) / 2)
-        return v[:, np.argmax(w)] * angle
-    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    return v / (2 * np.sin(angle)) * angle
 
 
 def pose(x, y, z, yaw):
@@ -69,16 +50,10 @@ class KinematicStack:
         return self.eef_from_a is None and np.linalg.norm(d[:2]) < 0.03 and 0.02 < d[2] < 0.08
 
     def target_pose_to_action(self, target):
-        dp = (target[:3, 3] - self.eef[:3, 3]) / MAX_DPOS
-        dr = axis_angle(target[:3, :3] @ self.eef[:3, :3].T) / MAX_DROT
-        return np.clip(np.concatenate([dp, dr]), -1, 1)
+        return delta_action(self.eef, target, MAX_DPOS, MAX_DROT)
 
     def action_to_target_pose(self, action):
-        a = np.clip(np.asarray(action[:6], dtype=float), -1, 1)
-        T = np.eye(4)
-        T[:3, 3] = self.eef[:3, 3] + a[:3] * MAX_DPOS
-        T[:3, :3] = rotation(a[3:6] * MAX_DROT) @ self.eef[:3, :3]
-        return T
+        return delta_target(self.eef, np.clip(action[:6], -1, 1), MAX_DPOS, MAX_DROT)
 
     def step(self, action):
         self.steps += 1
