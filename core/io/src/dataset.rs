@@ -139,6 +139,7 @@ impl RobomimicDataset {
                 hint: "robomimic datasets keep their demos under `data`".into(),
             });
         };
+        add_robosuite_env_args(&mut data.attrs);
         if complete_flag == Some(0) {
             let complete = |g: &Node| matches!(g, Node::Group(g) if g.attrs.contains_key("num_samples"));
             if !options.recover {
@@ -500,7 +501,8 @@ impl DemoReader {
         if complete_flag == Some(0) && !options.recover {
             return Err(IoError::Incomplete { file, field: COMPLETE_ATTR.into(), complete_demos: complete });
         }
-        let data_attrs = tree::read_group_attrs(&file, &data, "data")?;
+        let mut data_attrs = tree::read_group_attrs(&file, &data, "data")?;
+        add_robosuite_env_args(&mut data_attrs);
         let mask = match h5.group("mask") {
             Ok(g) => Some(tree::read_group(&file, &g, "mask")?),
             Err(_) => None,
@@ -538,6 +540,23 @@ impl DemoSource for DemoReader {
     fn filter_keys(&self) -> Result<BTreeMap<String, Vec<String>>> {
         parse_masks(&self.file, self.mask.as_ref())
     }
+}
+
+/// robosuite's own demonstration files (what its `collect_human_demonstrations.py` writes: `data`
+/// attributes `env`, `env_info` and `repository_version`, no `env_args`) get the `env_args`
+/// robomimic's conversion script makes of them: `{"type": 1, "env_name": env, "env_version":
+/// repository_version, "env_kwargs": env_info}` (without `env_info`'s own `env_name`), so they read
+/// like any robomimic dataset.
+fn add_robosuite_env_args(attrs: &mut BTreeMap<String, Array>) {
+    if attrs.contains_key("env_args") {
+        return;
+    }
+    let (Some(env), Some(info)) = (attrs.get("env").and_then(Array::as_str), attrs.get("env_info").and_then(Array::as_str)) else { return };
+    let Ok(serde_json::Value::Object(mut kwargs)) = serde_json::from_str::<serde_json::Value>(info) else { return };
+    kwargs.remove("env_name");
+    let version = attrs.get("repository_version").and_then(Array::as_str);
+    let args = serde_json::json!({"env_name": env, "env_version": version, "type": 1, "env_kwargs": kwargs});
+    attrs.insert("env_args".to_owned(), Array::string(&args.to_string()));
 }
 
 /// Number of steps of a demo group (its `actions` rows).

@@ -12,9 +12,10 @@ const FILES: &[(&str, &str, &str, &[u8])] = &[
     ("stack", "D0", "stack_D0_source.hdf5", include_bytes!("../../sim/data/stack_D0_source.hdf5")),
     ("stack_three", "D0", "stack_three_D0_source.hdf5", include_bytes!("../../sim/data/stack_three_D0_source.hdf5")),
     ("square", "D0", "square_D0_source.hdf5", include_bytes!("../../sim/data/square_D0_source.hdf5")),
+    ("lift", "D0", "lift_D0_source.hdf5", include_bytes!("../../sim/data/lift_D0_source.hdf5")),
 ];
 
-/// The bundled scripted source demos of `task` (recorded in its D0 variant), as a file on disk.
+/// The bundled source demos of `task` (recorded in its D0 variant: scripted, or for Lift robosuite's human ones), as a file on disk.
 ///
 /// # Errors
 /// [`PipelineError::Input`] when the task has no bundled demos, [`PipelineError::Fs`] when the

@@ -386,3 +386,45 @@ fn merged_shards_equal_the_single_process_run() {
     let err = merge(&[first, other], &dir.path().join("y.hdf5"), false, |_, _| {}).unwrap_err().to_string();
     assert!(err.contains("other.hdf5") && err.contains("spec"), "{err}");
 }
+
+/// robosuite's own human demonstrations (its raw collection format, no `env_args`) read like a
+/// robomimic file, prepare into MimicGen source demos (what the bundled Lift demos are), and
+/// generate Lift in both variants.
+#[test]
+fn robosuite_human_lift_demos_prepare_and_generate() {
+    use mimicgen_engine::Environment as _;
+    let raw = data("../io/tests/data/robosuite_lift_demo.hdf5");
+    let file = RobomimicDataset::open(&raw).unwrap();
+    let env_args: serde_json::Value = serde_json::from_str(file.env_args().unwrap()).unwrap();
+    assert_eq!(
+        (env_args["env_name"].as_str(), env_args["env_kwargs"]["controller_configs"]["type"].as_str()),
+        (Some("Lift"), Some("OSC_POSE"))
+    );
+    assert!(env_args["env_kwargs"].get("env_name").is_none(), "robomimic's conversion drops env_info's env_name");
+    let dir = tempfile::tempdir().unwrap();
+    let prepared = dir.path().join("lift_source.hdf5");
+    assert_eq!(mimicgen_pipeline::prepare::prepare(&raw, &prepared, None, |_, _, _| {}).unwrap(), 3);
+    // What is bundled is this file (the same demos, ends and poses).
+    let bundled = mimicgen_pipeline::bundled::source_demos("lift").unwrap();
+    let read = |p: &Path| mimicgen_io::read_source_dataset(p, &Default::default()).unwrap();
+    let (ours, shipped) = (read(&prepared), read(&bundled));
+    assert_eq!(ours.demos.len(), 3);
+    for (a, b) in ours.demos.iter().zip(&shipped.demos) {
+        assert_eq!((a.len(), &a.eef_poses, &a.object_poses), (b.len(), &b.eef_poses, &b.object_poses));
+    }
+    // The teleoperated actions go beyond [-1, 1]; the target is where the clipped action points.
+    let task = mimicgen_sim::registry::task("lift", "D0").unwrap();
+    let xml = file.demo("demo_1").unwrap().attrs["model_file"].as_str().unwrap().to_owned();
+    let scene = std::sync::Arc::new(mimicgen_sim::Scene::from_model_file(&xml, "lift model_file", task.as_ref()).unwrap());
+    let env = mimicgen_sim::SimEnv::new(scene, task);
+    let far = env.action_to_target_pose(&[3.75, -3.75, 0.0, 0.0, 0.0, 0.15, 1.0]);
+    let near = env.action_to_target_pose(&[1.0, -1.0, 0.0, 0.0, 0.0, 0.15, 1.0]);
+    assert!((far.translation.vector - near.translation.vector).norm() < 1e-12);
+    for variant in ["D0", "D1"] {
+        let out = dir.path().join(format!("lift_{variant}.hdf5"));
+        let config = RunConfig { task: Some("lift".into()), variant: Some(variant.into()), ..config(&out, 6, 2) };
+        let (report, _) = run(&config).unwrap();
+        assert_eq!((report.task.as_str(), report.attempts), ("lift", 6));
+        assert!(report.successes >= 3, "{variant}: {} of 6 from the human demos", report.successes);
+    }
+}

@@ -320,9 +320,12 @@ impl Environment for SimEnv {
     }
 
     fn action_to_target_pose(&self, action: &[f64]) -> Pose {
+        // Clipped to [-1, 1] as the controller clips it: the target it really servoes to. (The
+        // reference scales unclipped actions; teleoperated demos such as robosuite's Lift ones
+        // hold actions up to 3.75, which would put targets 19 cm away from where the arm went.)
         let mut a = [0.0; 6];
         for (dst, src) in a.iter_mut().zip(action) {
-            *dst = *src;
+            *dst = src.clamp(-1.0, 1.0);
         }
         DeltaPoseScale::target_from_action(&self.osc.scale(), &self.eef_pose(), &a)
     }

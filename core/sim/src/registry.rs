@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use crate::task::{Square, Stack, StackThree, Task};
+use crate::task::{Lift, Square, Stack, StackThree, Task};
 
 /// A task the backend can build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -32,6 +32,12 @@ pub const TASKS: &[TaskInfo] = &[
         env_name: "StackThree",
     },
     TaskInfo {
+        name: "lift",
+        variants: &["D0", "D1"],
+        description: "pick the red cube up; D0 robosuite's reset (0.06 m square), D1 0.30 m; random yaw; bundled demos: robosuite's 3 human ones",
+        env_name: "Lift",
+    },
+    TaskInfo {
         name: "square",
         variants: &["D0", "D1", "D2"],
         description: "square nut onto its peg; D0 peg fixed, nut in 0.005 x 0.115 m; D1 peg in 0.4 x 0.4 m, nut in 0.23 x 0.51 m; D2 both in 0.5 x 0.5 m, peg yaw too",
@@ -46,6 +52,7 @@ pub fn default_spec_toml(name: &str) -> Option<&'static str> {
         "stack" => Some(include_str!("../tasks/stack.toml")),
         "stack_three" => Some(include_str!("../tasks/stack_three.toml")),
         "square" => Some(include_str!("../tasks/square.toml")),
+        "lift" => Some(include_str!("../tasks/lift.toml")),
         _ => None,
     }
 }
@@ -59,6 +66,7 @@ pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
         "stack" => Ok(Arc::new(Stack::variant(variant)?)),
         "stack_three" => Ok(Arc::new(StackThree::variant(variant)?)),
         "square" => Ok(Arc::new(Square::variant(variant)?)),
+        "lift" => Ok(Arc::new(Lift::variant(variant)?)),
         other => Err(format!("unknown task {other:?}; known tasks: {}", TASKS.iter().map(|t| t.name).collect::<Vec<_>>().join(", "))),
     }
 }
@@ -156,7 +164,8 @@ mod tests {
         let (task, variant) = task_from_env_name("StackThree_D1").unwrap_or_else(|e| panic!("{e}"));
         assert_eq!((task.name(), variant.as_str()), ("stack_three", "D1"));
         assert_eq!(task_from_env_name("Stack").map(|(t, v)| (t.name().to_owned(), v)), Ok(("stack".to_owned(), "D0".to_owned())));
-        assert!(task_from_env_name("Lift_D0").is_err());
+        assert!(task_from_env_name("Threading_D0").is_err());
+        assert_eq!(task_from_env_name("Lift").map(|(t, v)| (t.name().to_owned(), v)), Ok(("lift".to_owned(), "D0".to_owned())));
         let args: serde_json::Value = serde_json::from_str(&env_args("stack_three", "d1")).unwrap_or_default();
         assert_eq!(args["env_name"], "StackThree_D1");
         let carried: serde_json::Value =

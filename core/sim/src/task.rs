@@ -242,6 +242,70 @@ impl Task for Stack {
     }
 }
 
+/// robosuite's Lift: pick the red cube (`cube`, 2 to 2.2 cm half size) up off the table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lift {
+    /// Where the cube is sampled.
+    pub region: PlacementRegion,
+}
+
+impl Lift {
+    /// D0: robosuite's own reset (cube in a 0.06 m square, any yaw); D1: a 0.30 m square.
+    ///
+    /// # Errors
+    /// A message listing the variants when `variant` is not one of them.
+    pub fn variant(variant: &str) -> Result<Self, String> {
+        Ok(Self { region: square_variant("lift", variant, &[("D0", 0.06), ("D1", 0.30)])? })
+    }
+}
+
+impl Task for Lift {
+    fn name(&self) -> &str {
+        "lift"
+    }
+
+    fn objects(&self) -> Vec<(&'static str, &'static str)> {
+        vec![("cube", "cube_main")]
+    }
+
+    fn object_models(&self) -> Vec<ObjectModel> {
+        vec![cube("cube", 0.021, "redwood", "red-wood.png")]
+    }
+
+    fn scripts(&self) -> Vec<PickPlaceScript> {
+        // Its bundled demos are robosuite's human ones (`mimicgen prepare` of the file in its wheel).
+        Vec::new()
+    }
+
+    fn coverage_dimensions(&self) -> Vec<Dimension> {
+        region_dimensions(&["cube"], &[self.region])
+    }
+
+    fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
+        place_boxes(rng, &[self.region], &[[0.021; 3]], 0.01)
+    }
+
+    fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64> {
+        BTreeMap::from([("grasp".to_owned(), i64::from(env.is_grasping(0)))])
+    }
+
+    fn object_obs(&self, env: &SimEnv) -> Vec<f64> {
+        // robosuite's Lift: cube_pos, cube_quat (xyzw), then gripper_to_cube_pos = eef - cube.
+        use mimicgen_engine::Environment as _;
+        let mut obs = pose_and_gripper_obs(env);
+        let eef = env.eef_pose().translation.vector;
+        let cube = env.object_pose(0).translation.vector;
+        obs.truncate(7);
+        obs.extend((eef - cube).iter());
+        obs
+    }
+
+    fn is_success(&self, env: &SimEnv) -> bool {
+        // robosuite's Lift: the cube's centre more than 4 cm above the table top.
+        env.object_pose(0).translation.z > TABLE_TOP_Z + 0.04
+    }
+}
+
 /// MimicGen's Stack Three: red (`cubeA`) onto green (`cubeB`), then blue (`cubeC`) onto red.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StackThree {
