@@ -438,17 +438,7 @@ fn coverage_block(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow], dimension
                 Coordinate::Y => "y (m)",
                 Coordinate::Yaw => "yaw (rad)",
             };
-            Plot::new(("coverage", title, k))
-                .width(200.0)
-                .height(110.0)
-                .x_axis_label(format!("{} {coordinate}", dim.object))
-                .show_axes([true, false])
-                .allow_drag(false)
-                .allow_scroll(false)
-                .show(ui, |plot| {
-                    plot.bar_chart(succeeded);
-                    plot.bar_chart(failed);
-                });
+            small_bars(ui, Plot::new(("coverage", title, k)), format!("{} {coordinate}", dim.object), succeeded, failed);
         }
     });
 }
@@ -475,17 +465,15 @@ fn source_demo_plot(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow]) {
         |counts: &[usize]| -> Vec<Bar> { counts.iter().enumerate().map(|(d, &n)| Bar::new(d as f64, n as f64).width(0.7)).collect() };
     let succeeded = BarChart::new("successes", bars(&good)).color(SUCCESS);
     let failed = BarChart::new("failures", bars(&bad)).color(FAILURE).stack_on(&[&succeeded]);
-    Plot::new(("sources", title))
-        .width(200.0)
-        .height(110.0)
-        .x_axis_label("source demo")
-        .show_axes([true, false])
-        .allow_drag(false)
-        .allow_scroll(false)
-        .show(ui, |plot| {
-            plot.bar_chart(succeeded);
-            plot.bar_chart(failed);
-        });
+    small_bars(ui, Plot::new(("sources", title)), "source demo".to_owned(), succeeded, failed);
+}
+
+/// One of the coverage row's small charts: successes and failures stacked, fixed in place.
+fn small_bars(ui: &mut egui::Ui, plot: Plot<'_>, x_label: String, succeeded: BarChart, failed: BarChart) {
+    plot.width(200.0).height(110.0).x_axis_label(x_label).show_axes([true, false]).allow_drag(false).allow_scroll(false).show(ui, |plot| {
+        plot.bar_chart(succeeded);
+        plot.bar_chart(failed);
+    });
 }
 
 fn rate_plot(ui: &mut egui::Ui, run: &RunState, size: egui::Vec2) {

@@ -14,7 +14,7 @@ use mimicgen_engine::{RunStats, Shard};
 use mimicgen_io::{DatasetWriter, DemoReader, DemoSource as _, ReadOptions, WriterOptions};
 
 use crate::run::{AttemptRecord, Progress, RunDescription, attempt_log_path, read_attempt_log};
-use crate::{DemoReport, FailureReport, PROGRESS_ATTR, PipelineError, RUN_ATTR, Report, sibling};
+use crate::{PROGRESS_ATTR, PipelineError, RUN_ATTR, Report, sibling};
 
 /// One shard's outputs, read and checked.
 struct ShardFiles {
@@ -230,18 +230,9 @@ pub fn merge(
         #[allow(clippy::cast_precision_loss)]
         attempts_per_s: if wall_time_s > 0.0 { stats.attempts as f64 / wall_time_s } else { 0.0 },
         control_steps,
-        per_source_demo: stats
-            .per_source_demo
-            .iter()
-            .enumerate()
-            .map(|(demo, d)| DemoReport { demo, attempts: d.attempts, successes: d.successes })
-            .collect(),
+        per_source_demo: crate::run::per_source_demo(&stats),
         peak_rss_mib: crate::memory::peak_rss_mib(),
-        failures: stats
-            .failures
-            .iter()
-            .map(|f| FailureReport { subtask: f.subtask, reason: f.reason.to_string(), count: f.count })
-            .collect(),
+        failures: crate::run::failures(&stats),
         cancelled: false,
         resumed_from: 0,
         early_abort: first.early_abort,

@@ -283,6 +283,16 @@ pub fn read_attempt_log(path: &Path) -> Result<Vec<AttemptRecord>, PipelineError
         .collect()
 }
 
+/// The report's rows per source demo.
+pub(crate) fn per_source_demo(stats: &RunStats) -> Vec<DemoReport> {
+    stats.per_source_demo.iter().enumerate().map(|(demo, d)| DemoReport { demo, attempts: d.attempts, successes: d.successes }).collect()
+}
+
+/// The report's failures by subtask and reason.
+pub(crate) fn failures(stats: &RunStats) -> Vec<FailureReport> {
+    stats.failures.iter().map(|f| FailureReport { subtask: f.subtask, reason: f.reason.to_string(), count: f.count }).collect()
+}
+
 /// Where a shard writing `out` logs its attempts.
 #[must_use]
 pub fn attempt_log_path(out: &Path) -> PathBuf {
@@ -712,18 +722,9 @@ impl Pipeline {
             wall_time_s: wall,
             attempts_per_s: if wall > 0.0 { session_attempts / wall } else { 0.0 },
             control_steps,
-            per_source_demo: stats
-                .per_source_demo
-                .iter()
-                .enumerate()
-                .map(|(demo, d)| DemoReport { demo, attempts: d.attempts, successes: d.successes })
-                .collect(),
+            per_source_demo: per_source_demo(&stats),
             peak_rss_mib: crate::memory::peak_rss_mib(),
-            failures: stats
-                .failures
-                .iter()
-                .map(|f| FailureReport { subtask: f.subtask, reason: f.reason.to_string(), count: f.count })
-                .collect(),
+            failures: failures(&stats),
             cancelled,
             resumed_from,
             early_abort: settings.early_abort,
