@@ -89,6 +89,8 @@ fn flatten<'py>(py: Python<'py>, group: Group, prefix: &str, out: &Bound<'py, Py
 #[pyclass(module = "mimicgen_rs._native")]
 struct Dataset {
     reader: Mutex<DemoReader>,
+    /// The same file, read without `obs` and `next_obs` (for `datagen_info` and `observations=False`).
+    low_dim: Mutex<DemoReader>,
     path: PathBuf,
     names: Vec<String>,
     env_args: Option<String>,
@@ -96,17 +98,10 @@ struct Dataset {
 
 impl Dataset {
     fn load(&self, py: Python<'_>, name: &str, observations: bool) -> PyResult<Group> {
-        let reader = self.reader.lock().map_err(error)?;
-        let group = py.detach(|| {
-            if observations { reader.load_demo(name).map(std::borrow::Cow::into_owned) } else { load_without_obs(&self.path, name) }
-        });
-        group.map_err(error)
+        let reader = if observations { &self.reader } else { &self.low_dim };
+        py.detach(|| reader.lock().map_err(|e| e.to_string())?.load_demo(name).map(std::borrow::Cow::into_owned).map_err(|e| e.to_string()))
+            .map_err(error)
     }
-}
-
-fn load_without_obs(path: &std::path::Path, name: &str) -> mimicgen_io::Result<Group> {
-    let reader = DemoReader::open_with(path, ReadOptions::default())?.without_observations();
-    reader.load_demo(name).map(std::borrow::Cow::into_owned)
 }
 
 #[pymethods]
@@ -114,10 +109,11 @@ impl Dataset {
     #[new]
     #[pyo3(signature = (path, recover = false))]
     fn new(py: Python<'_>, path: PathBuf, recover: bool) -> PyResult<Self> {
-        let reader = py.detach(|| DemoReader::open_with(&path, ReadOptions { recover })).map_err(error)?;
+        let open = || DemoReader::open_with(&path, ReadOptions { recover });
+        let (reader, low_dim) = py.detach(|| Ok::<_, mimicgen_io::IoError>((open()?, open()?.without_observations()))).map_err(error)?;
         let names = reader.demo_names().to_vec();
         let env_args = reader.data_attrs().get("env_args").and_then(Array::as_str).map(str::to_owned);
-        Ok(Self { reader: Mutex::new(reader), path, names, env_args })
+        Ok(Self { reader: Mutex::new(reader), low_dim: Mutex::new(low_dim), path, names, env_args })
     }
 
     /// Demo names in robomimic's order.
