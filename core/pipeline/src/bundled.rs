@@ -13,6 +13,7 @@ const FILES: &[(&str, &str, &str, &[u8])] = &[
     ("stack_three", "D0", "stack_three_D0_source.hdf5", include_bytes!("../../sim/data/stack_three_D0_source.hdf5")),
     ("square", "D0", "square_D0_source.hdf5", include_bytes!("../../sim/data/square_D0_source.hdf5")),
     ("lift", "D0", "lift_D0_source.hdf5", include_bytes!("../../sim/data/lift_D0_source.hdf5")),
+    ("nut_assembly", "D0", "nut_assembly_D0_source.hdf5", include_bytes!("../../sim/data/nut_assembly_D0_source.hdf5")),
 ];
 
 /// The bundled source demos of `task` (recorded in its D0 variant: scripted, or for Lift robosuite's human ones), as a file on disk.

@@ -28,6 +28,21 @@ pub enum ObjectModel {
         /// Object name (`SquareNut`).
         name: String,
     },
+    /// robosuite's `RoundNutObject` (`objects/round-nut.xml`): eight bars round a round hole and a
+    /// handle along +x, body `<name>_main` with a free joint.
+    RoundNut {
+        /// Object name (`RoundNut`).
+        name: String,
+    },
+    /// A cylinder fixed in the world, as robosuite's round peg (`peg2`): a mocap body.
+    FixedCylinder {
+        /// Body name (`peg2`).
+        body: String,
+        /// Radius and half height (m).
+        radius_half_height: [f64; 2],
+        /// Default position (m).
+        pos: [f64; 3],
+    },
     /// A box fixed in the world that the task may move between episodes, as robosuite's pegs:
     /// a mocap body (it never moves during an episode; resets set its pose).
     FixedBox {
@@ -49,6 +64,22 @@ const SQUARE_NUT_GEOMS: [([f64; 3], [f64; 3]); 5] = [
     ([0.054, 0.0, 0.0], [0.02525, 0.015875, 0.01]),
 ];
 
+/// robosuite's round nut: `(position, half extents, yaw)` of its nine box geoms, in the nut frame.
+const ROUND_NUT_GEOMS: [([f64; 3], [f64; 3], f64); 9] = [
+    ([-0.04245, 0.0, 0.0], [0.01125, 0.0225, 0.01], 0.0),
+    ([0.04245, 0.0, 0.0], [0.01125, 0.0225, 0.01], 0.0),
+    ([0.0, -0.04245, 0.0], [0.0225, 0.01125, 0.01], 0.0),
+    ([0.0, 0.04245, 0.0], [0.0225, 0.01125, 0.01], 0.0),
+    ([-0.03, -0.03, 0.0], [0.01125, 0.0225, 0.01], std::f64::consts::FRAC_PI_4),
+    ([0.03, 0.03, 0.0], [0.01125, 0.0225, 0.01], std::f64::consts::FRAC_PI_4),
+    ([0.03, -0.03, 0.0], [0.0225, 0.01125, 0.01], std::f64::consts::FRAC_PI_4),
+    ([-0.03, 0.03, 0.0], [0.0225, 0.01125, 0.01], std::f64::consts::FRAC_PI_4),
+    ([0.06, 0.0, 0.0], [0.02525, 0.015875, 0.01], 0.0),
+];
+
+/// Where robosuite's round nut handle is, in the nut frame (m): its `handle_site`.
+pub const ROUND_NUT_HANDLE: [f64; 3] = [0.06, 0.0, 0.0];
+
 /// Where robosuite's square nut handle is, in the nut frame (m): its `handle_site`.
 pub const SQUARE_NUT_HANDLE: [f64; 3] = [0.054, 0.0, 0.0];
 
@@ -57,8 +88,8 @@ impl ObjectModel {
     #[must_use]
     pub fn body_name(&self) -> String {
         match self {
-            Self::Box { name, .. } | Self::SquareNut { name } => format!("{name}_main"),
-            Self::FixedBox { body, .. } => body.clone(),
+            Self::Box { name, .. } | Self::SquareNut { name } | Self::RoundNut { name } => format!("{name}_main"),
+            Self::FixedBox { body, .. } | Self::FixedCylinder { body, .. } => body.clone(),
         }
     }
 
@@ -68,8 +99,8 @@ impl ObjectModel {
                 let _ = writeln!(out, r#"    <texture type="cube" name="{name}_{tex}" file="{{ASSETS}}/{file}"/>"#);
                 let _ = writeln!(out, r#"    <material name="{name}_{tex}_mat" texture="{name}_{tex}" specular="0.4" shininess="0.1"/>"#);
             }
-            Self::SquareNut { name } => write_brass(out, name),
-            Self::FixedBox { body, .. } => write_brass(out, body),
+            Self::SquareNut { name } | Self::RoundNut { name } => write_brass(out, name),
+            Self::FixedBox { body, .. } | Self::FixedCylinder { body, .. } => write_brass(out, body),
         }
     }
 
@@ -109,6 +140,43 @@ impl ObjectModel {
                 let _ = writeln!(out, r#"      <site name="{name}_top_site" pos="0 0 0.01" size="0.005" rgba="0 0 0 0"/>"#);
                 let _ =
                     writeln!(out, r#"      <site name="{name}_horizontal_radius_site" pos="0.11 0.06 0" size="0.005" rgba="0 0 0 0"/>"#);
+                let _ = writeln!(out, "    </body>");
+            }
+            Self::RoundNut { name } => {
+                let _ = writeln!(out, r#"    <body name="{name}_main" pos="0 0 0" gravcomp="0">"#);
+                let _ = writeln!(out, r#"      <joint name="{name}_joint0" type="free" damping="0.0005"/>"#);
+                let _ = writeln!(out, r#"      <body name="{name}_object" pos="0 0 0" gravcomp="0">"#);
+                for (i, ([px, py, pz], [sx, sy, sz], yaw)) in ROUND_NUT_GEOMS.iter().enumerate() {
+                    let (pos, size) = (format!("{px} {py} {pz}"), format!("{sx} {sy} {sz}"));
+                    let _ = writeln!(
+                        out,
+                        r#"        <geom name="{name}_g{i}" pos="{pos}" size="{size}" axisangle="0 0 1 {yaw}" type="box" solimp="0.998 0.998 0.001" solref="0.02 1" density="100" friction="0.95 0.3 0.1" condim="4" group="0" rgba="0.5 0 0 1"/>"#
+                    );
+                    let _ = writeln!(
+                        out,
+                        r#"        <geom name="{name}_g{i}_vis" pos="{pos}" size="{size}" axisangle="0 0 1 {yaw}" type="box" contype="0" conaffinity="0" group="1" mass="0" material="{name}_bmetal"/>"#
+                    );
+                }
+                let [hx, hy, hz] = ROUND_NUT_HANDLE;
+                let _ = writeln!(out, r#"        <site name="{name}_handle_site" pos="{hx} {hy} {hz}" size="0.005" rgba="1 0 0 -1"/>"#);
+                let _ = writeln!(out, r#"        <site name="{name}_center_site" pos="0 0 0" size="0.003" rgba="1 0 0 -1"/>"#);
+                let _ = writeln!(out, "      </body>");
+                let _ = writeln!(out, r#"      <site name="{name}_bottom_site" pos="0 0 -0.05" size="0.005" rgba="0 0 0 0"/>"#);
+                let _ = writeln!(out, r#"      <site name="{name}_top_site" pos="0 0 0.025" size="0.005" rgba="0 0 0 0"/>"#);
+                let _ =
+                    writeln!(out, r#"      <site name="{name}_horizontal_radius_site" pos="0.11 0.05 0" size="0.005" rgba="0 0 0 0"/>"#);
+                let _ = writeln!(out, "    </body>");
+            }
+            Self::FixedCylinder { body, radius_half_height: [r, h], pos: [px, py, pz] } => {
+                let _ = writeln!(out, r#"    <body name="{body}" pos="{px} {py} {pz}" mocap="true">"#);
+                let _ = writeln!(
+                    out,
+                    r#"      <geom name="{body}_g0" size="{r} {h}" type="cylinder" group="0" friction="1 0.005 0.0001" rgba="0.5 0 0 1"/>"#
+                );
+                let _ = writeln!(
+                    out,
+                    r#"      <geom name="{body}_vis" size="{r} {h}" type="cylinder" contype="0" conaffinity="0" group="1" material="{body}_bmetal"/>"#
+                );
                 let _ = writeln!(out, "    </body>");
             }
             Self::FixedBox { body, half_size: [x, y, z], pos: [px, py, pz] } => {

@@ -19,7 +19,7 @@ pub mod task;
 pub use env::SimEnv;
 pub use geometry::{GeomPoser, Part, Shape, VisibleGeom};
 pub use scene::Scene;
-pub use task::{Lift, Square, Stack, StackThree, Task};
+pub use task::{Lift, NutAssembly, Square, Stack, StackThree, Task};
 
 /// Everything that can go wrong building or running a simulation.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use crate::task::{Lift, Square, Stack, StackThree, Task};
+use crate::task::{Lift, NutAssembly, Square, Stack, StackThree, Task};
 
 /// A task the backend can build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -32,6 +32,12 @@ pub const TASKS: &[TaskInfo] = &[
         env_name: "StackThree",
     },
     TaskInfo {
+        name: "nut_assembly",
+        variants: &["D0"],
+        description: "square nut onto the square peg, then round nut onto the round peg; D0 robosuite's reset (each nut in a 0.005 x 0.115 m strip)",
+        env_name: "NutAssembly",
+    },
+    TaskInfo {
         name: "lift",
         variants: &["D0", "D1"],
         description: "pick the red cube up; D0 robosuite's reset (0.06 m square), D1 0.30 m; random yaw; bundled demos: robosuite's 3 human ones",
@@ -53,6 +59,7 @@ pub fn default_spec_toml(name: &str) -> Option<&'static str> {
         "stack_three" => Some(include_str!("../tasks/stack_three.toml")),
         "square" => Some(include_str!("../tasks/square.toml")),
         "lift" => Some(include_str!("../tasks/lift.toml")),
+        "nut_assembly" => Some(include_str!("../tasks/nut_assembly.toml")),
         _ => None,
     }
 }
@@ -67,6 +74,7 @@ pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
         "stack_three" => Ok(Arc::new(StackThree::variant(variant)?)),
         "square" => Ok(Arc::new(Square::variant(variant)?)),
         "lift" => Ok(Arc::new(Lift::variant(variant)?)),
+        "nut_assembly" => Ok(Arc::new(NutAssembly::variant(variant)?)),
         other => Err(format!("unknown task {other:?}; known tasks: {}", TASKS.iter().map(|t| t.name).collect::<Vec<_>>().join(", "))),
     }
 }

@@ -306,6 +306,140 @@ impl Task for Lift {
     }
 }
 
+/// robosuite's nut sensors for object `i`: position, `xyzw` quaternion, then the nut's pose in the
+/// gripper frame (grip site position, hand orientation).
+fn nut_obs(env: &SimEnv, i: usize) -> Vec<f64> {
+    use mimicgen_engine::Environment as _;
+    let body = env.scene().objects[i].body;
+    let [w, x, y, z] = env.data().xquat()[body];
+    let nut = env.object_pose(i);
+    let hand = env.data().xquat()[env.scene().robot.hand_body];
+    let world_from_gripper = pose_from_parts(
+        env.eef_pose().translation.vector,
+        Rot::from_quaternion(nalgebra::Quaternion::new(hand[0], hand[1], hand[2], hand[3])),
+    );
+    let gripper_from_nut = world_from_gripper.inverse() * nut;
+    let q = gripper_from_nut.rotation.quaternion();
+    let sign = if q.w < 0.0 { -1.0 } else { 1.0 };
+    let mut obs = Vec::with_capacity(17);
+    obs.extend(nut.translation.vector.iter());
+    obs.extend([x, y, z, w]);
+    obs.extend(gripper_from_nut.translation.vector.iter());
+    obs.extend([sign * q.i, sign * q.j, sign * q.k, sign * q.w]);
+    obs
+}
+
+/// robosuite's `on_peg`: the nut's centre within 3 cm of the peg's axis and low on it.
+fn nut_on_peg(env: &SimEnv, nut: usize, peg: usize) -> bool {
+    let (n, p) = (env.object_pose(nut).translation.vector, env.object_pose(peg).translation.vector);
+    (n.x - p.x).abs() < 0.03 && (n.y - p.y).abs() < 0.03 && n.z < NUT_TABLE_TOP_Z + 0.05
+}
+
+/// robosuite's Nut Assembly (MimicGen's D0): the square nut onto the square peg, then the round
+/// nut onto the round peg; both pegs at robosuite's fixed places.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NutAssembly {
+    /// Where the square nut is sampled.
+    pub square_nut: PlacementRegion,
+    /// Where the round nut is sampled.
+    pub round_nut: PlacementRegion,
+}
+
+/// robosuite's round peg (`peg2`): radius and half height, and where the arena has it.
+const ROUND_PEG: [f64; 2] = [0.02, 0.1];
+const ROUND_PEG_POS: [f64; 3] = [0.23, -0.1, 0.85];
+
+impl NutAssembly {
+    /// D0: robosuite's reset: each nut in a 0.005 x 0.115 m strip in front of its peg, any yaw.
+    ///
+    /// # Errors
+    /// A message when `variant` is not D0.
+    pub fn variant(variant: &str) -> Result<Self, String> {
+        let any = (0.0, TAU);
+        match variant.to_ascii_uppercase().as_str() {
+            "D0" => Ok(Self {
+                square_nut: PlacementRegion { x: (-0.115, -0.11), y: (0.11, 0.225), yaw: any },
+                round_nut: PlacementRegion { x: (-0.115, -0.11), y: (-0.225, -0.11), yaw: any },
+            }),
+            _ => Err(format!("nut_assembly has variant D0, not {variant:?}")),
+        }
+    }
+
+    /// The round nut's demonstrator: Square's, gripping the round nut's handle, with any yaw over
+    /// the (round) peg.
+    #[must_use]
+    pub fn round_script() -> PickPlaceScript {
+        PickPlaceScript {
+            pick: "round_nut".to_owned(),
+            place_on: "round_peg".to_owned(),
+            grasp_point_m: crate::compose::ROUND_NUT_HANDLE,
+            place_yaw_symmetry_rad: None,
+            ..Square::script()
+        }
+    }
+}
+
+impl Task for NutAssembly {
+    fn name(&self) -> &str {
+        "nut_assembly"
+    }
+
+    fn objects(&self) -> Vec<(&'static str, &'static str)> {
+        vec![("square_nut", "SquareNut_main"), ("round_nut", "RoundNut_main"), ("square_peg", "peg1"), ("round_peg", "peg2")]
+    }
+
+    fn object_models(&self) -> Vec<ObjectModel> {
+        vec![
+            ObjectModel::SquareNut { name: "SquareNut".to_owned() },
+            ObjectModel::RoundNut { name: "RoundNut".to_owned() },
+            ObjectModel::FixedBox { body: "peg1".to_owned(), half_size: PEG_HALF_SIZE, pos: PEG_DEFAULT_POS },
+            ObjectModel::FixedCylinder { body: "peg2".to_owned(), radius_half_height: ROUND_PEG, pos: ROUND_PEG_POS },
+        ]
+    }
+
+    fn table_top_z(&self) -> f64 {
+        NUT_TABLE_TOP_Z
+    }
+
+    fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
+        // As robosuite: each nut's bottom site (5 cm below its centre) 2 cm above the table.
+        let z = NUT_TABLE_TOP_Z + 0.02 + 0.05;
+        let mut nut = |r: &PlacementRegion| {
+            pose_from_parts(Vec3::new(uniform(rng, r.x), uniform(rng, r.y), z), Rot::from_axis_angle(&Vec3::z_axis(), uniform(rng, r.yaw)))
+        };
+        let (square, round) = (nut(&self.square_nut), nut(&self.round_nut));
+        let peg = |[x, y, z]: [f64; 3]| pose_from_parts(Vec3::new(x, y, z), Rot::identity());
+        Ok(vec![square, round, peg(PEG_DEFAULT_POS), peg(ROUND_PEG_POS)])
+    }
+
+    fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64> {
+        BTreeMap::from([
+            ("grasp_square_nut".to_owned(), i64::from(env.is_grasping(0))),
+            ("insert_square_nut".to_owned(), i64::from(nut_on_peg(env, 0, 2))),
+            ("grasp_round_nut".to_owned(), i64::from(env.is_grasping(1))),
+        ])
+    }
+
+    fn is_success(&self, env: &SimEnv) -> bool {
+        // robosuite's NutAssembly: every nut on its peg.
+        nut_on_peg(env, 0, 2) && nut_on_peg(env, 1, 3)
+    }
+
+    fn object_obs(&self, env: &SimEnv) -> Vec<f64> {
+        let mut obs = nut_obs(env, 0);
+        obs.extend(nut_obs(env, 1));
+        obs
+    }
+
+    fn scripts(&self) -> Vec<PickPlaceScript> {
+        vec![Square::script(), Self::round_script()]
+    }
+
+    fn coverage_dimensions(&self) -> Vec<Dimension> {
+        region_dimensions(&["square_nut", "round_nut"], &[self.square_nut, self.round_nut])
+    }
+}
+
 /// MimicGen's Stack Three: red (`cubeA`) onto green (`cubeB`), then blue (`cubeC`) onto red.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StackThree {
@@ -512,25 +646,8 @@ impl Task for Square {
     }
 
     fn object_obs(&self, env: &SimEnv) -> Vec<f64> {
-        use mimicgen_engine::Environment as _;
-        // robosuite's nut sensors: position, `xyzw` quaternion, then the nut's pose in the
-        // gripper frame (grip site position, hand orientation); MimicGen's D1/D2 add the peg.
-        let body = env.scene().objects[0].body;
-        let [w, x, y, z] = env.data().xquat()[body];
-        let nut = env.object_pose(0);
-        let hand = env.data().xquat()[env.scene().robot.hand_body];
-        let world_from_gripper = pose_from_parts(
-            env.eef_pose().translation.vector,
-            Rot::from_quaternion(nalgebra::Quaternion::new(hand[0], hand[1], hand[2], hand[3])),
-        );
-        let gripper_from_nut = world_from_gripper.inverse() * nut;
-        let q = gripper_from_nut.rotation.quaternion();
-        let sign = if q.w < 0.0 { -1.0 } else { 1.0 };
-        let mut obs = Vec::with_capacity(17);
-        obs.extend(nut.translation.vector.iter());
-        obs.extend([x, y, z, w]);
-        obs.extend(gripper_from_nut.translation.vector.iter());
-        obs.extend([sign * q.i, sign * q.j, sign * q.k, sign * q.w]);
+        // MimicGen's D1/D2 add the peg.
+        let mut obs = nut_obs(env, 0);
         if self.peg.is_some() {
             obs.extend(env.object_pose(1).translation.vector.iter());
         }
