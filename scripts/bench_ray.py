@@ -9,6 +9,7 @@ beyond the slowest shard's own run and the merge). Run in a venv with the wheel 
 import argparse
 import json
 import os
+import subprocess
 import tempfile
 import time
 
@@ -20,6 +21,7 @@ def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--attempts", type=int, default=60)
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--cli", help="the mimicgen binary, to time `mimicgen generate --workers 1/2` on the same run too")
     args = p.parse_args()
     import ray
 
@@ -30,6 +32,13 @@ def main():
             r = mg.generate(os.path.join(tmp, f"threads{workers}.hdf5"), num_demos=args.attempts, seed=args.seed, workers=workers).wait()
             wall = time.perf_counter() - started
             rows[f"process, {workers} thread(s)"] = {"wall_s": round(wall, 2), "attempts_per_s": round(r["attempts"] / wall, 2)}
+        for workers in (1, 2) if args.cli else ():
+            out = os.path.join(tmp, f"cli{workers}.hdf5")
+            started = time.perf_counter()
+            subprocess.run([args.cli, "generate", "--num-demos", str(args.attempts), "--seed", str(args.seed), "--workers", str(workers), "--out", out],
+                           check=True, capture_output=True)
+            wall = time.perf_counter() - started
+            rows[f"CLI, {workers} thread(s)"] = {"wall_s": round(wall, 2), "attempts_per_s": round(args.attempts / wall, 2)}
         ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
         for shards in (1, 2):
             started = time.perf_counter()
