@@ -93,7 +93,7 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
     if f != model.run_form {
         commands.push(Command::SetRunForm(f.clone()));
     }
-    ui.label(RichText::new(format!("source: {}", file.path.display())).small());
+    ui.label(RichText::new(format!("task {} (the source's); source: {}", file.task, file.path.display())).small());
     ui.horizontal(|ui| {
         if ui.add_enabled(!running, egui::Button::new("Start")).clicked() {
             commands.push(Command::StartRun);

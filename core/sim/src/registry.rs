@@ -33,8 +33,8 @@ pub const TASKS: &[TaskInfo] = &[
     },
     TaskInfo {
         name: "nut_assembly",
-        variants: &["D0"],
-        description: "square nut onto the square peg, then round nut onto the round peg; D0 robosuite's reset (each nut in a 0.005 x 0.115 m strip)",
+        variants: &["D0", "D1"],
+        description: "square nut onto the square peg, then round nut onto the round peg; D0 robosuite's reset (each nut in a 0.005 x 0.115 m strip), D1 both in 0.25 x 0.5 m",
         env_name: "NutAssembly",
     },
     TaskInfo {

@@ -351,9 +351,11 @@ const ROUND_PEG_POS: [f64; 3] = [0.23, -0.1, 0.85];
 
 impl NutAssembly {
     /// D0: robosuite's reset: each nut in a 0.005 x 0.115 m strip in front of its peg, any yaw.
+    /// D1 (ours; the paper has D0 only): both nuts anywhere in a 0.25 x 0.5 m region in front of
+    /// the pegs, any yaw, clear of each other.
     ///
     /// # Errors
-    /// A message when `variant` is not D0.
+    /// A message when `variant` is not D0 or D1.
     pub fn variant(variant: &str) -> Result<Self, String> {
         let any = (0.0, TAU);
         match variant.to_ascii_uppercase().as_str() {
@@ -361,7 +363,11 @@ impl NutAssembly {
                 square_nut: PlacementRegion { x: (-0.115, -0.11), y: (0.11, 0.225), yaw: any },
                 round_nut: PlacementRegion { x: (-0.115, -0.11), y: (-0.225, -0.11), yaw: any },
             }),
-            _ => Err(format!("nut_assembly has variant D0, not {variant:?}")),
+            "D1" => {
+                let wide = PlacementRegion { x: (-0.2, 0.05), y: (-0.25, 0.25), yaw: any };
+                Ok(Self { square_nut: wide, round_nut: wide })
+            }
+            _ => Err(format!("nut_assembly has variants D0 and D1, not {variant:?}")),
         }
     }
 
@@ -407,7 +413,20 @@ impl Task for NutAssembly {
         let mut nut = |r: &PlacementRegion| {
             pose_from_parts(Vec3::new(uniform(rng, r.x), uniform(rng, r.y), z), Rot::from_axis_angle(&Vec3::z_axis(), uniform(rng, r.yaw)))
         };
-        let (square, round) = (nut(&self.square_nut), nut(&self.round_nut));
+        let square = nut(&self.square_nut);
+        // The round nut clear of the square one (handles included), as robosuite's sampler keeps
+        // objects apart (D0's strips are apart already).
+        let mut round = nut(&self.round_nut);
+        let mut tries = 0;
+        while (round.translation.vector - square.translation.vector).xy().norm() < 2.0 * NUT_HORIZONTAL_RADIUS {
+            tries += 1;
+            if tries > 10_000 {
+                return Err(EnvError::Fatal {
+                    reason: format!("cannot place the round nut in {:?} clear of the square nut", self.round_nut),
+                });
+            }
+            round = nut(&self.round_nut);
+        }
         let peg = |[x, y, z]: [f64; 3]| pose_from_parts(Vec3::new(x, y, z), Rot::identity());
         Ok(vec![square, round, peg(PEG_DEFAULT_POS), peg(ROUND_PEG_POS)])
     }

@@ -29,7 +29,14 @@ fn the_nuts_rest_in_their_strips_and_the_pegs_stay_put() {
     assert!(square.y > 0.1 && round.y < -0.1);
     assert!((poses["round_peg"].translation.vector - nalgebra::Vector3::new(0.23, -0.1, 0.85)).norm() < 1e-12);
     assert!(!task.is_success(&env));
-    assert!(NutAssembly::variant("D1").is_err());
+    assert!(NutAssembly::variant("D2").is_err());
+    // D1: both nuts anywhere in front of the pegs, never overlapping.
+    let wide: Arc<dyn Task> = Arc::new(NutAssembly::variant("D1").unwrap());
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    for _ in 0..200 {
+        let poses = wide.sample_scene(&mut rng).unwrap();
+        assert!((poses[0].translation.vector - poses[1].translation.vector).xy().norm() >= 0.25);
+    }
 }
 
 #[test]
