@@ -291,7 +291,11 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
         script.wait_for_arm = !args.hasty;
     }
     if scripts.is_empty() {
-        bail!("no scripted demonstrator for {}", task.name());
+        bail!(
+            "no scripted demonstrator for {} (its bundled source demos are recorded ones: `mimicgen generate --task {}` uses them; `mimicgen prepare` turns your own recordings into source demos)",
+            task.name(),
+            task.name()
+        );
     }
     let (scene, xml) = Scene::for_task_with_xml(task.as_ref())?;
     let scene = Arc::new(scene);
