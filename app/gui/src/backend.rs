@@ -346,7 +346,7 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
     };
     let mut rows: Vec<AttemptRow> = Vec::new();
     let mut env_args = None;
-    let failed = mimicgen_pipeline::sibling(path, "_failed", "hdf5");
+    let failed = mimicgen_pipeline::failed_path(path);
     for (file, success) in [(path.to_path_buf(), true), (failed.clone(), false)] {
         if !success && !file.is_file() {
             continue;

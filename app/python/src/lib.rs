@@ -188,8 +188,7 @@ impl Spec {
     /// The spec bundled for a task (`stack`, `stack_three`, `square`).
     #[staticmethod]
     fn bundled(task: &str) -> PyResult<Self> {
-        let text = mimicgen_sim::registry::default_spec_toml(task).ok_or_else(|| error(format!("task {task:?} has no bundled spec")))?;
-        TaskSpec::from_toml_str(text, &format!("bundled {task} spec")).map(|inner| Self { inner }).map_err(error)
+        mimicgen_pipeline::bundled::spec(task).map(|inner| Self { inner }).map_err(error)
     }
 
     /// A spec from the dict `to_dict` gives (checked as a TOML file would be).

@@ -5,6 +5,8 @@
 
 use std::path::PathBuf;
 
+use mimicgen_engine::TaskSpec;
+
 use crate::PipelineError;
 
 /// `(task, variant, file name, bytes)` of every bundled source file.
@@ -15,6 +17,16 @@ const FILES: &[(&str, &str, &str, &[u8])] = &[
     ("lift", "D0", "lift_D0_source.hdf5", include_bytes!("../../sim/data/lift_D0_source.hdf5")),
     ("nut_assembly", "D0", "nut_assembly_D0_source.hdf5", include_bytes!("../../sim/data/nut_assembly_D0_source.hdf5")),
 ];
+
+/// The spec bundled for `task` (the paper's settings, `core/sim/tasks/<task>.toml`).
+///
+/// # Errors
+/// [`PipelineError::Input`] (field `--config`) when the task has none.
+pub fn spec(task: &str) -> Result<TaskSpec, PipelineError> {
+    let toml = mimicgen_sim::registry::default_spec_toml(task)
+        .ok_or_else(|| PipelineError::input("", "--config", format!("task {task} has no bundled spec; pass --config")))?;
+    TaskSpec::from_toml_str(toml, &format!("bundled {task} spec")).map_err(|e| PipelineError::engine("bundled spec", e))
+}
 
 /// The bundled source demos of `task` (recorded in its D0 variant: scripted, or for Lift robosuite's human ones), as a file on disk.
 ///

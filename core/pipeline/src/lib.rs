@@ -43,5 +43,5 @@ pub use error::PipelineError;
 pub use overrides::{OffsetRange, Scoped, SpecOverrides};
 pub use run::{
     AttemptEvent, AttemptRecord, DemoReport, Event, FailureReport, Observed, Outcome, PROGRESS_ATTR, Pipeline, RUN_ATTR, Report, RunInfo,
-    attempt_log_path, read_attempt_log, sibling,
+    attempt_log_path, failed_path, read_attempt_log, sibling,
 };

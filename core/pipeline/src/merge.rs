@@ -13,7 +13,9 @@ use std::path::{Path, PathBuf};
 use mimicgen_engine::{RunStats, Shard};
 use mimicgen_io::{DatasetWriter, DemoReader, DemoSource as _, ReadOptions, WriterOptions};
 
-use crate::run::{AttemptRecord, Progress, RunDescription, attempt_log_path, read_attempt_log};
+use crate::run::{
+    AttemptRecord, Progress, RunDescription, attempt_log_path, clear_outputs, differing_fields, failed_path, read_attempt_log,
+};
 use crate::{PROGRESS_ATTR, PipelineError, RUN_ATTR, Report, sibling};
 
 /// One shard's outputs, read and checked.
@@ -75,13 +77,8 @@ fn check_set(shards: &[ShardFiles]) -> Result<(), PipelineError> {
             ));
         }
         if whole(&s.description) != whole(&first.description) {
-            let (a, b) = (serde_json::to_value(whole(&s.description)), serde_json::to_value(whole(&first.description)));
-            let differing: Vec<String> = match (a, b) {
-                (Ok(serde_json::Value::Object(a)), Ok(b)) => {
-                    a.iter().filter(|(k, v)| b.get(*k) != Some(*v)).map(|(k, _)| k.clone()).collect()
-                }
-                _ => Vec::new(),
-            };
+            let json = |d: &RunDescription| serde_json::to_value(whole(d)).unwrap_or_default();
+            let differing = differing_fields(&json(&s.description), &json(&first.description));
             return Err(PipelineError::input(
                 s.path.display().to_string(),
                 RUN_ATTR,
@@ -142,34 +139,14 @@ pub fn merge(
         successes += usize::from(record.success);
         order.push(record);
     }
-    let failed_out = sibling(out, "_failed", "hdf5");
-    let report_path = sibling(out, "", "json");
-    let outputs = [
-        out.to_path_buf(),
-        DatasetWriter::partial_path(out),
-        failed_out.clone(),
-        DatasetWriter::partial_path(&failed_out),
-        report_path.clone(),
-    ];
-    for path in outputs.iter().filter(|p| p.exists()) {
-        if !overwrite {
-            return Err(PipelineError::input(
-                path.display().to_string(),
-                "--out",
-                "exists; refusing to replace it; pass --overwrite, or choose another --out",
-            ));
-        }
-        std::fs::remove_file(path).map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
-    }
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| PipelineError::Fs { file: dir.display().to_string(), reason: e.to_string() })?;
-    }
+    let (failed_out, report_path) = (failed_path(out), sibling(out, "", "json"));
+    clear_outputs(out, None, overwrite, false)?;
     let open = |path: &Path| DemoReader::open_with(path, ReadOptions::default());
     let readers = shards.iter().map(|s| open(&s.path)).collect::<Result<Vec<_>, _>>()?;
     let failed_readers = shards
         .iter()
         .map(|s| {
-            let failed = sibling(&s.path, "_failed", "hdf5");
+            let failed = failed_path(&s.path);
             if settings.keep_failed && failed.is_file() { open(&failed).map(Some) } else { Ok(None) }
         })
         .collect::<Result<Vec<_>, _>>()?;

@@ -22,7 +22,6 @@ pub const RUN_ATTR: &str = "mimicgen_run";
 /// each attempt: attempts before its `next_attempt` are decided and their demos written).
 pub const PROGRESS_ATTR: &str = "mimicgen_progress";
 
-/// What a worker hands back with an attempt that may be kept: its observations and `model_file`.
 /// What a worker makes of an attempt that may be kept: its observations, and the episode's
 /// `model_file` where the simulator has one.
 pub type Observed = (BTreeMap<String, Observation>, Option<String>);
@@ -293,6 +292,48 @@ pub(crate) fn failures(stats: &RunStats) -> Vec<FailureReport> {
     stats.failures.iter().map(|f| FailureReport { subtask: f.subtask, reason: f.reason.to_string(), count: f.count }).collect()
 }
 
+/// The failed-attempts file beside dataset `out`.
+#[must_use]
+pub fn failed_path(out: &Path) -> PathBuf {
+    sibling(out, "_failed", "hdf5")
+}
+
+/// The top-level fields whose values differ between two descriptions of a run (JSON objects).
+pub(crate) fn differing_fields(a: &serde_json::Value, b: &serde_json::Value) -> Vec<String> {
+    a.as_object().map(|o| o.iter().filter(|(k, v)| b.get(*k) != Some(*v)).map(|(k, _)| k.clone()).collect()).unwrap_or_default()
+}
+
+/// Makes room for a run's outputs at `out` (the dataset, failed attempts, their `.partial`s, the
+/// report, and `extra`): refuses any that exists, or with `overwrite` removes them; then creates
+/// `out`'s folder. With `resumable`, a `.partial` left there is said to be resumable.
+///
+/// # Errors
+/// [`PipelineError::Input`] (field `--out`) naming the first output that exists;
+/// [`PipelineError::Fs`] when one cannot be removed or the folder made.
+pub(crate) fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, resumable: bool) -> Result<(), PipelineError> {
+    let failed = failed_path(out);
+    let partial = DatasetWriter::partial_path(out);
+    let outputs = [out.to_path_buf(), partial.clone(), failed.clone(), DatasetWriter::partial_path(&failed), sibling(out, "", "json")];
+    let existing: Vec<&Path> = outputs.iter().map(PathBuf::as_path).chain(extra).filter(|p| p.exists()).collect();
+    if let Some(first) = existing.first() {
+        if !overwrite {
+            let hint = if resumable && *first == partial.as_path() {
+                "an interrupted run left it: pass --resume to continue that run, or --overwrite to start over"
+            } else {
+                "refusing to replace it; pass --overwrite, or choose another --out"
+            };
+            return Err(PipelineError::input(first.display().to_string(), "--out", format!("exists; {hint}")));
+        }
+        for path in existing {
+            std::fs::remove_file(path).map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
+        }
+    }
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| PipelineError::Fs { file: dir.display().to_string(), reason: e.to_string() })?;
+    }
+    Ok(())
+}
+
 /// Where a shard writing `out` logs its attempts.
 #[must_use]
 pub fn attempt_log_path(out: &Path) -> PathBuf {
@@ -352,13 +393,7 @@ impl Pipeline {
         )?;
         let mut spec = match spec_from_file {
             Some(spec) => spec,
-            None => {
-                let toml = registry::default_spec_toml(task.name()).ok_or_else(|| {
-                    PipelineError::input("", "--config", format!("task {} has no bundled spec; pass --config", task.name()))
-                })?;
-                TaskSpec::from_toml_str(toml, &format!("bundled {} spec", task.name()))
-                    .map_err(|e| PipelineError::engine("bundled spec", e))?
-            }
+            None => crate::bundled::spec(task.name())?,
         };
         config.spec.apply(&mut spec)?;
         let g = &mut spec.generation;
@@ -458,7 +493,7 @@ impl Pipeline {
     /// The failed-attempts file of this run.
     #[must_use]
     pub fn failed_path(&self) -> PathBuf {
-        sibling(&self.config.out, "_failed", "hdf5")
+        failed_path(&self.config.out)
     }
 
     /// The report file of this run.
@@ -508,10 +543,7 @@ impl Pipeline {
                 serde_json::from_str(stored_run).map_err(|e| PipelineError::input(file.clone(), RUN_ATTR, e.to_string()))?;
             let ours: serde_json::Value = serde_json::to_value(&self.description).unwrap_or_default();
             if stored_run != ours {
-                let differing: Vec<String> = ours
-                    .as_object()
-                    .map(|o| o.iter().filter(|(k, v)| stored_run.get(*k) != Some(*v)).map(|(k, _)| k.clone()).collect())
-                    .unwrap_or_default();
+                let differing = differing_fields(&ours, &stored_run);
                 return Err(PipelineError::input(
                     file,
                     RUN_ATTR,
@@ -537,30 +569,8 @@ impl Pipeline {
             let log = self.attempt_log_path().map(|p| AttemptLog::resume(p, progress.next_attempt)).transpose()?;
             return Ok((writer, failed_writer, progress, log));
         }
-        let report = self.report_path();
-        let failed_partial = DatasetWriter::partial_path(&failed);
         let log_path = self.attempt_log_path();
-        let existing: Vec<&Path> = [out.as_path(), partial.as_path(), failed.as_path(), failed_partial.as_path(), report.as_path()]
-            .into_iter()
-            .chain(log_path.as_deref())
-            .filter(|p| p.exists())
-            .collect();
-        if let Some(first) = existing.first() {
-            if !self.config.overwrite {
-                let hint = if first == &partial.as_path() {
-                    "an interrupted run left it: pass --resume to continue that run, or --overwrite to start over"
-                } else {
-                    "refusing to replace it; pass --overwrite, or choose another --out"
-                };
-                return Err(PipelineError::input(first.display().to_string(), "--out", format!("exists; {hint}")));
-            }
-            for path in existing {
-                std::fs::remove_file(path).map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
-            }
-        }
-        if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| PipelineError::Fs { file: dir.display().to_string(), reason: e.to_string() })?;
-        }
+        clear_outputs(out, log_path.as_deref(), self.config.overwrite, true)?;
         let mut writer = DatasetWriter::create(out, options)?;
         let progress = Progress { next_attempt: 0, failures_kept: 0, stats: RunStats::new(self.generator.dataset().demos.len()) };
         writer.set_root_attr(RUN_ATTR, &description)?;

@@ -118,55 +118,10 @@ impl ObjectModel {
                 let _ = writeln!(out, "    </body>");
             }
             Self::SquareNut { name } => {
-                let _ = writeln!(out, r#"    <body name="{name}_main" pos="0 0 0" gravcomp="0">"#);
-                let _ = writeln!(out, r#"      <joint name="{name}_joint0" type="free" damping="0.0005"/>"#);
-                let _ = writeln!(out, r#"      <body name="{name}_object" pos="0 0 0" gravcomp="0">"#);
-                for (i, ([px, py, pz], [sx, sy, sz])) in SQUARE_NUT_GEOMS.iter().enumerate() {
-                    let (pos, size) = (format!("{px} {py} {pz}"), format!("{sx} {sy} {sz}"));
-                    let _ = writeln!(
-                        out,
-                        r#"        <geom name="{name}_g{i}" pos="{pos}" size="{size}" type="box" solimp="0.998 0.998 0.001" solref="0.02 1" density="100" friction="0.95 0.3 0.1" condim="4" group="0" rgba="0.5 0 0 1"/>"#
-                    );
-                    let _ = writeln!(
-                        out,
-                        r#"        <geom name="{name}_g{i}_vis" pos="{pos}" size="{size}" type="box" contype="0" conaffinity="0" group="1" mass="0" material="{name}_bmetal"/>"#
-                    );
-                }
-                let [hx, hy, hz] = SQUARE_NUT_HANDLE;
-                let _ = writeln!(out, r#"        <site name="{name}_handle_site" pos="{hx} {hy} {hz}" size="0.005" rgba="1 0 0 -1"/>"#);
-                let _ = writeln!(out, r#"        <site name="{name}_center_site" pos="0 0 0" size="0.003" rgba="1 0 0 -1"/>"#);
-                let _ = writeln!(out, "      </body>");
-                let _ = writeln!(out, r#"      <site name="{name}_bottom_site" pos="0 0 -0.05" size="0.005" rgba="0 0 0 0"/>"#);
-                let _ = writeln!(out, r#"      <site name="{name}_top_site" pos="0 0 0.01" size="0.005" rgba="0 0 0 0"/>"#);
-                let _ =
-                    writeln!(out, r#"      <site name="{name}_horizontal_radius_site" pos="0.11 0.06 0" size="0.005" rgba="0 0 0 0"/>"#);
-                let _ = writeln!(out, "    </body>");
+                let geoms = SQUARE_NUT_GEOMS.map(|(pos, size)| (pos, size, 0.0));
+                write_nut(out, name, &geoms, SQUARE_NUT_HANDLE, 0.01, [0.11, 0.06]);
             }
-            Self::RoundNut { name } => {
-                let _ = writeln!(out, r#"    <body name="{name}_main" pos="0 0 0" gravcomp="0">"#);
-                let _ = writeln!(out, r#"      <joint name="{name}_joint0" type="free" damping="0.0005"/>"#);
-                let _ = writeln!(out, r#"      <body name="{name}_object" pos="0 0 0" gravcomp="0">"#);
-                for (i, ([px, py, pz], [sx, sy, sz], yaw)) in ROUND_NUT_GEOMS.iter().enumerate() {
-                    let (pos, size) = (format!("{px} {py} {pz}"), format!("{sx} {sy} {sz}"));
-                    let _ = writeln!(
-                        out,
-                        r#"        <geom name="{name}_g{i}" pos="{pos}" size="{size}" axisangle="0 0 1 {yaw}" type="box" solimp="0.998 0.998 0.001" solref="0.02 1" density="100" friction="0.95 0.3 0.1" condim="4" group="0" rgba="0.5 0 0 1"/>"#
-                    );
-                    let _ = writeln!(
-                        out,
-                        r#"        <geom name="{name}_g{i}_vis" pos="{pos}" size="{size}" axisangle="0 0 1 {yaw}" type="box" contype="0" conaffinity="0" group="1" mass="0" material="{name}_bmetal"/>"#
-                    );
-                }
-                let [hx, hy, hz] = ROUND_NUT_HANDLE;
-                let _ = writeln!(out, r#"        <site name="{name}_handle_site" pos="{hx} {hy} {hz}" size="0.005" rgba="1 0 0 -1"/>"#);
-                let _ = writeln!(out, r#"        <site name="{name}_center_site" pos="0 0 0" size="0.003" rgba="1 0 0 -1"/>"#);
-                let _ = writeln!(out, "      </body>");
-                let _ = writeln!(out, r#"      <site name="{name}_bottom_site" pos="0 0 -0.05" size="0.005" rgba="0 0 0 0"/>"#);
-                let _ = writeln!(out, r#"      <site name="{name}_top_site" pos="0 0 0.025" size="0.005" rgba="0 0 0 0"/>"#);
-                let _ =
-                    writeln!(out, r#"      <site name="{name}_horizontal_radius_site" pos="0.11 0.05 0" size="0.005" rgba="0 0 0 0"/>"#);
-                let _ = writeln!(out, "    </body>");
-            }
+            Self::RoundNut { name } => write_nut(out, name, &ROUND_NUT_GEOMS, ROUND_NUT_HANDLE, 0.025, [0.11, 0.05]),
             Self::FixedCylinder { body, radius_half_height: [r, h], pos: [px, py, pz] } => {
                 let _ = writeln!(out, r#"    <body name="{body}" pos="{px} {py} {pz}" mocap="true">"#);
                 let _ = writeln!(
@@ -193,6 +148,37 @@ impl ObjectModel {
             }
         }
     }
+}
+
+/// One of robosuite's nuts: box `geoms` (`(position, half extents, yaw)` in the nut frame) round a
+/// hole, a free joint, and its handle, centre, bottom, top and horizontal-radius sites (the top at
+/// `top_z`, the radius site at `radius_site` (x, y)).
+fn write_nut(out: &mut String, name: &str, geoms: &[([f64; 3], [f64; 3], f64)], handle: [f64; 3], top_z: f64, radius_site: [f64; 2]) {
+    let _ = writeln!(out, r#"    <body name="{name}_main" pos="0 0 0" gravcomp="0">"#);
+    let _ = writeln!(out, r#"      <joint name="{name}_joint0" type="free" damping="0.0005"/>"#);
+    let _ = writeln!(out, r#"      <body name="{name}_object" pos="0 0 0" gravcomp="0">"#);
+    for (i, ([px, py, pz], [sx, sy, sz], yaw)) in geoms.iter().enumerate() {
+        let (pos, size) = (format!("{px} {py} {pz}"), format!("{sx} {sy} {sz}"));
+        // Only rotated bars carry an axisangle, so the square nut's XML is what it always was.
+        let turn = if *yaw == 0.0 { String::new() } else { format!(r#" axisangle="0 0 1 {yaw}""#) };
+        let _ = writeln!(
+            out,
+            r#"        <geom name="{name}_g{i}" pos="{pos}" size="{size}"{turn} type="box" solimp="0.998 0.998 0.001" solref="0.02 1" density="100" friction="0.95 0.3 0.1" condim="4" group="0" rgba="0.5 0 0 1"/>"#
+        );
+        let _ = writeln!(
+            out,
+            r#"        <geom name="{name}_g{i}_vis" pos="{pos}" size="{size}"{turn} type="box" contype="0" conaffinity="0" group="1" mass="0" material="{name}_bmetal"/>"#
+        );
+    }
+    let [hx, hy, hz] = handle;
+    let [rx, ry] = radius_site;
+    let _ = writeln!(out, r#"        <site name="{name}_handle_site" pos="{hx} {hy} {hz}" size="0.005" rgba="1 0 0 -1"/>"#);
+    let _ = writeln!(out, r#"        <site name="{name}_center_site" pos="0 0 0" size="0.003" rgba="1 0 0 -1"/>"#);
+    let _ = writeln!(out, "      </body>");
+    let _ = writeln!(out, r#"      <site name="{name}_bottom_site" pos="0 0 -0.05" size="0.005" rgba="0 0 0 0"/>"#);
+    let _ = writeln!(out, r#"      <site name="{name}_top_site" pos="0 0 {top_z}" size="0.005" rgba="0 0 0 0"/>"#);
+    let _ = writeln!(out, r#"      <site name="{name}_horizontal_radius_site" pos="{rx} {ry} 0" size="0.005" rgba="0 0 0 0"/>"#);
+    let _ = writeln!(out, "    </body>");
 }
 
 /// robosuite's brushed-brass material (nuts and pegs), named after `owner`.
