@@ -83,7 +83,7 @@ def resolve_env_name(name, registered):
                    f"(nor is {base!r}); known: {', '.join(sorted(registered))}")
 
 
-def make_env(env_args, path):
+def make_env(env_args, path, render=False):
     import robosuite
     from robosuite.environments.base import REGISTERED_ENVS
 
@@ -95,7 +95,7 @@ def make_env(env_args, path):
         raise BadInput(f"{path}: data attr 'env_args': env_kwargs has no 'controller_configs'")
     kwargs.update(
         has_renderer=False,
-        has_offscreen_renderer=False,
+        has_offscreen_renderer=render,
         use_camera_obs=False,
         ignore_done=True,
         hard_reset=False,

@@ -32,6 +32,7 @@ fn synthetic_demo(d: usize, steps: usize) -> anyhow::Result<DemoData> {
         rewards: Some(vec![0.0; steps]),
         dones: Some(vec![0; steps]),
         obs,
+        images: BTreeMap::new(),
         datagen_info: Some(DatagenInfo {
             eef_poses: (0..steps).map(|t| pose(t, 0.0)).collect(),
             target_poses: (0..steps).map(|t| pose(t, 0.01)).collect(),

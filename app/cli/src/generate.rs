@@ -93,9 +93,73 @@ pub struct GenerateArgs {
     /// Spec fields for this run over the spec's.
     #[command(flatten)]
     spec: SpecArgs,
+    /// Camera observations rendered into the dataset.
+    #[command(flatten)]
+    cameras: CameraArgs,
     /// Rerun: where the recording goes and how much 3D scene it holds.
     #[command(flatten)]
     rerun: crate::view::RerunArgs,
+}
+
+/// Camera observations, rendered offscreen as robosuite renders them (MuJoCo through EGL; no
+/// display or GPU needed) and written under robomimic's keys (`obs/agentview_image`, uint8
+/// `(T, H, W, 3)`, one gzip chunk per frame).
+#[derive(Debug, Clone, Default, clap::Args)]
+#[command(next_help_heading = "Camera observations")]
+pub struct CameraArgs {
+    /// Render these robosuite cameras into every kept demo; `--cameras` alone means
+    /// agentview,robot0_eye_in_hand (robomimic's image datasets). Others: frontview, birdview,
+    /// sideview. Rendering costs time (see BENCHMARKS.md); off by default.
+    #[arg(long, value_name = "NAMES", num_args = 0..=1, default_missing_value = "agentview,robot0_eye_in_hand")]
+    pub cameras: Option<String>,
+    /// Image size: `N` for N x N, or `HxW` (height x width).
+    #[arg(long, value_name = "N|HxW", default_value = "84", requires = "cameras")]
+    pub camera_size: CameraSize,
+    /// Also render depth (`<camera>_depth`, float32, robosuite's normalized depth buffer).
+    #[arg(long, requires = "cameras")]
+    pub camera_depth: bool,
+}
+
+/// An image size on the command line: `84` or `120x160` (height x width).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CameraSize {
+    /// Rows.
+    pub height: usize,
+    /// Columns.
+    pub width: usize,
+}
+
+impl Default for CameraSize {
+    fn default() -> Self {
+        Self { height: 84, width: 84 }
+    }
+}
+
+impl std::str::FromStr for CameraSize {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let parse = |v: &str| v.trim().parse::<usize>().ok().filter(|&n| n > 0);
+        let size = match s.split_once(['x', 'X']) {
+            Some((h, w)) => parse(h).zip(parse(w)).map(|(height, width)| Self { height, width }),
+            None => parse(s).map(|n| Self { height: n, width: n }),
+        };
+        size.ok_or_else(|| format!("{s:?} is not an image size: give N (N x N pixels) or HxW, e.g. 84 or 120x160"))
+    }
+}
+
+impl CameraArgs {
+    /// The pipeline's camera settings (`None` without `--cameras`).
+    #[must_use]
+    pub fn config(&self) -> Option<mimicgen_sim::camera::CameraConfig> {
+        let names: Vec<String> = self.cameras.as_deref()?.split(',').map(str::trim).filter(|n| !n.is_empty()).map(str::to_owned).collect();
+        Some(mimicgen_sim::camera::CameraConfig {
+            names,
+            height: self.camera_size.height,
+            width: self.camera_size.width,
+            depth: self.camera_depth,
+        })
+    }
 }
 
 /// Spec fields set on the command line over the task spec's, for every subtask (`VALUE`) or for
@@ -165,6 +229,7 @@ impl GenerateArgs {
             resume: self.resume,
             spec: self.spec.overrides(),
             shard: self.shard,
+            cameras: self.cameras.config(),
         }
     }
 }
@@ -342,6 +407,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             rewards: Some(done.iter().map(|&d| d as f64).collect()),
             dones: Some(done),
             obs: BTreeMap::new(),
+            images: BTreeMap::new(),
             datagen_info: Some(DatagenInfo {
                 eef_poses: demo.eef_poses,
                 target_poses: demo.target_poses,

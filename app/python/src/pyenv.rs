@@ -160,7 +160,7 @@ fn observations(env: &mut PyEnv, attempt: &Attempt) -> Result<Observed, EngineEr
     let wrap = |e: PyErr| EngineError::Env { attempt: attempt.index, source: EnvError::Fatal { reason: format!("observations(): {e}") } };
     let has = Python::attach(|py| env.obj.bind(py).hasattr("observations")).map_err(wrap)?;
     if !has {
-        return Ok((BTreeMap::new(), None));
+        return Ok(Observed::default());
     }
     let mut obs: BTreeMap<String, Observation> = BTreeMap::new();
     for state in attempt.trajectory.states.iter() {
@@ -177,7 +177,7 @@ fn observations(env: &mut PyEnv, attempt: &Attempt) -> Result<Observed, EngineEr
         })
         .map_err(wrap)?;
     }
-    Ok((obs, None))
+    Ok(Observed { obs, ..Observed::default() })
 }
 
 /// Runs `config` through the pipeline on environments made by `factory` (one per worker).

@@ -31,6 +31,7 @@ pub mod demonstrator;
 pub mod detect;
 pub mod env;
 pub mod generate;
+pub mod image;
 pub mod kinematic;
 pub mod pose;
 pub mod segment;

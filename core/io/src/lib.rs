@@ -37,4 +37,4 @@ pub use dataset::{
     write_tree,
 };
 pub use error::{IoError, Result};
-pub use writer::{ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, Observation, WriterOptions};
+pub use writer::{ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, Observation, WriterOptions, observations_from_group};

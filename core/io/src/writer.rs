@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use mimicgen_engine::demo::Rows;
 use mimicgen_engine::generate::Attempt;
+use mimicgen_engine::image::{ImageStream, Pixels};
 use mimicgen_engine::pose::{Pose, pose_to_matrix};
 
 use crate::dataset::COMPLETE_ATTR;
@@ -42,6 +43,9 @@ pub struct DemoData {
     pub dones: Option<Vec<i64>>,
     /// Observations by key (`robot0_eef_pos` -> per-step shape `[3]` and `T * 3` values).
     pub obs: BTreeMap<String, Observation>,
+    /// Camera observations by key (`agentview_image`), written under `obs/` as robomimic has them:
+    /// `(T, H, W, C)`, `uint8` for RGB, one gzip-compressed chunk per frame.
+    pub images: BTreeMap<String, ImageStream>,
     /// MimicGen annotations, if any.
     pub datagen_info: Option<DatagenInfo>,
     /// Source demo index used for each subtask.
@@ -79,6 +83,7 @@ impl DemoData {
             rewards: Some(last(attempt.success).iter().map(|&x| x as f64).collect()),
             dones: Some(last(attempt.success)),
             obs,
+            images: BTreeMap::new(),
             datagen_info: Some(DatagenInfo {
                 eef_poses: t.eef_poses.clone(),
                 target_poses: t.target_poses.clone(),
@@ -142,6 +147,35 @@ impl DemoData {
             }
             g.members.insert("obs".into(), Node::Group(obs));
         }
+        if !self.images.is_empty() {
+            let Node::Group(obs) = g.members.entry("obs".into()).or_insert_with(|| Node::Group(Group::default())) else {
+                return Err(usage("obs", "is not a group".to_owned()));
+            };
+            for (key, stream) in &self.images {
+                if obs.members.contains_key(key) {
+                    return Err(usage(&format!("obs/{key}"), "is both a low-dim and a camera observation".to_owned()));
+                }
+                if stream.steps() != steps || stream.steps() * stream.shape.iter().product::<usize>() != stream.len() {
+                    return Err(usage(
+                        &format!("obs/{key}"),
+                        format!("{} values do not make {steps} images of shape {:?}", stream.len(), stream.shape),
+                    ));
+                }
+                let mut full = vec![steps];
+                full.extend_from_slice(&stream.shape);
+                let values = match &stream.pixels {
+                    Pixels::Rgb(p) => Values::U8(p.clone()),
+                    Pixels::Depth(p) => Values::F32(p.clone()),
+                };
+                let mut d = Dataset::new(Array { shape: full.clone(), values });
+                if steps > 0 {
+                    full[0] = 1;
+                    d.chunks = Some(full);
+                    d.deflate = Some(4);
+                }
+                obs.members.insert(key.clone(), Node::Dataset(d));
+            }
+        }
         if let Some(info) = &self.datagen_info {
             let mut dg = Group::default();
             check("datagen_info/eef_pose", info.eef_poses.len())?;
@@ -182,6 +216,32 @@ impl DemoData {
         }
         Ok(g)
     }
+}
+
+/// A demo's `obs` group split as [`DemoData`] holds it: low-dim streams as `f64`, and camera
+/// streams (`uint8` RGB or `float32` depth, `(T, H, W, C)`) as images, their type kept.
+#[must_use]
+pub fn observations_from_group(obs: &Group) -> (BTreeMap<String, Observation>, BTreeMap<String, ImageStream>) {
+    let (mut low_dim, mut images) = (BTreeMap::new(), BTreeMap::new());
+    for (key, node) in &obs.members {
+        let Node::Dataset(d) = node else { continue };
+        let shape = &d.array.shape;
+        let image_shape = (shape.len() == 4).then(|| [shape[1], shape[2], shape[3]]);
+        match (&d.array.values, image_shape) {
+            (Values::U8(p), Some(shape)) => {
+                images.insert(key.clone(), ImageStream { shape, pixels: Pixels::Rgb(p.clone()) });
+            }
+            (Values::F32(p), Some(shape)) if key.ends_with("_depth") => {
+                images.insert(key.clone(), ImageStream { shape, pixels: Pixels::Depth(p.clone()) });
+            }
+            (values, _) => {
+                if let Some(v) = values.to_f64() {
+                    low_dim.insert(key.clone(), (shape.get(1..).unwrap_or_default().to_vec(), v));
+                }
+            }
+        }
+    }
+    (low_dim, images)
 }
 
 fn rows_array(rows: &Rows) -> Array {

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use mimicgen_engine::{Shard, TaskSpec};
+use mimicgen_sim::camera::CameraConfig;
 use mimicgen_sim::{Task, registry};
 use serde::{Deserialize, Serialize};
 
@@ -51,6 +52,9 @@ pub struct RunConfig {
     /// into the dataset of the whole run.
     #[serde(default)]
     pub shard: Option<Shard>,
+    /// Render these cameras into the dataset (`agentview_image`, ...); none by default.
+    #[serde(default)]
+    pub cameras: Option<CameraConfig>,
 }
 
 impl Default for RunConfig {
@@ -73,6 +77,7 @@ impl Default for RunConfig {
             resume: false,
             spec: SpecOverrides::default(),
             shard: None,
+            cameras: None,
         }
     }
 }

@@ -84,23 +84,14 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
                 info.subtask_term_signals.entry(signal).or_default().push(value);
             }
         }
-        let obs = demo
-            .group("obs")
-            .map(|g| {
-                g.members
-                    .keys()
-                    .filter_map(|k| {
-                        g.dataset(k).and_then(|d| d.array.values.to_f64().map(|v| (k.clone(), (d.array.shape[1..].to_vec(), v))))
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
+        let (obs, images) = demo.group("obs").map(mimicgen_io::observations_from_group).unwrap_or_default();
         let data = DemoData {
             actions,
             states,
             rewards: demo.dataset("rewards").and_then(|d| d.array.values.to_f64()),
             dones: demo.dataset("dones").and_then(|d| d.array.values.to_i64()),
             obs,
+            images,
             datagen_info: Some(info),
             src_demo_inds: Vec::new(),
             src_demo_labels: Vec::new(),

@@ -8,8 +8,10 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use mimicgen_engine::demo::initial_object_poses;
+use mimicgen_engine::image::ImageStream;
 use mimicgen_engine::{Attempt, EngineError, Environment, Failure, Generator, RunControl, RunStats, Shard, TaskSpec};
-use mimicgen_io::{DatasetWriter, Observation, WriterOptions};
+use mimicgen_io::{DatasetWriter, DemoData, Observation, WriterOptions};
+use mimicgen_sim::camera::Cameras;
 use mimicgen_sim::{Scene, SimEnv, Task, registry};
 use serde::{Deserialize, Serialize};
 
@@ -22,9 +24,17 @@ pub const RUN_ATTR: &str = "mimicgen_run";
 /// each attempt: attempts before its `next_attempt` are decided and their demos written).
 pub const PROGRESS_ATTR: &str = "mimicgen_progress";
 
-/// What a worker makes of an attempt that may be kept: its observations, and the episode's
-/// `model_file` where the simulator has one.
-pub type Observed = (BTreeMap<String, Observation>, Option<String>);
+/// What a worker makes of an attempt that may be kept: its observations, camera images, and the
+/// episode's `model_file` where the simulator has one.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Observed {
+    /// Low-dim observations by key.
+    pub obs: BTreeMap<String, Observation>,
+    /// Camera observations by key (`agentview_image`).
+    pub images: BTreeMap<String, ImageStream>,
+    /// The episode's scene XML.
+    pub model_xml: Option<String>,
+}
 
 /// What a run was asked to make; a resumed run must describe the same dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -39,6 +49,9 @@ pub(crate) struct RunDescription {
     /// The share of the attempts a shard makes (absent for a whole run, and in a merged one).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub(crate) shard: Option<Shard>,
+    /// The cameras rendered into the demos.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) cameras: Option<mimicgen_sim::camera::CameraConfig>,
 }
 
 /// How far a run has got, stored in the `.partial` file after every attempt.
@@ -221,6 +234,8 @@ pub struct Pipeline {
     scene_xml: String,
     env_args: String,
     description: RunDescription,
+    /// The cameras rendered into every kept demo (`config.cameras`).
+    cameras: Option<Cameras>,
 }
 
 impl std::fmt::Debug for Pipeline {
@@ -433,7 +448,10 @@ impl Pipeline {
             None => Scene::for_task_with_xml(task.as_ref())?,
         };
         let scene_xml = mimicgen_sim::assets::portable_asset_paths(&xml);
-        let env_args = registry::env_args_for_variant(sources.env_args.as_deref(), task.name(), &variant);
+        let mut env_args = registry::env_args_for_variant(sources.env_args.as_deref(), task.name(), &variant);
+        if let Some(cameras) = &config.cameras {
+            env_args = registry::env_args_with_cameras(&env_args, cameras);
+        }
         let generator = Generator::new(spec.clone(), sources).map_err(|e| PipelineError::engine(source_label.clone(), e))?;
         let bytes = std::fs::read(&source_path).map_err(|e| PipelineError::Fs { file: source_label.clone(), reason: e.to_string() })?;
         let description = RunDescription {
@@ -444,8 +462,21 @@ impl Pipeline {
             spec,
             valid_fraction: config.valid_fraction,
             shard: config.shard,
+            cameras: config.cameras.clone(),
         };
-        Ok(Self { config: config.clone(), task, variant, source_path, generator, scene: Arc::new(scene), scene_xml, env_args, description })
+        let cameras = config.cameras.clone().map(|c| Cameras::new(&scene, c)).transpose()?;
+        Ok(Self {
+            config: config.clone(),
+            task,
+            variant,
+            source_path,
+            generator,
+            scene: Arc::new(scene),
+            scene_xml,
+            env_args,
+            description,
+            cameras,
+        })
     }
 
     /// The task.
@@ -464,6 +495,12 @@ impl Pipeline {
     #[must_use]
     pub fn generator(&self) -> &Generator {
         &self.generator
+    }
+
+    /// The cameras the run renders into every kept demo (`None` without `cameras` in the config).
+    #[must_use]
+    pub fn cameras(&self) -> Option<&Cameras> {
+        self.cameras.as_ref()
     }
 
     /// The compiled scene every worker simulates.
@@ -593,18 +630,22 @@ impl Pipeline {
     pub fn run(&self, cancel: &AtomicBool, on_event: impl FnMut(&Event)) -> Result<Report, PipelineError> {
         let mut envs: Vec<SimEnv> =
             (0..self.config.workers).map(|_| SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task))).collect();
-        // On the workers: observations and the episode's model_file.
+        let cameras = self.cameras.as_ref();
+        // On the workers: observations, camera images and the episode's model_file.
         let observe = |env: &mut SimEnv, attempt: &Attempt| -> Result<Observed, EngineError> {
             let initial = initial_object_poses(&attempt.trajectory.object_poses);
             env.place_fixed_objects(&initial);
-            let obs = env
-                .observations_for_states(&attempt.trajectory.states)
-                .map_err(|e| EngineError::Env { attempt: attempt.index, source: e })?;
+            let env_error = |e| EngineError::Env { attempt: attempt.index, source: e };
+            let obs = env.observations_for_states(&attempt.trajectory.states).map_err(env_error)?;
+            let images = match cameras {
+                Some(cameras) => env.images_for_states(&attempt.trajectory.states, cameras).map_err(env_error)?,
+                None => BTreeMap::new(),
+            };
             let xml = self
                 .scene
                 .xml_with_fixed_objects(&self.scene_xml, &initial)
                 .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;
-            Ok((obs, Some(xml)))
+            Ok(Observed { obs, images, model_xml: Some(xml) })
         };
         self.run_on(&mut envs, observe, cancel, on_event)
     }
@@ -667,8 +708,8 @@ impl Pipeline {
                     None
                 };
                 let outcome = match (target, payload) {
-                    (Some((w, success)), Some((obs, xml))) => {
-                        let demo = w.append_attempt(&attempt, obs, xml)?;
+                    (Some((w, success)), Some(Observed { obs, images, model_xml })) => {
+                        let demo = w.append(&DemoData { images, ..DemoData::from_attempt(&attempt, obs, model_xml) })?;
                         if success { Outcome::Written { demo } } else { Outcome::KeptFailed { demo } }
                     }
                     _ => Outcome::Discarded,

@@ -428,3 +428,36 @@ fn robosuite_human_lift_demos_prepare_and_generate() {
         assert!(report.successes >= 3, "{variant}: {} of 6 from the human demos", report.successes);
     }
 }
+
+#[test]
+fn cameras_render_into_the_dataset_as_robomimic_reads_them() {
+    use mimicgen_io::tree::Values;
+    use mimicgen_sim::camera::CameraConfig;
+    let dir = tempfile::tempdir().unwrap();
+    let cameras = Some(CameraConfig { height: 24, width: 32, ..CameraConfig::default() });
+    let one = dir.path().join("one.hdf5");
+    let two = dir.path().join("two.hdf5");
+    let (report, _) = run(&RunConfig { cameras: cameras.clone(), ..config(&one, 2, 1) }).unwrap();
+    run(&RunConfig { cameras: cameras.clone(), ..config(&two, 2, 2) }).unwrap();
+    assert!(report.successes >= 1, "{report:?}");
+    let a = RobomimicDataset::open(&one).unwrap();
+    assert_eq!(a.data(), RobomimicDataset::open(&two).unwrap().data(), "images depend on the worker count");
+    let demo = a.demo("demo_0").unwrap();
+    let steps = demo.dataset("actions").unwrap().array.shape[0];
+    for key in ["agentview_image", "robot0_eye_in_hand_image"] {
+        let d = demo.dataset_at(&format!("obs/{key}")).unwrap();
+        assert_eq!(d.array.shape, [steps, 24, 32, 3], "{key}");
+        assert!(matches!(d.array.values, Values::U8(_)), "{key} is {}", d.array.values.dtype_name());
+        assert_eq!((d.chunks.as_deref(), d.deflate), (Some(&[1, 24, 32, 3][..]), Some(4)), "{key}: a gzip chunk per frame");
+    }
+    // The low-dim observations are still there, and env_args tells robomimic about the cameras.
+    assert!(demo.dataset_at("obs/robot0_eef_pos").is_some());
+    let env_args: serde_json::Value = serde_json::from_str(a.env_args().unwrap()).unwrap();
+    assert_eq!(env_args["env_kwargs"]["use_camera_obs"], true);
+    assert_eq!(env_args["env_kwargs"]["camera_names"], serde_json::json!(["agentview", "robot0_eye_in_hand"]));
+    assert_eq!((env_args["env_kwargs"]["camera_heights"].as_u64(), env_args["env_kwargs"]["camera_widths"].as_u64()), (Some(24), Some(32)));
+    // A camera the scene lacks is refused before anything runs.
+    let bad = Some(CameraConfig { names: vec!["wristcam".into()], ..CameraConfig::default() });
+    let err = Pipeline::prepare(&RunConfig { cameras: bad, ..config(&dir.path().join("bad.hdf5"), 1, 1) }).unwrap_err().to_string();
+    assert!(err.contains("\"wristcam\"") && err.contains("robot0_eye_in_hand"), "{err}");
+}

@@ -182,6 +182,24 @@ impl SimEnv {
         Ok(out)
     }
 
+    /// Camera images for every recorded state (see [`crate::camera`]), keyed `<camera>_image`
+    /// (and `<camera>_depth`). Leaves the environment in the last state.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] on a state of the wrong length or when rendering fails.
+    pub fn images_for_states(
+        &mut self,
+        states: &mimicgen_engine::Rows,
+        cameras: &crate::camera::Cameras,
+    ) -> Result<BTreeMap<String, crate::camera::ImageStream>, EnvError> {
+        let mut out = cameras.streams(states.len());
+        for state in states.iter() {
+            self.set_state(state)?;
+            cameras.capture(&self.data, &mut out).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
+        }
+        Ok(out)
+    }
+
     /// Starts (or stops, with `false`) recording the controls applied at every physics step, so a
     /// benchmark can replay exactly the same physics with no controller around it.
     pub fn record_controls(&mut self, on: bool) {

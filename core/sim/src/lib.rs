@@ -3,11 +3,13 @@
 //! What it does: loads robosuite scenes (a dataset's `model_file`, with asset paths re-pointed at
 //! the local robosuite assets), drives the Panda with robosuite's OSC_POSE controller at 20 Hz over
 //! 2 ms physics steps, and implements [`mimicgen_engine::Environment`] for tasks ([`task`]).
-//! What it does not do: file formats (see `mimicgen-io`), rendering.
+//! Camera observations are rendered offscreen with MuJoCo's renderer ([`camera`]).
+//! What it does not do: file formats (see `mimicgen-io`).
 //!
 //! This is the only crate that links libmujoco (set up by `scripts/setup.sh`).
 
 pub mod assets;
+pub mod camera;
 pub mod compose;
 pub mod env;
 pub mod geometry;
@@ -49,6 +51,14 @@ pub enum SimError {
         /// What does not fit.
         reason: String,
     },
+    /// Offscreen rendering failed (no EGL, a bad camera size).
+    #[error("rendering the scene from {file}: {reason}")]
+    Render {
+        /// Where the scene came from.
+        file: String,
+        /// What failed and what to do about it.
+        reason: String,
+    },
     /// A name the task or robot needs is not in the model.
     #[error("the scene from {file} has no {kind} named {name:?}")]
     MissingName {
@@ -65,6 +75,6 @@ impl SimError {
     /// True when the user's input (a scene file) is at fault rather than the installation.
     #[must_use]
     pub fn is_user_error(&self) -> bool {
-        !matches!(self, Self::Assets { .. })
+        !matches!(self, Self::Assets { .. } | Self::Render { .. })
     }
 }

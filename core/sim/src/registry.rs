@@ -119,6 +119,27 @@ pub fn env_args_for_variant(source_env_args: Option<&str>, name: &str, variant: 
     }
 }
 
+/// `env_args` with robosuite's camera settings for `cameras` (what robomimic reads to render the
+/// same images in the environment it rebuilds).
+#[must_use]
+pub fn env_args_with_cameras(env_args: &str, cameras: &crate::camera::CameraConfig) -> String {
+    let mut args: serde_json::Value = serde_json::from_str(env_args).unwrap_or_default();
+    if !args.is_object() {
+        return env_args.to_owned();
+    }
+    if !args["env_kwargs"].is_object() {
+        args["env_kwargs"] = serde_json::json!({});
+    }
+    let kwargs = &mut args["env_kwargs"];
+    kwargs["use_camera_obs"] = true.into();
+    kwargs["has_offscreen_renderer"] = true.into();
+    kwargs["camera_names"] = cameras.names.clone().into();
+    kwargs["camera_heights"] = cameras.height.into();
+    kwargs["camera_widths"] = cameras.width.into();
+    kwargs["camera_depths"] = cameras.depth.into();
+    args.to_string()
+}
+
 /// robosuite/robomimic's `env_args` JSON for `name` / `variant`, as the reference writes it
 /// (OSC_POSE, kp 150, 20 Hz, Panda), so robomimic can rebuild the environment.
 #[must_use]

@@ -63,6 +63,8 @@ pub struct Scene {
     pub substeps: usize,
     /// Where the scene came from, for error messages.
     pub origin: String,
+    /// The MJCF compiled (local asset paths, image textures kept: what cameras render).
+    pub xml: String,
 }
 
 fn id(model: &MjModel, kind: MjtObjBase, name: &str, origin: &str) -> Result<usize, SimError> {
@@ -84,8 +86,8 @@ impl Scene {
     /// An object body without joints that is not a mocap body yet (robosuite's pegs) is made one,
     /// so that resets can move it while it stays fixed during an episode.
     pub fn compile(xml: &str, origin: &str, objects: &[(&str, &str)], control_freq_hz: f64) -> Result<Self, SimError> {
-        let xml = &crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M");
-        let model = MjModel::from_xml_string(xml).map_err(|e| SimError::Compile { file: origin.to_owned(), reason: format!("{e:?}") })?;
+        let physics_xml = crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M");
+        let model = MjModel::from_xml_string(&physics_xml).map_err(|e| SimError::Compile { file: origin.to_owned(), reason: format!("{e:?}") })?;
         let mut to_mocap = Vec::new();
         for (_, body_name) in objects {
             let body = id(&model, MjtObjBase::mjOBJ_BODY, body_name, origin)?;
@@ -177,7 +179,7 @@ impl Scene {
         let timestep = model.opt().timestep;
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let substeps = ((1.0 / control_freq_hz) / timestep).round().max(1.0) as usize;
-        Ok(Self { model: Arc::new(model), robot, objects: scene_objects, substeps, origin: origin.to_owned() })
+        Ok(Self { model: Arc::new(model), robot, objects: scene_objects, substeps, origin: origin.to_owned(), xml: xml.to_owned() })
     }
 
     /// Loads a dataset's scene (robosuite's `model_file` XML): re-points its asset paths at the

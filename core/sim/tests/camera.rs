@@ -1,0 +1,77 @@
+//! Camera observations: robosuite's cameras render offscreen (EGL), upright, follow the state, and
+//! bad requests name what is wrong.
+#![allow(clippy::unwrap_used)] // tests fail loudly by design
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use mimicgen_engine::Environment as _;
+use mimicgen_sim::camera::{CameraConfig, Cameras, ImageStream, Pixels};
+use mimicgen_sim::{Scene, SimEnv, registry};
+use rand::SeedableRng as _;
+
+fn stack_env() -> (Arc<Scene>, SimEnv) {
+    let task = registry::task("stack", "D0").unwrap();
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let mut env = SimEnv::new(Arc::clone(&scene), task);
+    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(5)).unwrap();
+    (scene, env)
+}
+
+fn capture(cameras: &Cameras, env: &SimEnv) -> BTreeMap<String, ImageStream> {
+    let mut streams = cameras.streams(1);
+    cameras.capture(env.data(), &mut streams).unwrap();
+    streams
+}
+
+fn rgb(streams: &BTreeMap<String, ImageStream>, key: &str) -> Vec<u8> {
+    streams[key].rgb_frame(0).unwrap().to_vec()
+}
+
+/// Mean brightness of rows `rows` of an `h x w` RGB image.
+fn mean_rows(pixels: &[u8], w: usize, rows: std::ops::Range<usize>) -> f64 {
+    let band = &pixels[rows.start * w * 3..rows.end * w * 3];
+    band.iter().map(|&v| f64::from(v)).sum::<f64>() / band.len() as f64
+}
+
+#[test]
+fn robosuite_cameras_render_upright_and_follow_the_state() {
+    let (scene, mut env) = stack_env();
+    let config = CameraConfig { height: 48, width: 64, depth: true, ..CameraConfig::default() };
+    let cameras = Cameras::new(&scene, config).unwrap();
+    assert_eq!(cameras.keys(), ["agentview_image", "agentview_depth", "robot0_eye_in_hand_image", "robot0_eye_in_hand_depth"]);
+    let first = capture(&cameras, &env);
+    assert_eq!(first["agentview_image"].shape, [48, 64, 3]);
+    assert_eq!(first["agentview_depth"].shape, [48, 64, 1]);
+    assert!(first.values().all(|s| s.steps() == 1));
+    // Upright, as robomimic stores robosuite's frames: the white table fills agentview's bottom,
+    // the wall and the robot its top.
+    let agentview = rgb(&first, "agentview_image");
+    let (top, bottom) = (mean_rows(&agentview, 64, 0..8), mean_rows(&agentview, 64, 40..48));
+    assert!(bottom > top + 40.0, "bottom rows {bottom:.0}, top rows {top:.0}: is the image upside down?");
+    // Depth is robosuite's normalized buffer: in (0, 1), the table's front nearer than the wall.
+    let Pixels::Depth(depth) = &first["agentview_depth"].pixels else { panic!("depth is not float") };
+    assert!(depth.iter().all(|&d| d > 0.0 && d < 1.0));
+    assert!(depth[47 * 64 + 32] < depth[32]);
+    // The same state renders the same pixels; another state others.
+    assert_eq!(capture(&cameras, &env), first);
+    for _ in 0..10 {
+        env.step(&[0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+    }
+    let moved = capture(&cameras, &env);
+    let changed = |key: &str| rgb(&first, key).iter().zip(rgb(&moved, key)).filter(|(a, b)| a.abs_diff(*b) > 16).count();
+    assert!(changed("robot0_eye_in_hand_image") > 48 * 64 / 10, "the wrist camera did not move with the arm");
+    assert!(changed("agentview_image") > 0);
+}
+
+#[test]
+fn bad_camera_requests_name_what_is_wrong() {
+    let (scene, _) = stack_env();
+    let named = |names: &[&str]| CameraConfig { names: names.iter().map(|&n| n.to_owned()).collect(), ..CameraConfig::default() };
+    let err = Cameras::new(&scene, named(&["agentview", "topview"])).unwrap_err().to_string();
+    assert!(err.contains("\"topview\"") && err.contains("agentview") && err.contains("frontview"), "{err}");
+    let err = Cameras::new(&scene, named(&[])).unwrap_err().to_string();
+    assert!(err.contains("no camera named"), "{err}");
+    let err = Cameras::new(&scene, CameraConfig { height: 2000, ..CameraConfig::default() }).unwrap_err().to_string();
+    assert!(err.contains("84x2000") && err.contains("640x480"), "{err}");
+}
