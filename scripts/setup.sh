@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # One-time (idempotent) setup of everything the build and tests need beyond cargo:
-#   - Debian: libhdf5-dev (the HDF5 C library our dataset crate links), pkg-config; with --viewer
+#   - Debian: libhdf5-dev (the HDF5 C library our dataset crate links), pkg-config, and EGL with
+#     Mesa's software renderer (libegl1, libegl-mesa0, libgl1-mesa-dri, libgl1: MuJoCo renders
+#     camera observations offscreen through them, no display or GPU needed); with --viewer
 #     also libudev-dev (linked by the Rerun viewer the app embeds with its `viewer` feature)
 #   - Python: a virtual environment with the pinned packages in scripts/requirements.txt
 # Everything lands in $MIMICGEN_CACHE (default ~/.cache/mimicgen), outside the clone, so a fresh
@@ -10,7 +12,8 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 cache="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}"
 mkdir -p "$cache"
 
-debian_packages=(libhdf5-dev=1.10.8+repack1-1 pkg-config)
+debian_packages=(libhdf5-dev=1.10.8+repack1-1 pkg-config
+  libegl1=1.6.0-1 libegl-mesa0=22.3.6-1+deb12u2 libgl1-mesa-dri=22.3.6-1+deb12u2 libgl1=1.6.0-1)
 viewer_packages=(libudev-dev=252.39-1~deb12u2)
 [ "${1:-}" = "--viewer" ] && debian_packages+=("${viewer_packages[@]}")
 missing=()
@@ -42,6 +45,8 @@ fi
 # Pinned wheels from PyPI, checked by sha256; only the parts we use are unpacked.
 #   mujoco 3.17.0: libmujoco.so.3.17.0 (the version mujoco-rs 7.0.0+mj-3.17.0 wraps)
 #   robosuite 1.4.1 (MIT): robot, gripper, mount, arena, object and texture assets
+#   imageio-ffmpeg 0.8.1: a static ffmpeg 9.0.2 (libx264) that `mimicgen export --lerobot` encodes
+#   camera streams with
 fetch_wheel() { # name version sha256 dest pip-args...
   local name="$1" version="$2" sha="$3" dest="$4"; shift 4
   if [ -f "$dest/.done" ]; then return; fi
@@ -59,6 +64,8 @@ mujoco_dir="$cache/mujoco-3.17.0"
 fetch_wheel mujoco 3.17.0 d66928d86a2d1b601bbaa4dc11db50214d17d5301bb8afd84721313b67ff0874 "$mujoco_dir" \
   --python-version 3.11 --implementation cp --platform manylinux_2_28_x86_64
 fetch_wheel robosuite 1.4.1 62587cd5888d9d3d813f3ffcc7017f6f77efa618952527a0b9bb139ffd0a3741 "$cache/robosuite-1.4.1"
+fetch_wheel imageio-ffmpeg 0.8.1 050d6850601c3b3890bd2b28306f3b842b3daea390a561101174375a1c460bda "$cache/ffmpeg-9.0.2" \
+  --platform manylinux_2_28_x86_64
 
 # The build finds libmujoco through .mujoco/lib (see .cargo/config.toml); link it into this clone.
 root="$(cd "$here/.." && pwd)"

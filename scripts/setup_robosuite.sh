@@ -20,7 +20,8 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     -r "$here/requirements-robosuite.txt"
   site="$("$venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
   # robosuite's documented override file: without it robosuite forces MUJOCO_GL=egl at import
-  # (MUJOCO_GPU_RENDERING) and needs PyOpenGL and libEGL even when nothing renders.
+  # (MUJOCO_GPU_RENDERING) and needs libEGL even when nothing renders; scripts that render set
+  # MUJOCO_GL=egl themselves.
   printf '%s\n' '# Written by scripts/setup_robosuite.sh: no rendering in this environment.' \
     'MUJOCO_GPU_RENDERING = False' > "$site/robosuite/macros_private.py"
   # Smoke test; it also fills numba's cache of robosuite's jitted functions (about 10 s once).

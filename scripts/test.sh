@@ -26,3 +26,8 @@ trap 'rm -rf "$replay_dir"' EXIT
 # Python): 6 attempts from the reference's source demos (BENCHMARKS.md has 50).
 echo "== robosuite driven by the engine"
 bash scripts/bench_robosuite.sh --num 6 --seed 1 --min-success 5 --out "$replay_dir/rs_driven.hdf5"
+# Camera observations: robosuite 1.4.1 renders the same stored states with its own cameras; our
+# images must agree (BENCHMARKS.md has the figures: agentview differs only in the floor's texture).
+echo "== robosuite renders what we render"
+"$CARGO_TARGET_DIR/debug/mimicgen" generate --num-demos 2 --seed 1 --workers 2 --cameras --out "$replay_dir/cameras.hdf5" >/dev/null
+"$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_render.py "$replay_dir/cameras.hdf5" --frames 5 --min-psnr 22

@@ -3,6 +3,7 @@
 usage: unpack_wheel.py WHEEL NAME DEST
   mujoco:    mujoco/libmujoco.so.* -> DEST/lib/ (+ the libmujoco.so link mujoco-rs looks for)
   robosuite: robosuite/models/assets/** (no bullet_data, no demonstrations) -> DEST/models/assets/
+  imageio-ffmpeg: its static ffmpeg build (libx264) -> DEST/ffmpeg (encodes LeRobot videos)
 """
 import os
 import sys
@@ -29,5 +30,14 @@ with zipfile.ZipFile(wheel) as z:
         for n in z.namelist():
             if n.startswith(prefix) and not n.startswith(skip) and not n.endswith("/"):
                 z.extract(n, dest)
+    elif name == "imageio-ffmpeg":
+        exe = [n for n in z.namelist() if n.startswith("imageio_ffmpeg/binaries/ffmpeg-")]
+        if len(exe) != 1:
+            sys.exit(f"unpack_wheel: expected one ffmpeg in {wheel}, found {exe}")
+        os.makedirs(dest, exist_ok=True)
+        target = os.path.join(dest, "ffmpeg")
+        with z.open(exe[0]) as src, open(target, "wb") as out:
+            out.write(src.read())
+        os.chmod(target, 0o755)
     else:
         sys.exit(f"unpack_wheel: unknown wheel {name}")

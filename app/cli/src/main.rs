@@ -7,7 +7,8 @@ use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 use mimicgen_engine::TaskSpec;
 use mimicgen_io::info::DatasetInfo;
-use mimicgen_io::{DemoReader, ReadOptions};
+use mimicgen_io::{DemoReader, DemoSource as _, ReadOptions};
+use mimicgen_sim::registry;
 
 mod annotate;
 mod bench_app;
@@ -138,13 +139,43 @@ its _failed.hdf5.")]
         #[arg(long)]
         overwrite: bool,
     },
-    /// Export a dataset's streams (poses, actions, labels) to MCAP for Foxglove.
+    /// Export a dataset: to MCAP for Foxglove (poses, actions, labels), or to a LeRobot dataset
+    /// (parquet frames, camera streams as MP4, meta/) that LeRobot's loaders read.
+    #[command(after_help = "\
+Examples:
+  mimicgen export out/stack_d0.hdf5 --mcap out/stack_d0.mcap
+  mimicgen export out/stack_cams.hdf5 --lerobot out/stack_lerobot     # LeRobot v3.0 dataset directory
+  mimicgen export out/stack_cams.hdf5 --lerobot out/lr --state-keys robot0_eef_pos,robot0_gripper_qpos
+
+Load the LeRobot export in Python:
+  from lerobot.datasets.lerobot_dataset import LeRobotDataset   # or ledataset.datasets.lerobot_dataset
+  ds = LeRobotDataset(\"local/stack\", root=\"out/stack_lerobot\")
+  ds[0][\"observation.images.agentview\"]   # (3, 84, 84) float in [0, 1]
+
+Every obs/<camera>_image of the dataset (generate --cameras) becomes the video feature
+observation.images.<camera> (H.264, encoded by the ffmpeg scripts/setup.sh installs).")]
     Export {
         /// The dataset.
         file: PathBuf,
         /// Output MCAP file.
+        #[arg(long, required_unless_present = "lerobot")]
+        mcap: Option<PathBuf>,
+        /// Output LeRobot dataset directory (format v3.0).
         #[arg(long)]
-        mcap: PathBuf,
+        lerobot: Option<PathBuf>,
+        /// LeRobot: observation keys concatenated into `observation.state`, in order.
+        #[arg(long, value_delimiter = ',', default_value = "robot0_eef_pos,robot0_eef_quat,robot0_gripper_qpos,object")]
+        state_keys: Vec<String>,
+        /// LeRobot: the task instruction of every frame. Default: the task's, from env_args.
+        #[arg(long)]
+        instruction: Option<String>,
+        /// LeRobot: the ffmpeg that encodes camera streams. Default: $MIMICGEN_FFMPEG, else the
+        /// one scripts/setup.sh unpacked into the cache, else `ffmpeg` on the PATH.
+        #[arg(long)]
+        ffmpeg: Option<PathBuf>,
+        /// LeRobot: replace an existing output directory.
+        #[arg(long)]
+        overwrite: bool,
     },
     /// Measure HDF5 write and read of a synthetic dataset (seconds and peak memory).
     BenchIo {
@@ -228,12 +259,38 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        Command::Export { file, mcap } => {
+        Command::Export { file, mcap, lerobot, state_keys, instruction, ffmpeg, overwrite } => {
             let ds = DemoReader::open_with(&file, ReadOptions::default())?;
-            let summary = mimicgen_io::mcap_export::export(&ds, &mcap)?;
-            println!("{}: {} demos, {} steps at 20 Hz", mcap.display(), summary.demos, summary.steps);
-            for (topic, n) in &summary.messages {
-                println!("  {topic:<24} {n} messages");
+            if let Some(mcap) = mcap {
+                let summary = mimicgen_io::mcap_export::export(&ds, &mcap)?;
+                println!("{}: {} demos, {} steps at 20 Hz", mcap.display(), summary.demos, summary.steps);
+                for (topic, n) in &summary.messages {
+                    println!("  {topic:<24} {n} messages");
+                }
+            }
+            if let Some(out) = lerobot {
+                let task = registry::task_from_env_args(ds.env_args_json()).ok().map(|(task, _)| task.name().to_owned());
+                let options = mimicgen_io::lerobot::LeRobotOptions {
+                    state_keys,
+                    fps: 20,
+                    task: instruction.unwrap_or_else(|| task.as_deref().map_or_else(|| "do the task".to_owned(), registry::instruction)),
+                    robot_type: "panda".to_owned(),
+                    ffmpeg: ffmpeg.unwrap_or_else(default_ffmpeg),
+                    overwrite,
+                };
+                let bar = indicatif::ProgressBar::new(ds.demo_names().len() as u64).with_style(
+                    indicatif::ProgressStyle::with_template("exporting {bar:30} {pos}/{len} episodes, {elapsed} ({eta} left)")
+                        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+                );
+                let summary = mimicgen_io::lerobot::export_lerobot(&ds, &out, &options, |done, _| bar.set_position(done as u64))?;
+                bar.finish_and_clear();
+                println!("{}: LeRobot {} dataset, {} episodes, {} frames at 20 fps", summary.out, mimicgen_io::lerobot::CODEBASE_VERSION, summary.episodes, summary.frames);
+                let state: Vec<String> = summary.state.iter().map(|(k, n)| format!("{k} ({n})")).collect();
+                println!("  observation.state: {}", state.join(" + "));
+                println!("  task: {:?}", options.task);
+                for video in &summary.videos {
+                    println!("  {video}: H.264 video");
+                }
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -377,4 +434,14 @@ enum ScreenArg {
     Preview,
     /// A generation run, live.
     Generate,
+}
+
+/// The ffmpeg LeRobot export encodes with: `$MIMICGEN_FFMPEG`, else the one `scripts/setup.sh`
+/// unpacked into the cache, else `ffmpeg` on the `PATH`.
+fn default_ffmpeg() -> PathBuf {
+    if let Some(path) = std::env::var_os("MIMICGEN_FFMPEG") {
+        return PathBuf::from(path);
+    }
+    let cached = mimicgen_sim::assets::cache_dir().join("ffmpeg-9.0.2/ffmpeg");
+    if cached.is_file() { cached } else { PathBuf::from("ffmpeg") }
 }

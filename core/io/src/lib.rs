@@ -4,8 +4,10 @@
 //! ([`read_source_dataset`]), keeps every other group, dataset and attribute so a file can be
 //! written back bit for bit ([`RobomimicDataset`]), writes generated demos demo by demo in the
 //! layout robomimic's `SequenceDataset` loads ([`DatasetWriter`]), reads large files one demo at
-//! a time ([`DemoReader`]), summarises a dataset ([`info::DatasetInfo`]) and exports its streams to
-//! MCAP for Foxglove ([`mcap_export`]).
+//! a time ([`DemoReader`]), summarises a dataset ([`info::DatasetInfo`]), exports its streams to
+//! MCAP for Foxglove ([`mcap_export`]) and the whole dataset to LeRobot's format ([`lerobot`]).
+//! Camera observations (`obs/<camera>_image`, uint8) are written and read as images
+//! ([`mimicgen_engine::image::ImageStream`]).
 //!
 //! Crash safety: [`DatasetWriter`] writes `<out>.partial` marked incomplete, flushes after every
 //! demo and renames on [`DatasetWriter::finish`]; readers refuse an incomplete file unless
@@ -14,7 +16,7 @@
 //! Beware: libhdf5 opens files without close-on-exec and `flock`s them, so a child process
 //! spawned while a file is open keeps it locked until the child exits.
 //!
-//! What it does not do: no simulation, no rendering, no image observations beyond plain arrays.
+//! What it does not do: no simulation, no rendering (camera images come from `mimicgen-sim`).
 //!
 //! ```no_run
 //! use mimicgen_engine::spec::SourceSelection;
@@ -28,6 +30,7 @@
 pub mod dataset;
 mod error;
 pub mod info;
+pub mod lerobot;
 pub mod mcap_export;
 pub mod tree;
 pub mod writer;

@@ -15,6 +15,8 @@ pub struct TaskInfo {
     pub description: &'static str,
     /// robosuite's environment name prefix (`Stack` -> `Stack_D0`).
     pub env_name: &'static str,
+    /// The task as an instruction (LeRobot's `task` of each frame).
+    pub instruction: &'static str,
 }
 
 /// Every task, in the order `mimicgen tasks` lists them.
@@ -24,32 +26,43 @@ pub const TASKS: &[TaskInfo] = &[
         variants: &["D0", "D1"],
         description: "red cube onto green cube; D0 both in a 0.16 m square, D1 in 0.40 m; random yaw",
         env_name: "Stack",
+        instruction: "stack the red cube on top of the green cube",
     },
     TaskInfo {
         name: "stack_three",
         variants: &["D0", "D1"],
         description: "red onto green, then blue onto red; D0 cubes in a 0.20 m square, D1 in 0.40 m; random yaw",
         env_name: "StackThree",
+        instruction: "stack the red cube on the green cube, then the blue cube on the red cube",
     },
     TaskInfo {
         name: "nut_assembly",
         variants: &["D0", "D1"],
         description: "square nut onto the square peg, then round nut onto the round peg; D0 robosuite's reset (each nut in a 0.005 x 0.115 m strip), D1 both in 0.25 x 0.5 m",
         env_name: "NutAssembly",
+        instruction: "put the square nut on the square peg and the round nut on the round peg",
     },
     TaskInfo {
         name: "lift",
         variants: &["D0", "D1"],
         description: "pick the red cube up; D0 robosuite's reset (0.06 m square), D1 0.30 m; random yaw; bundled demos: robosuite's 3 human ones",
         env_name: "Lift",
+        instruction: "lift the red cube",
     },
     TaskInfo {
         name: "square",
         variants: &["D0", "D1", "D2"],
         description: "square nut onto its peg; D0 peg fixed, nut in 0.005 x 0.115 m; D1 peg in 0.4 x 0.4 m, nut in 0.23 x 0.51 m; D2 both in 0.5 x 0.5 m, peg yaw too",
         env_name: "Square",
+        instruction: "put the square nut on the square peg",
     },
 ];
+
+/// The instruction of task `name` (its name when unknown).
+#[must_use]
+pub fn instruction(name: &str) -> String {
+    TASKS.iter().find(|t| t.name == name).map_or_else(|| name.replace('_', " "), |t| t.instruction.to_owned())
+}
 
 /// The bundled task spec (our TOML, the paper's settings) for `name`.
 #[must_use]
