@@ -29,5 +29,11 @@ bash scripts/bench_robosuite.sh --num 6 --seed 1 --min-success 5 --out "$replay_
 # Camera observations: robosuite 1.4.1 renders the same stored states with its own cameras; our
 # images must agree (BENCHMARKS.md has the figures: agentview differs only in the floor's texture).
 echo "== robosuite renders what we render"
-"$CARGO_TARGET_DIR/debug/mimicgen" generate --num-demos 2 --seed 1 --workers 2 --cameras --out "$replay_dir/cameras.hdf5" >/dev/null
+"$CARGO_TARGET_DIR/debug/mimicgen" generate --num-demos 3 --guarantee --seed 1 --workers 2 --cameras --out "$replay_dir/cameras.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_render.py "$replay_dir/cameras.hdf5" --frames 5 --min-psnr 22
+# LeRobot export of that dataset (parquet + H.264 camera videos), loaded by LeRobot's own
+# LeRobotDataset: counts, episode boundaries, first/last actions, decoded frames.
+echo "== LeRobot export, loaded by LeRobot"
+bash scripts/setup_lerobot.sh
+"$CARGO_TARGET_DIR/debug/mimicgen" export "$replay_dir/cameras.hdf5" --lerobot "$replay_dir/lerobot"
+"$MIMICGEN_CACHE/venv-lerobot/bin/python" scripts/check_lerobot.py "$replay_dir/cameras.hdf5" "$replay_dir/lerobot"

@@ -275,7 +275,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                     fps: 20,
                     task: instruction.unwrap_or_else(|| task.as_deref().map_or_else(|| "do the task".to_owned(), registry::instruction)),
                     robot_type: "panda".to_owned(),
-                    ffmpeg: ffmpeg.unwrap_or_else(default_ffmpeg),
+                    ffmpeg: ffmpeg.unwrap_or_else(mimicgen_io::lerobot::LeRobotOptions::default_ffmpeg),
                     overwrite,
                 };
                 let bar = indicatif::ProgressBar::new(ds.demo_names().len() as u64).with_style(
@@ -436,12 +436,3 @@ enum ScreenArg {
     Generate,
 }
 
-/// The ffmpeg LeRobot export encodes with: `$MIMICGEN_FFMPEG`, else the one `scripts/setup.sh`
-/// unpacked into the cache, else `ffmpeg` on the `PATH`.
-fn default_ffmpeg() -> PathBuf {
-    if let Some(path) = std::env::var_os("MIMICGEN_FFMPEG") {
-        return PathBuf::from(path);
-    }
-    let cached = mimicgen_sim::assets::cache_dir().join("ffmpeg-9.0.2/ffmpeg");
-    if cached.is_file() { cached } else { PathBuf::from("ffmpeg") }
-}

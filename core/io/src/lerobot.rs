@@ -60,6 +60,25 @@ pub struct LeRobotOptions {
     pub overwrite: bool,
 }
 
+impl LeRobotOptions {
+    /// The ffmpeg to encode with: `$MIMICGEN_FFMPEG`, else the one `scripts/setup.sh` unpacked
+    /// into the project's cache (`$MIMICGEN_CACHE`, default `~/.cache/mimicgen`), else `ffmpeg`
+    /// on the `PATH`.
+    #[must_use]
+    pub fn default_ffmpeg() -> PathBuf {
+        if let Some(path) = std::env::var_os("MIMICGEN_FFMPEG") {
+            return PathBuf::from(path);
+        }
+        let cache = std::env::var_os("MIMICGEN_CACHE")
+            .map(PathBuf::from)
+            .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/mimicgen")));
+        match cache.map(|c| c.join("ffmpeg-9.0.2/ffmpeg")) {
+            Some(cached) if cached.is_file() => cached,
+            _ => PathBuf::from("ffmpeg"),
+        }
+    }
+}
+
 /// What an export wrote.
 #[derive(Debug, Clone, PartialEq, Default, Serialize)]
 pub struct LeRobotSummary {
