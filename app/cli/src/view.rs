@@ -132,6 +132,20 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
     let mut logger = RunLogger::new(rec, &scene, LogConfig { scene: SceneLevel::All, scene_stride: args.stride.max(1) })?;
     let selected = sources.demos.iter().enumerate().filter(|(i, _)| args.demo.is_none_or(|d| d == *i));
     logger.log_demos(selected)?;
+    // Camera observations (generate --cameras) as images on the same timelines.
+    let mut cameras: Vec<String> = Vec::new();
+    for (i, demo) in sources.demos.iter().enumerate().filter(|(i, _)| args.demo.is_none_or(|d| d == *i)) {
+        let Some(obs) = dataset.demo(&demo.name).and_then(|g| g.group("obs")) else { continue };
+        let (_, images) = mimicgen_io::observations_from_group(obs);
+        for camera in logger.log_demo_images(i, &images)? {
+            if !cameras.contains(&camera) {
+                cameras.push(camera);
+            }
+        }
+    }
+    if !cameras.is_empty() {
+        mimicgen_viz::send_blueprint(logger.stream(), mimicgen_viz::blueprint_with_cameras(&cameras))?;
+    }
     logger.finish()?;
     eprintln!(
         "logged {} demo(s) of {} to {}",

@@ -2,7 +2,8 @@
 
 use rerun::blueprint::components::{PanelState, PlayState};
 use rerun::blueprint::{
-    Blueprint, BlueprintPanel, Horizontal, SelectionPanel, Spatial3DView, Tabs, TextLogView, TimePanel, TimeSeriesView, Vertical,
+    Blueprint, BlueprintPanel, Horizontal, SelectionPanel, Spatial2DView, Spatial3DView, Tabs, TextLogView, TimePanel, TimeSeriesView,
+    Vertical,
 };
 
 use crate::record::timelines;
@@ -12,17 +13,27 @@ use crate::record::timelines;
 /// newest data (the end of a saved run, the current attempt of a live one).
 #[must_use]
 pub fn default_blueprint() -> Blueprint {
+    blueprint_with_cameras(&[])
+}
+
+/// [`default_blueprint`] with a row of camera images (`cameras/<name>`, one 2D view each) above the
+/// plots, for datasets with camera observations.
+#[must_use]
+pub fn blueprint_with_cameras(cameras: &[String]) -> Blueprint {
+    let mut right = Vec::new();
+    if !cameras.is_empty() {
+        right.push(
+            Horizontal::new(cameras.iter().map(|c| Spatial2DView::new(c.as_str()).with_origin(format!("{}/{c}", crate::record::CAMERAS)).into()))
+                .into(),
+        );
+    }
+    right.extend([
+        TimeSeriesView::new("Signals and gripper").with_origin("plots").into(),
+        TimeSeriesView::new("Run statistics").with_origin("stats").into(),
+        TextLogView::new("Outcomes").with_origin("outcome").into(),
+    ]);
     Blueprint::new(
-        Horizontal::new([
-            Spatial3DView::new("Scene").with_origin("world").into(),
-            Vertical::new([
-                TimeSeriesView::new("Signals and gripper").with_origin("plots").into(),
-                TimeSeriesView::new("Run statistics").with_origin("stats").into(),
-                TextLogView::new("Outcomes").with_origin("outcome").into(),
-            ])
-            .into(),
-        ])
-        .with_column_shares([2.0, 1.0]),
+        Horizontal::new([Spatial3DView::new("Scene").with_origin("world").into(), Vertical::new(right).into()]).with_column_shares([2.0, 1.0]),
     )
     .with_time_panel(TimePanel::new().with_timeline(timelines::FRAME).with_play_state(PlayState::Following))
 }

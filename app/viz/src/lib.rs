@@ -24,11 +24,11 @@ mod run;
 mod scene;
 mod sink;
 
-pub use blueprint::{app_blueprint, default_blueprint};
+pub use blueprint::{app_blueprint, blueprint_with_cameras, default_blueprint};
 pub use rerun;
 pub use run::{LogConfig, RunLogger, SceneLevel};
 pub use scene::{SceneLogger, xyzw_from_xmat};
-pub use sink::{Sink, viewer_path};
+pub use sink::{Sink, send_blueprint, viewer_path};
 
 /// Everything that can go wrong logging to Rerun.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

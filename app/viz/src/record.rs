@@ -92,6 +92,39 @@ fn as_i64(v: usize) -> i64 {
     v as i64
 }
 
+/// Where camera images go: `cameras/<camera>` (`agentview_image` is logged as `cameras/agentview`).
+pub const CAMERAS: &str = "cameras";
+
+/// Logs a demo's RGB camera streams (`<camera>_image`) as images under `cameras/<camera>`, one per
+/// step on the `demo`, `step` and `frame` timelines (`frame_offset`: the demo's first frame).
+/// Returns the cameras logged.
+///
+/// # Errors
+/// [`VizError::Rerun`] from the stream.
+pub fn log_images(
+    rec: &RecordingStream,
+    images: &BTreeMap<String, mimicgen_engine::image::ImageStream>,
+    demo_index: usize,
+    frame_offset: usize,
+) -> Result<Vec<String>, VizError> {
+    let mut cameras = Vec::new();
+    for (key, stream) in images {
+        let Some(camera) = key.strip_suffix("_image") else { continue };
+        let [h, w, 3] = stream.shape else { continue };
+        let path = format!("{CAMERAS}/{camera}");
+        let resolution = [u32::try_from(w).unwrap_or(u32::MAX), u32::try_from(h).unwrap_or(u32::MAX)];
+        rec.set_time_sequence(timelines::DEMO, as_i64(demo_index));
+        for t in 0..stream.steps() {
+            let Some(frame) = stream.rgb_frame(t) else { break };
+            rec.set_time_sequence(timelines::STEP, as_i64(t));
+            rec.set_time_sequence(timelines::FRAME, as_i64(frame_offset + t));
+            rec.log(path.as_str(), &rerun::Image::from_rgb24(frame.to_vec(), resolution)).map_err(|e| VizError::rerun(&path, &e))?;
+        }
+        cameras.push(camera.to_owned());
+    }
+    Ok(cameras)
+}
+
 /// Logs one demo (a source demo, or a demo of any dataset) under `root`: the end-effector path
 /// coloured by subtask, the subtask ends with the objects' frames there, and each subtask-end
 /// signal as a plot under `plots/signals`. `demo_index` is the `demo` timeline value;

@@ -44,6 +44,8 @@ pub struct RunLogger {
     source_names: Vec<String>,
     frame: usize,
     demos_cleared: bool,
+    /// The `frame` at which each logged demo starts.
+    demo_frames: std::collections::BTreeMap<usize, usize>,
 }
 
 impl RunLogger {
@@ -55,7 +57,7 @@ impl RunLogger {
         let scene = SceneLogger::new(scene, "world/scene");
         rec.log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP()).map_err(|e| VizError::rerun("world", &e))?;
         scene.log_static(&rec)?;
-        Ok(Self { rec, scene, config, source_names: Vec::new(), frame: 0, demos_cleared: false })
+        Ok(Self { rec, scene, config, source_names: Vec::new(), frame: 0, demos_cleared: false, demo_frames: std::collections::BTreeMap::new() })
     }
 
     /// The recording.
@@ -75,6 +77,7 @@ impl RunLogger {
                 self.source_names.resize(index + 1, String::new());
             }
             self.source_names[index].clone_from(&demo.name);
+            self.demo_frames.insert(index, self.frame);
             record::log_demo(&self.rec, "world/demo", demo, index, self.frame)?;
             let n = demo.sim.states.len();
             if self.config.scene != SceneLevel::None && n > 0 {
@@ -93,6 +96,22 @@ impl RunLogger {
         }
         self.rec.disable_timeline(timelines::DEMO);
         Ok(())
+    }
+
+    /// Logs the camera images of demo `index` (already logged by [`RunLogger::log_demos`]) on its
+    /// steps; returns the cameras.
+    ///
+    /// # Errors
+    /// [`VizError::Rerun`] from the stream.
+    pub fn log_demo_images(
+        &mut self,
+        index: usize,
+        images: &std::collections::BTreeMap<String, mimicgen_engine::image::ImageStream>,
+    ) -> Result<Vec<String>, VizError> {
+        let frame = self.demo_frames.get(&index).copied().unwrap_or(self.frame);
+        let cameras = record::log_images(&self.rec, images, index, frame)?;
+        self.rec.disable_timeline(timelines::DEMO);
+        Ok(cameras)
     }
 
     /// Logs one attempt and the statistics after it.

@@ -55,11 +55,19 @@ impl Sink {
                 builder.spawn_opts(&opts).map_err(|e| VizError::rerun("spawned viewer", &e))?
             }
         };
-        rec.send_blueprint_opts(&rerun::blueprint::BlueprintOpts {
-            blueprint: crate::default_blueprint(),
-            activation: rerun::blueprint::BlueprintActivation { make_active: true, make_default: true },
-        })
-        .map_err(|e| VizError::rerun("blueprint", &e))?;
+        send_blueprint(&rec, crate::default_blueprint())?;
         Ok(rec)
     }
+}
+
+/// Sends `blueprint` as the recording's active and default layout.
+///
+/// # Errors
+/// [`VizError::Rerun`] from the stream.
+pub fn send_blueprint(rec: &RecordingStream, blueprint: rerun::blueprint::Blueprint) -> Result<(), VizError> {
+    rec.send_blueprint_opts(&rerun::blueprint::BlueprintOpts {
+        blueprint,
+        activation: rerun::blueprint::BlueprintActivation { make_active: true, make_default: true },
+    })
+    .map_err(|e| VizError::rerun("blueprint", &e))
 }

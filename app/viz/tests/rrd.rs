@@ -118,3 +118,40 @@ fn pegs_are_drawn_where_each_episode_had_them() {
     assert!((placed[0] - t.x).abs() < 1e-9 && (placed[1] - t.y).abs() < 1e-9, "{placed:?} vs {t:?}");
     assert!((t.x - 0.23).abs() + (t.y - 0.1).abs() > 1e-3, "seed 7 should move the peg");
 }
+
+#[test]
+fn camera_images_go_on_the_demo_timeline() {
+    use mimicgen_engine::image::{ImageStream, Pixels};
+    let task = registry::task("stack", "D0").expect("task");
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/stack_D0_source.hdf5");
+    let mut sources = mimicgen_io::read_source_dataset(&source, &SourceSelection::default()).expect("sources");
+    sources.demos.truncate(1);
+    let demo = &sources.demos[0];
+    let scene = Scene::from_model_file(demo.sim.model_xml.as_deref().expect("model_file"), "stack_D0_source.hdf5", task.as_ref()).expect("scene");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rrd = dir.path().join("cams.rrd");
+    let rec = Sink::Save(rrd.clone()).open("mimicgen").expect("open recording");
+    let mut logger = RunLogger::new(rec, &scene, LogConfig { scene: SceneLevel::None, scene_stride: 1 }).expect("logger");
+    logger.log_demos([(0, demo)]).expect("log demo");
+    let n = demo.len();
+    let stream = |v: u8| ImageStream { shape: [4, 6, 3], pixels: Pixels::Rgb(vec![v; n * 4 * 6 * 3]) };
+    let images = std::collections::BTreeMap::from([
+        ("agentview_image".to_owned(), stream(10)),
+        ("robot0_eye_in_hand_image".to_owned(), stream(200)),
+        ("agentview_depth".to_owned(), ImageStream { shape: [4, 6, 1], pixels: Pixels::Depth(vec![0.5; n * 24]) }),
+    ]);
+    let cameras = logger.log_demo_images(0, &images).expect("log images");
+    assert_eq!(cameras, ["agentview", "robot0_eye_in_hand"]);
+    mimicgen_viz::send_blueprint(logger.stream(), mimicgen_viz::blueprint_with_cameras(&cameras)).expect("blueprint");
+    logger.finish().expect("finish");
+    // One image per step and camera: the rows of each camera's chunks add up to the demo's steps.
+    let print = rerun_cli(&["rrd", "print", "--verbose", rrd.to_str().expect("utf-8 path")]);
+    for camera in ["agentview", "robot0_eye_in_hand"] {
+        let rows: usize = print
+            .lines()
+            .filter(|l| l.contains(&format!("- /cameras/{camera} - data columns")) && l.contains("Image:buffer"))
+            .filter_map(|l| l.split(" with ").nth(1)?.split(' ').next()?.parse::<usize>().ok())
+            .sum();
+        assert_eq!(rows, n, "{camera}: {rows} images for {n} steps");
+    }
+}
