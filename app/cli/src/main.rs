@@ -284,7 +284,13 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 );
                 let summary = mimicgen_io::lerobot::export_lerobot(&ds, &out, &options, |done, _| bar.set_position(done as u64))?;
                 bar.finish_and_clear();
-                println!("{}: LeRobot {} dataset, {} episodes, {} frames at 20 fps", summary.out, mimicgen_io::lerobot::CODEBASE_VERSION, summary.episodes, summary.frames);
+                println!(
+                    "{}: LeRobot {} dataset, {} episodes, {} frames at 20 fps",
+                    summary.out,
+                    mimicgen_io::lerobot::CODEBASE_VERSION,
+                    summary.episodes,
+                    summary.frames
+                );
                 let state: Vec<String> = summary.state.iter().map(|(k, n)| format!("{k} ({n})")).collect();
                 println!("  observation.state: {}", state.join(" + "));
                 println!("  task: {:?}", options.task);
@@ -435,4 +441,3 @@ enum ScreenArg {
     /// A generation run, live.
     Generate,
 }
-

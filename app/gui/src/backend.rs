@@ -9,6 +9,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
 
+use mimicgen_engine::image::{ImageStream, Pixels};
 use mimicgen_engine::transform::WaypointKind;
 use mimicgen_engine::{Attempt, Overrides, Plan, Pose, RunStats, SourceDataset, SourceDemo};
 use mimicgen_io::{ATTEMPT_ATTR, DemoReader, DemoSource as _, FAILURE_ATTR, IoError, ReadOptions, source_demo_from_group};
@@ -19,8 +20,8 @@ use mimicgen_viz::rerun::RecordingStream;
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
 use crate::protocol::{
-    AttemptRow, DemoView, ExecutedView, Listing, LoadedFile, ObjectView, OpenedRun, Point, PreviewRequest, PreviewView, ProposalView,
-    RankView, Reply, Request, RunUpdate, SubtaskDiagnostics, SubtaskPreview, ViewerSink,
+    AttemptRow, CameraView, DemoView, ExecutedView, Listing, LoadedFile, ObjectView, OpenedRun, Point, PreviewRequest, PreviewView,
+    ProposalView, RankView, Reply, Request, RunUpdate, SubtaskDiagnostics, SubtaskPreview, ViewerSink,
 };
 
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
@@ -135,6 +136,24 @@ pub fn open(path: &Path, send: &dyn Fn(Reply)) -> Result<(Reply, Annotations), P
         }
         other => other,
     }
+}
+
+/// Demo `demo`'s RGB camera streams in `path` (none when it has no camera observations or
+/// cannot be read).
+fn read_images(path: &Path, demo: usize) -> Vec<CameraView> {
+    let Ok(reader) = DemoReader::open_with(path, ReadOptions::default()) else { return Vec::new() };
+    let Some(name) = reader.demo_names().get(demo).cloned() else { return Vec::new() };
+    let Ok(group) = reader.load_demo(&name) else { return Vec::new() };
+    let Some(obs) = group.group("obs") else { return Vec::new() };
+    let (_, images) = mimicgen_io::observations_from_group(obs);
+    images
+        .into_iter()
+        .filter_map(|(key, stream)| {
+            let name = key.strip_suffix("_image")?.to_owned();
+            let ([height, width, 3], Pixels::Rgb(rgb)) = (stream.shape, stream.pixels) else { return None };
+            Some(CameraView { name, width, height, rgb })
+        })
+        .collect()
 }
 
 fn point(pose: &Pose) -> Point {
@@ -457,6 +476,8 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
 /// Rerun stream once the 3D view is open.
 pub struct Worker {
     loaded: Option<Annotations>,
+    /// The open file (for a plain robomimic file, its prepared copy).
+    loaded_path: Option<PathBuf>,
     previewer: Option<(RunConfig, Previewer)>,
     viewer: Option<(ViewerSink, RunLogger)>,
     embedded: Option<StreamFactory>,
@@ -480,7 +501,7 @@ impl Worker {
     /// [`ViewerSink::Embedded`] streams come from `embedded`.
     #[must_use]
     pub fn new(notify: Notify, embedded: Option<StreamFactory>) -> Self {
-        Self { loaded: None, previewer: None, viewer: None, embedded, notify, run: None }
+        Self { loaded: None, loaded_path: None, previewer: None, viewer: None, embedded, notify, run: None }
     }
 
     fn start_run(&mut self, config: RunConfig) -> Reply {
@@ -554,15 +575,29 @@ impl Worker {
             ViewerSink::Embedded => "the viewer in this window".to_owned(),
         };
         self.viewer = Some((sink, logger));
-        self.show_3d(demo)?;
+        self.show_3d(demo, &self.images(demo))?;
         Ok(said)
     }
 
-    fn show_3d(&mut self, demo: usize) -> Result<String, String> {
+    /// Demo `demo`'s camera images in the open file (none for a file without cameras, or when
+    /// they cannot be read: the timeline works without).
+    fn images(&self, demo: usize) -> Vec<CameraView> {
+        self.loaded_path.as_deref().map(|path| read_images(path, demo)).unwrap_or_default()
+    }
+
+    fn show_3d(&mut self, demo: usize, images: &[CameraView]) -> Result<String, String> {
         self.fresh_logger()?;
         let (Some(loaded), Some((_, logger))) = (&self.loaded, &mut self.viewer) else { return Err("the 3D view is not open".to_owned()) };
         let source = loaded.sources.demos.get(demo).ok_or_else(|| format!("there is no demo {demo}"))?;
         logger.log_demos([(demo, source)]).map_err(|e| viz_error(&e))?;
+        let streams = images
+            .iter()
+            .map(|c| {
+                let stream = ImageStream { shape: [c.height, c.width, 3], pixels: Pixels::Rgb(c.rgb.clone()) };
+                (format!("{}_image", c.name), stream)
+            })
+            .collect();
+        logger.log_demo_images(demo, &streams).map_err(|e| viz_error(&e))?;
         logger.stream().flush_blocking().map_err(|e| e.to_string())?;
         Ok(format!("{} in 3D", source.name))
     }
@@ -663,6 +698,11 @@ impl Worker {
                     self.loaded = Some(found);
                     // The stream's static scene is the old file's: a new file needs a new stream.
                     self.viewer = None;
+                    if let Reply::Opened(file) = &reply {
+                        self.loaded_path = Some(file.path.clone());
+                        // Before `Opened`: the model drops images when asked to open a file.
+                        (self.notify)(Reply::Images { demo: 0, cameras: self.images(0) });
+                    }
                     reply
                 }
                 Err(e) => Reply::Failed { what: format!("opening {}", path.display()), error: e.to_string() },
@@ -675,10 +715,17 @@ impl Worker {
                 Ok(to) => Reply::Streaming { to },
                 Err(error) => Reply::Failed { what: "opening the 3D view".to_owned(), error },
             },
-            Request::Show3d { demo } => match self.show_3d(demo) {
-                Ok(what) => Reply::Shown3d { what },
-                Err(error) => Reply::Failed { what: format!("showing demo {demo} in 3D"), error },
-            },
+            Request::ShowDemo { demo, in_3d } => {
+                let cameras = self.images(demo);
+                (self.notify)(Reply::Images { demo, cameras: cameras.clone() });
+                if !in_3d {
+                    return Reply::Shown { what: format!("demo {demo}") };
+                }
+                match self.show_3d(demo, &cameras) {
+                    Ok(what) => Reply::Shown { what },
+                    Err(error) => Reply::Failed { what: format!("showing demo {demo} in 3D"), error },
+                }
+            }
             Request::Preview(request) => match self.preview(&request) {
                 Ok(view) => Reply::Previewed(Box::new(view)),
                 Err(e) => preview_failed(&request, &e),

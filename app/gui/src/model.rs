@@ -332,6 +332,8 @@ pub struct AppModel {
     pub file: Option<LoadedFile>,
     /// The demo shown.
     pub selected: usize,
+    /// Camera images of a demo of the open file (its index; empty without cameras).
+    pub images: (usize, Vec<crate::protocol::CameraView>),
     /// The time cursor (a step of the shown demo).
     pub cursor: usize,
     /// The subtask end the keyboard moves.
@@ -480,6 +482,7 @@ impl AppModel {
             Command::Open(path) => {
                 self.browsing = false;
                 self.browser = None;
+                self.images = (0, Vec::new());
                 self.busy = Some(format!("opening {}", path.display()));
                 return Some(Request::Open { path });
             }
@@ -488,10 +491,11 @@ impl AppModel {
                     self.selected = i;
                     self.cursor = self.cursor.min(self.demo().map_or(0, |d| d.len.saturating_sub(1)));
                     self.playing = false;
-                    if self.viewer.is_some() {
+                    let in_3d = self.viewer.is_some();
+                    if in_3d {
                         self.busy = Some("sending the demo to the 3D view".to_owned());
-                        return Some(Request::Show3d { demo: i });
                     }
+                    return Some(Request::ShowDemo { demo: i, in_3d });
                 }
             }
             Command::SetCursor(t) => self.cursor = t.min(len.saturating_sub(1)),
@@ -792,7 +796,8 @@ impl AppModel {
                 self.viewer = Some(to);
                 self.error = None;
             }
-            Reply::Shown3d { what } => self.status = format!("showing {what}"),
+            Reply::Shown { what } => self.status = format!("showing {what}"),
+            Reply::Images { demo, cameras } => self.images = (demo, cameras),
             Reply::Saved { out, demos } => {
                 self.status = format!("saved the subtask ends of {demos} demos to {}", out.display());
                 self.dirty = false;

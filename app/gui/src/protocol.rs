@@ -40,10 +40,13 @@ pub enum Request {
         /// The demo shown.
         demo: usize,
     },
-    /// Show demo `demo` (index in the open file) in the 3D view.
-    Show3d {
+    /// Show demo `demo` (index in the open file): its camera images (as [`Reply::Images`], when
+    /// the file has camera observations) and, with `in_3d`, the demo in the 3D view.
+    ShowDemo {
         /// The demo.
         demo: usize,
+        /// Also send it to the 3D view.
+        in_3d: bool,
     },
     /// Start a generation run (on its own thread; it reports through [`Reply::Run`]).
     Run(Box<RunConfig>),
@@ -175,10 +178,18 @@ pub enum Reply {
         /// Where (in words).
         to: String,
     },
-    /// Something was sent to the 3D view.
-    Shown3d {
+    /// A demo was shown (and sent to the 3D view, when it is open).
+    Shown {
         /// What.
         what: String,
+    },
+    /// A demo's camera observations (sent after opening, for the first demo, and on
+    /// [`Request::ShowDemo`]; none when the file has no camera observations).
+    Images {
+        /// The demo (index in the open file).
+        demo: usize,
+        /// Its RGB cameras.
+        cameras: Vec<CameraView>,
     },
     /// A preview (and, if asked, its execution) is ready.
     Previewed(Box<PreviewView>),
@@ -231,6 +242,30 @@ pub struct LoadedFile {
     pub total_demos: usize,
     /// The demos read so far, in file order.
     pub demos: Vec<DemoView>,
+}
+
+/// One camera's images of a demo, every step (`obs/<name>_image`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraView {
+    /// The camera (`agentview`).
+    pub name: String,
+    /// Pixels per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// RGB bytes of every step, one image after another.
+    pub rgb: Vec<u8>,
+}
+
+impl CameraView {
+    /// Step `t`'s image (the last one past the end; `None` without images).
+    #[must_use]
+    pub fn frame(&self, t: usize) -> Option<&[u8]> {
+        let size = self.width * self.height * 3;
+        let steps = self.rgb.len().checked_div(size)?;
+        let t = t.min(steps.checked_sub(1)?);
+        self.rgb.get(t * size..(t + 1) * size)
+    }
 }
 
 /// A proposed subtask end.
@@ -383,12 +418,12 @@ impl Reply {
     #[must_use]
     pub fn ends_request(&self) -> bool {
         match self {
-            Self::Progress { .. } | Self::Run(_) => false,
+            Self::Progress { .. } | Self::Run(_) | Self::Images { .. } => false,
             Self::Opened(file) => file.demos.len() >= file.total_demos,
             Self::MoreDemos { last, .. } => *last,
             Self::Saved { .. }
             | Self::Streaming { .. }
-            | Self::Shown3d { .. }
+            | Self::Shown { .. }
             | Self::Previewed(_)
             | Self::SideBySide(_)
             | Self::RunAccepted

@@ -23,7 +23,7 @@ pub fn subtask_color(k: usize) -> Color32 {
 }
 
 /// UI-only state that is not part of the model (text fields, a drag in progress).
-#[derive(Debug, Default)]
+#[derive(Default)]
 pub struct UiState {
     /// The "open" path field.
     pub open_path: String,
@@ -41,6 +41,14 @@ pub struct UiState {
     pub run_path: String,
     /// Time of the last playback step (s).
     pub last_tick_s: f64,
+    /// The camera images drawn: `(camera, demo, step)` and its texture, one per camera.
+    pub camera_textures: Vec<((String, usize, usize), egui::TextureHandle)>,
+}
+
+impl std::fmt::Debug for UiState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("UiState").field("drag", &self.drag).field("camera_textures", &self.camera_textures.len()).finish_non_exhaustive()
+    }
 }
 
 /// Keyboard shortcuts, read once per frame.
@@ -233,7 +241,46 @@ pub fn timeline(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
             }
         });
     }
+    cameras(ui, model, state);
     plots(ui, demo, &ends, model.cursor, state, commands);
+}
+
+/// The shown demo's camera images at the cursor, when its file has camera observations
+/// (`generate --cameras`); the images came with the demo from the backend.
+fn cameras(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState) {
+    let (demo, cameras) = &model.images;
+    if *demo != model.selected || cameras.is_empty() {
+        return;
+    }
+    let step = model.cursor;
+    state.camera_textures.retain(|((name, _, _), _)| cameras.iter().any(|c| &c.name == name));
+    ui.horizontal(|ui| {
+        for camera in cameras {
+            let Some(frame) = camera.frame(step) else { continue };
+            let key = (camera.name.clone(), *demo, step);
+            let image = egui::ColorImage::from_rgb([camera.width, camera.height], frame);
+            let texture = match state.camera_textures.iter_mut().find(|(k, _)| k.0 == camera.name) {
+                Some((k, texture)) => {
+                    if *k != key {
+                        texture.set(image, egui::TextureOptions::NEAREST);
+                        *k = key;
+                    }
+                    texture.clone()
+                }
+                None => {
+                    let texture = ui.ctx().load_texture(format!("camera {}", camera.name), image, egui::TextureOptions::NEAREST);
+                    state.camera_textures.push((key, texture.clone()));
+                    texture
+                }
+            };
+            #[allow(clippy::cast_precision_loss)]
+            let size = egui::vec2(camera.width as f32, camera.height as f32) * (168.0 / camera.height.max(1) as f32);
+            ui.vertical(|ui| {
+                ui.add(egui::Image::new(&texture).fit_to_exact_size(size));
+                ui.label(RichText::new(format!("{} (step {step})", camera.name)).small());
+            });
+        }
+    });
 }
 
 fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, state: &mut UiState, commands: &mut Vec<Command>) {

@@ -552,3 +552,53 @@ fn the_file_browser_opens_a_file_from_a_folder() {
     assert!(file.path.ends_with("generated_D0_first3.hdf5"), "{}", file.path.display());
     assert_eq!(file.demos.len(), 3);
 }
+
+/// A file with camera observations (`generate --cameras`) shows the shown demo's images at the
+/// cursor, beside the timeline; they follow the cursor and the demo, and a demo without any
+/// shows none.
+#[test]
+fn camera_images_follow_the_cursor_and_the_shown_demo() {
+    use mimicgen_io::tree::{Array, Dataset, Node, Values};
+    let dir = tempfile::tempdir().unwrap();
+    let mut file = mimicgen_io::RobomimicDataset::open(fixture()).unwrap();
+    let Some(Node::Group(data)) = file.root.members.get_mut("data") else { panic!("no data group") };
+    data.members.retain(|name, _| ["demo_0", "demo_1", "demo_2"].contains(&name.as_str()));
+    let (h_px, w_px) = (12, 16);
+    for (i, name) in ["demo_0", "demo_1"].iter().enumerate() {
+        let Some(Node::Group(demo)) = data.members.get_mut(*name) else { panic!("no {name}") };
+        let steps = mimicgen_io::dataset::demo_steps(demo);
+        // Each step's image is one grey level: step t of demo i is 10 * i + t.
+        let pixels: Vec<u8> =
+            (0..steps).flat_map(|t| std::iter::repeat_n(u8::try_from((10 * i + t) % 256).unwrap(), h_px * w_px * 3)).collect();
+        let Node::Group(obs) = demo.members.entry("obs".into()).or_insert_with(|| Node::Group(Default::default())) else { panic!("obs") };
+        obs.members.insert(
+            "agentview_image".into(),
+            Node::Dataset(Dataset::new(Array { shape: vec![steps, h_px, w_px, 3], values: Values::U8(pixels) })),
+        );
+    }
+    let path = dir.path().join("cameras.hdf5");
+    mimicgen_io::write_tree(&path, &file.root).unwrap();
+    let mut h = harness(Some(path));
+    settle(&mut h);
+    let images = |h: &Harness<'static, MimicgenApp>| h.state().model.images.clone();
+    let (demo, cameras) = images(&h);
+    assert_eq!((demo, cameras.len()), (0, 1), "the first demo's images come with the file");
+    assert_eq!((cameras[0].name.as_str(), cameras[0].width, cameras[0].height), ("agentview", w_px, h_px));
+    h.get_by_label("agentview (step 0)");
+    h.state_mut().command(Command::SetCursor(5));
+    h.run_steps(2);
+    h.get_by_label("agentview (step 5)");
+    assert_eq!(cameras[0].frame(5).unwrap()[0], 5);
+    h.get_by_label_contains("demo_1").click();
+    h.step();
+    settle(&mut h);
+    let (demo, cameras) = images(&h);
+    assert_eq!(demo, 1);
+    assert_eq!(cameras[0].frame(0).unwrap()[0], 10, "demo_1's own images");
+    h.get_by_label_contains("agentview (step");
+    h.get_by_label_contains("demo_2").click();
+    h.step();
+    settle(&mut h);
+    assert_eq!(images(&h), (2, Vec::new()));
+    assert!(h.query_by_label_contains("agentview (step").is_none(), "demo_2 has no camera images");
+}

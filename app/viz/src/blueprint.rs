@@ -23,8 +23,10 @@ pub fn blueprint_with_cameras(cameras: &[String]) -> Blueprint {
     let mut right = Vec::new();
     if !cameras.is_empty() {
         right.push(
-            Horizontal::new(cameras.iter().map(|c| Spatial2DView::new(c.as_str()).with_origin(format!("{}/{c}", crate::record::CAMERAS)).into()))
-                .into(),
+            Horizontal::new(
+                cameras.iter().map(|c| Spatial2DView::new(c.as_str()).with_origin(format!("{}/{c}", crate::record::CAMERAS)).into()),
+            )
+            .into(),
         );
     }
     right.extend([
@@ -33,7 +35,8 @@ pub fn blueprint_with_cameras(cameras: &[String]) -> Blueprint {
         TextLogView::new("Outcomes").with_origin("outcome").into(),
     ]);
     Blueprint::new(
-        Horizontal::new([Spatial3DView::new("Scene").with_origin("world").into(), Vertical::new(right).into()]).with_column_shares([2.0, 1.0]),
+        Horizontal::new([Spatial3DView::new("Scene").with_origin("world").into(), Vertical::new(right).into()])
+            .with_column_shares([2.0, 1.0]),
     )
     .with_time_panel(TimePanel::new().with_timeline(timelines::FRAME).with_play_state(PlayState::Following))
 }

@@ -57,7 +57,15 @@ impl RunLogger {
         let scene = SceneLogger::new(scene, "world/scene");
         rec.log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP()).map_err(|e| VizError::rerun("world", &e))?;
         scene.log_static(&rec)?;
-        Ok(Self { rec, scene, config, source_names: Vec::new(), frame: 0, demos_cleared: false, demo_frames: std::collections::BTreeMap::new() })
+        Ok(Self {
+            rec,
+            scene,
+            config,
+            source_names: Vec::new(),
+            frame: 0,
+            demos_cleared: false,
+            demo_frames: std::collections::BTreeMap::new(),
+        })
     }
 
     /// The recording.

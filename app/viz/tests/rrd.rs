@@ -127,7 +127,8 @@ fn camera_images_go_on_the_demo_timeline() {
     let mut sources = mimicgen_io::read_source_dataset(&source, &SourceSelection::default()).expect("sources");
     sources.demos.truncate(1);
     let demo = &sources.demos[0];
-    let scene = Scene::from_model_file(demo.sim.model_xml.as_deref().expect("model_file"), "stack_D0_source.hdf5", task.as_ref()).expect("scene");
+    let scene =
+        Scene::from_model_file(demo.sim.model_xml.as_deref().expect("model_file"), "stack_D0_source.hdf5", task.as_ref()).expect("scene");
     let dir = tempfile::tempdir().expect("tempdir");
     let rrd = dir.path().join("cams.rrd");
     let rec = Sink::Save(rrd.clone()).open("mimicgen").expect("open recording");

@@ -112,7 +112,12 @@ pub fn export_lerobot(
         return Err(IoError::Fs { file: out.display().to_string(), reason: "exists; pass --overwrite to replace it".into() });
     }
     let names = source.demo_names().to_vec();
-    let invalid = |group: &str, field: &str, reason: String| IoError::Invalid { file: label.clone(), group: group.into(), field: field.into(), reason };
+    let invalid = |group: &str, field: &str, reason: String| IoError::Invalid {
+        file: label.clone(),
+        group: group.into(),
+        field: field.into(),
+        reason,
+    };
     let Some(first_name) = names.first() else { return Err(invalid("data", "", "has no demos to export".into())) };
     let first = source.load_demo(first_name)?;
     let group = format!("data/{first_name}");
@@ -151,7 +156,11 @@ pub fn export_lerobot(
     drop(first);
     let state_dim: usize = state_widths.iter().sum();
     let list = |name: &str, n: usize| {
-        Field::new(name, DataType::FixedSizeList(Arc::new(Field::new("item", DataType::Float32, true)), i32::try_from(n).unwrap_or(i32::MAX)), false)
+        Field::new(
+            name,
+            DataType::FixedSizeList(Arc::new(Field::new("item", DataType::Float32, true)), i32::try_from(n).unwrap_or(i32::MAX)),
+            false,
+        )
     };
     let schema = Arc::new(Schema::new(vec![
         list("observation.state", state_dim),
@@ -311,7 +320,8 @@ impl Exporter<'_> {
         }
         let file = File::create(&path).map_err(|e| fs_error(&path, "creating the file", &e))?;
         let props = WriterProperties::builder().set_compression(Compression::SNAPPY).build();
-        let writer = ArrowWriter::try_new(file, Arc::clone(&self.schema), Some(props)).map_err(|e| fs_error(&path, "starting parquet", &e))?;
+        let writer =
+            ArrowWriter::try_new(file, Arc::clone(&self.schema), Some(props)).map_err(|e| fs_error(&path, "starting parquet", &e))?;
         self.data_writer = Some(writer);
         self.data_bytes = 0;
         Ok(())
@@ -554,7 +564,9 @@ impl Exporter<'_> {
         features.insert("action".into(), json!({"dtype": "float32", "shape": [self.action_dim], "names": action_names}));
         features.insert("next.reward".into(), json!({"dtype": "float32", "shape": [1], "names": null}));
         features.insert("next.done".into(), json!({"dtype": "bool", "shape": [1], "names": null}));
-        for (key, dtype) in [("timestamp", "float32"), ("frame_index", "int64"), ("episode_index", "int64"), ("index", "int64"), ("task_index", "int64")] {
+        for (key, dtype) in
+            [("timestamp", "float32"), ("frame_index", "int64"), ("episode_index", "int64"), ("index", "int64"), ("task_index", "int64")]
+        {
             features.insert(key.into(), json!({"dtype": dtype, "shape": [1], "names": null}));
         }
         for video in &self.videos {
@@ -621,8 +633,9 @@ impl Exporter<'_> {
             "creator": {"library": "mimicgen-rs", "version": env!("CARGO_PKG_VERSION")},
             "pandas_version": "2.2.3"
         });
-        let schema = Schema::new(vec![Field::new("task_index", DataType::Int64, false), Field::new("__index_level_0__", DataType::Utf8, false)])
-            .with_metadata(std::collections::HashMap::from([("pandas".to_owned(), pandas.to_string())]));
+        let schema =
+            Schema::new(vec![Field::new("task_index", DataType::Int64, false), Field::new("__index_level_0__", DataType::Utf8, false)])
+                .with_metadata(std::collections::HashMap::from([("pandas".to_owned(), pandas.to_string())]));
         let batch = RecordBatch::try_new(
             Arc::new(schema),
             vec![Arc::new(Int64Array::from(vec![0i64])), Arc::new(StringArray::from(vec![self.options.task.clone()]))],
@@ -639,8 +652,10 @@ impl Exporter<'_> {
         for key in first.keys() {
             let values: Vec<&Value> = self.episodes.iter().map(|e| &e[key]).collect();
             if key == "tasks" {
-                let tasks: Vec<Option<Vec<Option<String>>>> =
-                    values.iter().map(|v| Some(v.as_array().into_iter().flatten().map(|t| t.as_str().map(str::to_owned)).collect())).collect();
+                let tasks: Vec<Option<Vec<Option<String>>>> = values
+                    .iter()
+                    .map(|v| Some(v.as_array().into_iter().flatten().map(|t| t.as_str().map(str::to_owned)).collect()))
+                    .collect();
                 let array = ListArray::from_iter_primitive_strings(tasks);
                 fields.push(Field::new(key, array.data_type().clone(), true));
                 columns.push(Arc::new(array));

@@ -7,9 +7,9 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
 
+use arrow_array::RecordBatch;
 use arrow_array::cast::AsArray as _;
 use arrow_array::types::{Float32Type, Int64Type};
-use arrow_array::RecordBatch;
 use mimicgen_engine::Rows;
 use mimicgen_engine::image::{ImageStream, Pixels};
 use mimicgen_io::lerobot::{LeRobotOptions, export_lerobot};
@@ -50,7 +50,9 @@ fn demo(steps: usize, seed: usize) -> DemoData {
 }
 
 fn write(path: &Path, demos: &[DemoData]) {
-    let mut w = DatasetWriter::create(path, WriterOptions { env_args: Some(r#"{"env_name": "Stack_D0"}"#.into()), ..WriterOptions::default() }).unwrap();
+    let mut w =
+        DatasetWriter::create(path, WriterOptions { env_args: Some(r#"{"env_name": "Stack_D0"}"#.into()), ..WriterOptions::default() })
+            .unwrap();
     for d in demos {
         w.append(d).unwrap();
     }
@@ -141,7 +143,10 @@ fn an_export_holds_every_frame_episode_and_camera_as_lerobot_lays_them_out() {
     assert_eq!(pandas["index_columns"], serde_json::json!(["__index_level_0__"]));
 
     let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("meta/info.json")).unwrap()).unwrap();
-    assert_eq!((info["codebase_version"].as_str(), info["total_frames"].as_u64(), info["total_episodes"].as_u64()), (Some("v3.0"), Some(28), Some(3)));
+    assert_eq!(
+        (info["codebase_version"].as_str(), info["total_frames"].as_u64(), info["total_episodes"].as_u64()),
+        (Some("v3.0"), Some(28), Some(3))
+    );
     assert_eq!(info["features"]["observation.state"]["shape"], serde_json::json!([14]));
     assert_eq!(info["features"]["observation.images.agentview"]["shape"], serde_json::json!([H, W, 3]));
     let stats: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("meta/stats.json")).unwrap()).unwrap();

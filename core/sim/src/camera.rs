@@ -135,9 +135,15 @@ impl Cameras {
         let (h, w) = (self.config.height, self.config.width);
         let mut out = BTreeMap::new();
         for name in &self.config.names {
-            out.insert(format!("{name}_image"), ImageStream { shape: [h, w, 3], pixels: Pixels::Rgb(Vec::with_capacity(steps * h * w * 3)) });
+            out.insert(
+                format!("{name}_image"),
+                ImageStream { shape: [h, w, 3], pixels: Pixels::Rgb(Vec::with_capacity(steps * h * w * 3)) },
+            );
             if self.config.depth {
-                out.insert(format!("{name}_depth"), ImageStream { shape: [h, w, 1], pixels: Pixels::Depth(Vec::with_capacity(steps * h * w)) });
+                out.insert(
+                    format!("{name}_depth"),
+                    ImageStream { shape: [h, w, 1], pixels: Pixels::Depth(Vec::with_capacity(steps * h * w)) },
+                );
             }
         }
         out

@@ -87,7 +87,8 @@ impl Scene {
     /// so that resets can move it while it stays fixed during an episode.
     pub fn compile(xml: &str, origin: &str, objects: &[(&str, &str)], control_freq_hz: f64) -> Result<Self, SimError> {
         let physics_xml = crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M");
-        let model = MjModel::from_xml_string(&physics_xml).map_err(|e| SimError::Compile { file: origin.to_owned(), reason: format!("{e:?}") })?;
+        let model =
+            MjModel::from_xml_string(&physics_xml).map_err(|e| SimError::Compile { file: origin.to_owned(), reason: format!("{e:?}") })?;
         let mut to_mocap = Vec::new();
         for (_, body_name) in objects {
             let body = id(&model, MjtObjBase::mjOBJ_BODY, body_name, origin)?;
