@@ -32,12 +32,27 @@ pub struct BenchSimArgs {
     /// Directory for the datasets the end-to-end runs write (default: a temporary one).
     #[arg(long)]
     dir: Option<std::path::PathBuf>,
+    /// Also measure the end-to-end runs rendering these cameras (`--cameras` alone: agentview and
+    /// the wrist camera), against the same runs without: demos per second and bytes per demo.
+    #[command(flatten)]
+    cameras: crate::generate::CameraArgs,
 }
 
 /// One end-to-end `generate` run (the pipeline: simulation, observations, compression, writing),
 /// timed, with its peak resident memory.
 fn end_to_end(args: &BenchSimArgs, out: &Path, workers: usize, early_abort: bool) -> anyhow::Result<(f64, Report)> {
+    end_to_end_with(args, out, workers, early_abort, None)
+}
+
+fn end_to_end_with(
+    args: &BenchSimArgs,
+    out: &Path,
+    workers: usize,
+    early_abort: bool,
+    cameras: Option<mimicgen_sim::camera::CameraConfig>,
+) -> anyhow::Result<(f64, Report)> {
     let config = RunConfig {
+        cameras,
         task: Some(args.task.clone()),
         variant: Some(args.variant.clone()),
         num_demos: Some(args.attempts),
@@ -106,6 +121,33 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
     } else {
         None
     };
+    let cameras = match args.cameras.config() {
+        Some(config) => {
+            let label = format!("{} at {}x{}", config.names.join(", "), config.height, config.width);
+            let (one_s, one) = end_to_end_with(args, &dir_path.join("cams_one.hdf5"), 1, false, Some(config.clone()))?;
+            let (two_s, _) = end_to_end_with(args, &dir_path.join("cams_two.hdf5"), 2, false, Some(config))?;
+            let bytes = |name: &str| std::fs::metadata(dir_path.join(name)).map(|m| m.len()).unwrap_or_default();
+            let per_demo = |name: &str, n: usize| bytes(name) as f64 / n.max(1) as f64;
+            let demos = |s: f64, n: usize| n as f64 / s;
+            anyhow::ensure!(one.successes == e2e_one.successes, "rendering changed which attempts succeed");
+            #[allow(clippy::cast_precision_loss)]
+            Some(json!({
+                "cameras": label,
+                "end_to_end_1_worker_s": one_s,
+                "end_to_end_2_workers_s": two_s,
+                "demos_per_s_1_worker": demos(one_s, one.successes),
+                "demos_per_s_2_workers": demos(two_s, one.successes),
+                "demos_per_s_1_worker_without_cameras": demos(e2e_one_s, e2e_one.successes),
+                "demos_per_s_2_workers_without_cameras": demos(e2e_two_s, e2e_one.successes),
+                "slowdown_1_worker": one_s / e2e_one_s,
+                "speedup_2_workers": one_s / two_s,
+                "bytes_per_demo": per_demo("cams_one.hdf5", one.successes),
+                "bytes_per_demo_without_cameras": per_demo("one.hdf5", e2e_one.successes),
+                "peak_rss_mib_1_worker": one.peak_rss_mib,
+            }))
+        }
+        None => None,
+    };
     reset_peak_rss();
     let (one_s, attempts) = timed(1)?;
     let (two_s, _) = timed(2)?;
@@ -161,6 +203,7 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
         "end_to_end_successes": e2e_one.successes,
         "end_to_end_1_worker_peak_rss_mib": e2e_one_peak,
         "early_abort": early,
+        "cameras": cameras,
         "peak_rss_mib": peak_rss_mib(),
     });
     println!("{}", serde_json::to_string_pretty(&report)?);

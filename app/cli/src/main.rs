@@ -8,7 +8,6 @@ use clap::{Parser, Subcommand};
 use mimicgen_engine::TaskSpec;
 use mimicgen_io::info::DatasetInfo;
 use mimicgen_io::{DemoReader, DemoSource as _, ReadOptions};
-use mimicgen_sim::registry;
 
 mod annotate;
 mod bench_app;
@@ -269,20 +268,13 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 }
             }
             if let Some(out) = lerobot {
-                let task = registry::task_from_env_args(ds.env_args_json()).ok().map(|(task, _)| task.name().to_owned());
-                let options = mimicgen_io::lerobot::LeRobotOptions {
-                    state_keys,
-                    fps: 20,
-                    task: instruction.unwrap_or_else(|| task.as_deref().map_or_else(|| "do the task".to_owned(), registry::instruction)),
-                    robot_type: "panda".to_owned(),
-                    ffmpeg: ffmpeg.unwrap_or_else(mimicgen_io::lerobot::LeRobotOptions::default_ffmpeg),
-                    overwrite,
-                };
+                let request = mimicgen_pipeline::lerobot::ExportRequest { state_keys: Some(state_keys), instruction, ffmpeg, overwrite };
                 let bar = indicatif::ProgressBar::new(ds.demo_names().len() as u64).with_style(
                     indicatif::ProgressStyle::with_template("exporting {bar:30} {pos}/{len} episodes, {elapsed} ({eta} left)")
                         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
                 );
-                let summary = mimicgen_io::lerobot::export_lerobot(&ds, &out, &options, |done, _| bar.set_position(done as u64))?;
+                drop(ds);
+                let summary = mimicgen_pipeline::lerobot::export(&file, &out, &request, |done, _| bar.set_position(done as u64))?;
                 bar.finish_and_clear();
                 println!(
                     "{}: LeRobot {} dataset, {} episodes, {} frames at 20 fps",
@@ -293,7 +285,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 );
                 let state: Vec<String> = summary.state.iter().map(|(k, n)| format!("{k} ({n})")).collect();
                 println!("  observation.state: {}", state.join(" + "));
-                println!("  task: {:?}", options.task);
+                println!("  task: {:?}", summary.task);
                 for video in &summary.videos {
                     println!("  {video}: H.264 video");
                 }

@@ -277,6 +277,24 @@ fn merge(py: Python<'_>, shards: Vec<PathBuf>, out: PathBuf, overwrite: bool) ->
     json_of(&report)
 }
 
+/// Exports `path` as the LeRobot dataset `out` (what `mimicgen export --lerobot` writes);
+/// returns the summary.
+#[pyfunction]
+#[pyo3(signature = (path, out, state_keys = None, instruction = None, ffmpeg = None, overwrite = false))]
+fn export_lerobot(
+    py: Python<'_>,
+    path: PathBuf,
+    out: PathBuf,
+    state_keys: Option<Vec<String>>,
+    instruction: Option<String>,
+    ffmpeg: Option<PathBuf>,
+    overwrite: bool,
+) -> PyResult<String> {
+    let request = mimicgen_pipeline::lerobot::ExportRequest { state_keys, instruction, ffmpeg, overwrite };
+    let summary = py.detach(|| mimicgen_pipeline::lerobot::export(&path, &out, &request, |_, _| {})).map_err(error)?;
+    json_of(&summary)
+}
+
 /// What the generation thread sends: an event (as JSON), or the end.
 enum Message {
     Event(String),
@@ -444,6 +462,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write_subtask_ends, m)?)?;
     m.add_function(wrap_pyfunction!(coverage, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
+    m.add_function(wrap_pyfunction!(export_lerobot, m)?)?;
     m.add_function(wrap_pyfunction!(generate, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

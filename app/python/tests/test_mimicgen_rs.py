@@ -163,3 +163,27 @@ def test_a_python_simulator_error_ends_the_run_with_its_message(tmp_path):
 
     with pytest.raises(mg.MimicgenError, match="the arm fell off"):
         mg.generate(tmp_path / "b.hdf5", env=Broken, num_demos=2).wait()
+
+
+def test_cameras_and_a_lerobot_export_that_pyarrow_reads(tmp_path):
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "cams.hdf5"
+    report = mg.generate(out, num_demos=2, guarantee=True, seed=1, cameras=True, camera_size=(32, 48)).wait()
+    assert report["successes"] == 2
+    ds = mg.Dataset(out)
+    demo = ds.demo("demo_0")
+    steps = demo["actions"].shape[0]
+    for camera in ("agentview", "robot0_eye_in_hand"):
+        image = demo[f"obs/{camera}_image"]
+        assert image.dtype == np.uint8 and image.shape == (steps, 32, 48, 3)
+        assert image.std() > 5, f"{camera} rendered a flat image"
+    summary = mg.export_lerobot(out, tmp_path / "lerobot")
+    assert summary["episodes"] == 2 and summary["videos"] == ["observation.images.agentview", "observation.images.robot0_eye_in_hand"]
+    table = pq.read_table(tmp_path / "lerobot/data/chunk-000/file-000.parquet")
+    assert table.num_rows == summary["frames"] == sum(ds.demo(n)["actions"].shape[0] for n in ds.demo_names)
+    actions = np.asarray(table.column("action").to_pylist(), dtype=np.float32)
+    assert np.array_equal(actions[0], demo["actions"][0].astype(np.float32))
+    assert table.column("episode_index").to_pylist()[steps] == 1
+    with pytest.raises(mg.MimicgenError, match="obs/nope"):
+        mg.export_lerobot(out, tmp_path / "other", state_keys=["nope"])

@@ -90,6 +90,8 @@ pub struct LeRobotSummary {
     pub state: Vec<(String, usize)>,
     /// Video features written.
     pub videos: Vec<String>,
+    /// The task of every frame.
+    pub task: String,
     /// The dataset directory.
     pub out: String,
 }
@@ -214,6 +216,7 @@ pub fn export_lerobot(
         frames: exporter.frames,
         state: exporter.state_layout(),
         videos: exporter.videos.iter().map(|v| v.feature.clone()).collect(),
+        task: options.task.clone(),
         out: out.display().to_string(),
     })
 }

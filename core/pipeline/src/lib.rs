@@ -31,6 +31,7 @@ pub mod bundled;
 mod config;
 pub mod coverage;
 mod error;
+pub mod lerobot;
 pub mod memory;
 pub mod merge;
 mod overrides;

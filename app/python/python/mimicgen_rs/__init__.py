@@ -37,6 +37,7 @@ __all__ = [
     "Run",
     "Spec",
     "coverage",
+    "export_lerobot",
     "generate",
     "merge",
     "propose_subtask_ends",
@@ -115,6 +116,14 @@ def _shard(shard: Union[None, str, Tuple[int, int]]) -> Optional[Dict[str, int]]
     return {"part": int(part), "count": int(count)}
 
 
+def _cameras(cameras: Union[None, bool, Sequence[str]], size: Union[int, Tuple[int, int]], depth: bool) -> Optional[Dict[str, Any]]:
+    if cameras is None or cameras is False:
+        return None
+    names = ["agentview", "robot0_eye_in_hand"] if cameras is True else [str(c) for c in cameras]
+    height, width = (size, size) if isinstance(size, int) else (int(size[0]), int(size[1]))
+    return {"names": names, "height": int(height), "width": int(width), "depth": bool(depth)}
+
+
 def generate(
     out: PathLike,
     *,
@@ -134,6 +143,9 @@ def generate(
     resume: bool = False,
     shard: Union[None, str, Tuple[int, int]] = None,
     spec: Optional[Mapping[str, Any]] = None,
+    cameras: Union[None, bool, Sequence[str]] = None,
+    camera_size: Union[int, Tuple[int, int]] = 84,
+    camera_depth: bool = False,
     env: Optional[Any] = None,
 ) -> Run:
     """Start a generation run in the background; the arguments are ``mimicgen generate``'s.
@@ -141,7 +153,9 @@ def generate(
     ``spec`` sets spec fields for this run: ``{"action_noise": 0.02, "nn_k": {1: 5},
     "selection": "nearest_neighbor_object", "offset_range": (0, 10)}`` (a value for every
     subtask, or a dict by subtask index). ``shard="0/4"`` makes share 0 of 4 (join them with
-    :func:`merge`). ``env`` is a callable returning an :class:`Environment` (one per worker) to
+    :func:`merge`). ``cameras=True`` renders agentview and the wrist camera into every kept demo
+    (``obs/<camera>_image``, uint8), or name them: ``cameras=["agentview", "frontview"]``, at
+    ``camera_size`` (``84`` or ``(height, width)``). ``env`` is a callable returning an :class:`Environment` (one per worker) to
     drive instead of the bundled MuJoCo backend.
 
     Returns a :class:`Run`: iterate it for events, ``wait()`` for the report, ``cancel()``.
@@ -164,6 +178,7 @@ def generate(
         "resume": resume,
         "spec": _spec_overrides(spec),
         "shard": _shard(shard),
+        "cameras": _cameras(cameras, camera_size, camera_depth),
     }
     if env is not None and not callable(env):
         raise MimicgenError("env: pass a callable that returns a new environment (one per worker), e.g. a class")
@@ -197,3 +212,18 @@ def merge(shards: Sequence[PathLike], out: PathLike, overwrite: bool = False) ->
     """Join the shards of a run (``generate(..., shard="i/K")``) into the whole run's dataset;
     returns its report."""
     return json.loads(_native.merge([os.fspath(s) for s in shards], os.fspath(out), overwrite))
+
+
+def export_lerobot(
+    path: PathLike,
+    out: PathLike,
+    *,
+    state_keys: Optional[Sequence[str]] = None,
+    instruction: Optional[str] = None,
+    ffmpeg: Optional[PathLike] = None,
+    overwrite: bool = False,
+) -> Dict[str, Any]:
+    """Export a dataset as a LeRobot dataset (format v3.0; ``mimicgen export --lerobot``): parquet
+    frames, camera streams as H.264 videos, ``meta/``. Returns what was written."""
+    keys = None if state_keys is None else [str(k) for k in state_keys]
+    return json.loads(_native.export_lerobot(os.fspath(path), os.fspath(out), keys, instruction, _path(ffmpeg), overwrite))
