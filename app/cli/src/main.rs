@@ -395,7 +395,8 @@ fn print_info(info: &DatasetInfo) {
         println!("  obs: (none)");
     }
     for (key, shape) in &info.obs {
-        println!("  obs/{key}: {shape:?}");
+        let dtype = info.obs_dtypes.get(key).map(String::as_str).unwrap_or_default();
+        println!("  obs/{key}: {shape:?}{}", if dtype == "float64" || dtype.is_empty() { String::new() } else { format!(" {dtype}") });
     }
     println!("  objects: {}", if info.objects.is_empty() { "(none)".to_owned() } else { info.objects.join(", ") });
     for (name, s) in &info.signals {

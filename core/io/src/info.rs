@@ -71,6 +71,8 @@ pub struct DatasetInfo {
     pub lengths: Summary,
     /// Observation keys with their per-step shapes (from the first demo that has them).
     pub obs: BTreeMap<String, Vec<usize>>,
+    /// Observation keys with their element type (`float64`, `uint8` for camera images).
+    pub obs_dtypes: BTreeMap<String, String>,
     /// Values per action.
     pub action_dim: usize,
     /// Per-dimension minimum of the actions.
@@ -100,6 +102,7 @@ impl DatasetInfo {
     pub fn of(ds: &impl DemoSource) -> Result<Self> {
         let mut lengths = Vec::new();
         let mut obs = BTreeMap::new();
+        let mut obs_dtypes = BTreeMap::new();
         let (mut action_min, mut action_max): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
         let mut objects = std::collections::BTreeSet::new();
         let mut first_on: BTreeMap<String, (usize, Vec<String>, Vec<f64>)> = BTreeMap::new();
@@ -113,6 +116,7 @@ impl DatasetInfo {
                 for (key, node) in &o.members {
                     if let Node::Dataset(d) = node {
                         obs.entry(key.clone()).or_insert_with(|| d.array.shape.get(1..).unwrap_or_default().to_vec());
+                        obs_dtypes.entry(key.clone()).or_insert_with(|| d.array.values.dtype_name());
                     }
                 }
             }
@@ -161,6 +165,7 @@ impl DatasetInfo {
             total_attr: ds.data_attrs().get("total").and_then(Array::as_i64),
             lengths: Summary::of(&lengths),
             obs,
+            obs_dtypes,
             action_dim: action_min.len(),
             action_min,
             action_max,
