@@ -17,6 +17,9 @@ use mujoco_rs::renderer::MjRenderer;
 
 use crate::{Scene, SimError};
 
+/// The largest image side rendered (the offscreen buffer is made the image's size).
+pub const MAX_SIZE: usize = 4096;
+
 /// Which cameras, at what size, with or without depth.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct CameraConfig {
@@ -79,7 +82,7 @@ impl Cameras {
     /// # Errors
     /// [`SimError::Compile`] if the textured scene does not compile, [`SimError::MissingName`]
     /// for a camera the scene lacks (the message lists those it has), [`SimError::Render`] for
-    /// a size beyond the scene's offscreen buffer or zero.
+    /// a size of zero or above [`MAX_SIZE`].
     pub fn new(scene: &Scene, config: CameraConfig) -> Result<Self, SimError> {
         let origin = format!("{} (cameras)", scene.origin);
         if config.names.is_empty() {
@@ -102,14 +105,12 @@ impl Cameras {
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let global = &model.vis().global;
-        let (max_w, max_h) = (usize::try_from(global.offwidth).unwrap_or_default(), usize::try_from(global.offheight).unwrap_or_default());
-        if config.width == 0 || config.height == 0 || config.width > max_w || config.height > max_h {
+        if config.width == 0 || config.height == 0 || config.width > MAX_SIZE || config.height > MAX_SIZE {
             return Err(SimError::Render {
                 file: origin,
                 reason: format!(
-                    "camera size {}x{} (width x height) must be at least 1x1 and at most the scene's offscreen buffer, {max_w}x{max_h}",
-                    config.width, config.height
+                    "camera size {}x{} (height x width) must be between 1x1 and {MAX_SIZE}x{MAX_SIZE}",
+                    config.height, config.width
                 ),
             });
         }

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// The base scene: robosuite's table arena with a Panda on its mount, asset paths as `{ASSETS}/`.
-pub const PANDA_TABLE_XML: &str = include_str!("../../../viewer_assets/scenes/panda_table.xml");
+pub const PANDA_TABLE_XML: &str = crate::robot::PANDA.base_xml;
 
 /// An object model to add to a scene.
 #[derive(Debug, Clone, PartialEq)]
@@ -211,12 +211,18 @@ fn with_table_top(xml: &str, top_z: f64) -> String {
 /// into `assets_dir`.
 #[must_use]
 pub fn compose_scene(assets_dir: &Path, objects: &[ObjectModel], table_top_z: f64) -> String {
+    compose_scene_with(&crate::robot::PANDA, assets_dir, objects, table_top_z)
+}
+
+/// [`compose_scene`] with another arm's base scene.
+#[must_use]
+pub fn compose_scene_with(robot: &crate::robot::RobotModel, assets_dir: &Path, objects: &[ObjectModel], table_top_z: f64) -> String {
     let (mut assets, mut bodies) = (String::new(), String::new());
     for object in objects {
         object.write_assets(&mut assets);
         object.write_body(&mut bodies);
     }
-    with_table_top(PANDA_TABLE_XML, table_top_z)
+    with_table_top(robot.base_xml, table_top_z)
         .replace("    <!-- OBJECT ASSETS -->\n", &assets)
         .replace("    <!-- OBJECT BODIES -->\n", &bodies)
         .replace("{ASSETS}", assets_dir.display().to_string().trim_end_matches('/'))

@@ -11,14 +11,13 @@ use mujoco_rs::prelude::*;
 use rand::RngCore;
 use rand_distr::{Distribution, Normal};
 
-use crate::osc::{Osc, OscConfig, PANDA_INIT_QPOS};
+use crate::osc::{Osc, OscConfig};
 use crate::scene::{Scene, pose_from_xpos_xmat};
 use crate::task::Task;
 
 /// robosuite's Panda gripper: the command moves by this much per physics step towards -1 / +1.
 const GRIPPER_SPEED: f64 = 0.01;
 /// robosuite's Panda gripper finger positions at reset.
-const GRIPPER_INIT_QPOS: [f64; 2] = [0.020833, -0.020833];
 /// robosuite's default initialisation noise on the arm joints (Gaussian std, rad).
 const ARM_INIT_NOISE: f64 = 0.02;
 
@@ -58,7 +57,7 @@ impl SimEnv {
     pub fn new(scene: Arc<Scene>, task: Arc<dyn Task>) -> Self {
         let data = MjData::new(Arc::clone(&scene.model));
         let nv = usize::try_from(scene.model.ffi().nv).unwrap_or_default();
-        let osc = Osc::new(OscConfig::default(), PANDA_INIT_QPOS.to_vec(), nv);
+        let osc = Osc::new(OscConfig::default(), scene.robot.model.init_qpos.to_vec(), nv);
         Self { scene, task, data, osc, gripper_command: [0.0; 2], warnings_seen: 0, control_log: None }
     }
 
@@ -81,7 +80,7 @@ impl SimEnv {
     /// [`EnvError::Fatal`] on a state of the wrong length.
     pub fn reset_to_state(&mut self, state: &[f64]) -> Result<(), EnvError> {
         self.gripper_command = [0.0; 2];
-        self.osc.initial_joint = PANDA_INIT_QPOS.to_vec();
+        self.osc.initial_joint = self.scene.robot.model.init_qpos.to_vec();
         self.set_state(state)
     }
 
@@ -243,8 +242,9 @@ impl SimEnv {
         } else {
             0.0
         };
-        self.gripper_command[0] = (self.gripper_command[0] - GRIPPER_SPEED * sign).clamp(-1.0, 1.0);
-        self.gripper_command[1] = (self.gripper_command[1] + GRIPPER_SPEED * sign).clamp(-1.0, 1.0);
+        for (command, direction) in self.gripper_command.iter_mut().zip(robot.model.close_direction) {
+            *command = (*command + direction * GRIPPER_SPEED * sign).clamp(-1.0, 1.0);
+        }
         let ctrl = self.data.ctrl_mut();
         for ((a, [lo, hi]), tau) in robot.arm_actuators.iter().zip(torques) {
             ctrl[*a] = tau.clamp(*lo, *hi);
@@ -282,13 +282,13 @@ impl Environment for SimEnv {
         self.warnings_seen = 0;
         let noise = Normal::new(0.0, ARM_INIT_NOISE).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
         let robot = self.scene.robot.clone();
-        let arm: Vec<f64> = PANDA_INIT_QPOS.iter().map(|q| q + noise.sample(rng)).collect();
+        let arm: Vec<f64> = robot.model.init_qpos.iter().map(|q| q + noise.sample(rng)).collect();
         {
             let qpos = self.data.qpos_mut();
             for (adr, q) in robot.arm_qpos.iter().zip(&arm) {
                 qpos[*adr] = *q;
             }
-            for (adr, q) in robot.finger_qpos.iter().zip(GRIPPER_INIT_QPOS) {
+            for (adr, q) in robot.finger_qpos.iter().zip(robot.model.finger_init_qpos) {
                 qpos[*adr] = q;
             }
         }

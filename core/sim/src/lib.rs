@@ -15,6 +15,7 @@ pub mod env;
 pub mod geometry;
 pub mod osc;
 pub mod registry;
+pub mod robot;
 pub mod scene;
 pub mod task;
 

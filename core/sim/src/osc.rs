@@ -33,17 +33,6 @@ impl Default for OscConfig {
 /// Joints of the arm the controller drives (the Panda's seven).
 pub const ARM_DOF: usize = 7;
 
-/// Panda's home posture, robosuite's `init_qpos`; the null-space term pulls towards it.
-pub const PANDA_INIT_QPOS: [f64; 7] = [
-    0.0,
-    std::f64::consts::PI / 16.0,
-    0.0,
-    -std::f64::consts::PI / 2.0 - std::f64::consts::PI / 3.0,
-    0.0,
-    std::f64::consts::PI - 0.2,
-    std::f64::consts::PI / 4.0,
-];
-
 /// The controller's goal and posture.
 #[derive(Debug, Clone)]
 pub struct Osc {

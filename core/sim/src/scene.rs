@@ -27,9 +27,11 @@ pub struct SceneObject {
     pub geoms: Vec<usize>,
 }
 
-/// The Panda arm and gripper of a robosuite scene (prefixes `robot0_`, `gripper0_`).
+/// The arm and gripper of a robosuite scene (prefixes `robot0_`, `gripper0_`).
 #[derive(Debug, Clone)]
 pub struct RobotIndices {
+    /// Which arm it is.
+    pub model: &'static crate::robot::RobotModel,
     /// `qpos` addresses of the arm joints.
     pub arm_qpos: Vec<usize>,
     /// `qvel` addresses of the arm joints.
@@ -116,7 +118,9 @@ impl Scene {
             let a = id(&model, MjtObjBase::mjOBJ_ACTUATOR, name, origin)?;
             Ok((a, model.actuator_ctrlrange()[a]))
         };
+        let model_of = crate::robot::detect(|name| model.name_to_id(MjtObjBase::mjOBJ_JOINT, name).is_some());
         let mut robot = RobotIndices {
+            model: model_of,
             arm_qpos: Vec::new(),
             arm_dof: Vec::new(),
             arm_actuators: Vec::new(),
@@ -126,21 +130,21 @@ impl Scene {
             finger_actuators: Vec::new(),
             eef_site: id(&model, MjtObjBase::mjOBJ_SITE, "gripper0_grip_site", origin)?,
             finger_pads: [
-                vec![id(&model, MjtObjBase::mjOBJ_GEOM, "gripper0_finger1_pad_collision", origin)?],
-                vec![id(&model, MjtObjBase::mjOBJ_GEOM, "gripper0_finger2_pad_collision", origin)?],
+                vec![id(&model, MjtObjBase::mjOBJ_GEOM, model_of.finger_pads[0], origin)?],
+                vec![id(&model, MjtObjBase::mjOBJ_GEOM, model_of.finger_pads[1], origin)?],
             ],
         };
-        for i in 1..=7 {
-            let j = joint(&format!("robot0_joint{i}"))?;
+        for (name, actuator_name) in model_of.arm_joints.iter().zip(model_of.arm_actuators) {
+            let j = joint(name)?;
             robot.arm_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
             robot.arm_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
-            robot.arm_actuators.push(actuator(&format!("robot0_torq_j{i}"))?);
+            robot.arm_actuators.push(actuator(actuator_name)?);
         }
-        for i in 1..=2 {
-            let j = joint(&format!("gripper0_finger_joint{i}"))?;
+        for (name, actuator_name) in model_of.finger_joints.iter().zip(model_of.finger_actuators) {
+            let j = joint(name)?;
             robot.finger_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
             robot.finger_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
-            robot.finger_actuators.push(actuator(&format!("gripper0_gripper_finger_joint{i}"))?);
+            robot.finger_actuators.push(actuator(actuator_name)?);
         }
         let mut scene_objects = Vec::with_capacity(objects.len());
         for (name, body_name) in objects {
@@ -206,9 +210,22 @@ impl Scene {
     /// # Errors
     /// As [`Scene::for_task`].
     pub fn for_task_with_xml(task: &dyn crate::Task) -> Result<(Self, String), SimError> {
+        Self::for_task_with_robot(task, &crate::robot::PANDA)
+    }
+
+    /// [`Scene::for_task_with_xml`] with `robot` in place of the Panda.
+    ///
+    /// # Errors
+    /// As [`Scene::for_task`].
+    pub fn for_task_with_robot(task: &dyn crate::Task, robot: &crate::robot::RobotModel) -> Result<(Self, String), SimError> {
         let assets = crate::assets::robosuite_assets_dir()?;
-        let xml = crate::compose::compose_scene(&assets, &task.object_models(), task.table_top_z());
-        let scene = Self::compile(&xml, &format!("composed {} scene", task.name()), &task.objects(), 20.0)?;
+        let xml = crate::compose::compose_scene_with(robot, &assets, &task.object_models(), task.table_top_z());
+        let origin = if robot.name == crate::robot::PANDA.name {
+            format!("composed {} scene", task.name())
+        } else {
+            format!("composed {} scene with {}", task.name(), robot.robosuite_name)
+        };
+        let scene = Self::compile(&xml, &origin, &task.objects(), 20.0)?;
         Ok((scene, xml))
     }
 

@@ -72,6 +72,7 @@ fn bad_camera_requests_name_what_is_wrong() {
     assert!(err.contains("\"topview\"") && err.contains("agentview") && err.contains("frontview"), "{err}");
     let err = Cameras::new(&scene, named(&[])).unwrap_err().to_string();
     assert!(err.contains("no camera named"), "{err}");
-    let err = Cameras::new(&scene, CameraConfig { height: 2000, ..CameraConfig::default() }).unwrap_err().to_string();
-    assert!(err.contains("84x2000") && err.contains("640x480"), "{err}");
+    let err = Cameras::new(&scene, CameraConfig { height: 5000, ..CameraConfig::default() }).unwrap_err().to_string();
+    assert!(err.contains("5000x84") && err.contains("4096x4096"), "{err}");
+    assert!(Cameras::new(&scene, CameraConfig { height: 0, ..CameraConfig::default() }).is_err());
 }

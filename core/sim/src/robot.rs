@@ -1,0 +1,108 @@
+//! The arms a scene can have, each as robosuite 1.4.1 builds it: its base scene (table arena, the
+//! arm on its mount, its default gripper; `viewer_assets/scenes/<name>_table.xml`, written from
+//! robosuite by `scripts/make_robot_scene.py`), the names of its joints, actuators and finger
+//! pads, its home posture (`init_qpos`), and how its gripper takes the open/close action.
+//!
+//! Generated end-effector poses do not depend on the arm, so source demos recorded with one arm
+//! generate data for another (the paper's robot transfer).
+
+/// An arm with its gripper, named as robosuite names them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RobotModel {
+    /// Name on the command line (`panda`).
+    pub name: &'static str,
+    /// robosuite's name (`env_args.env_kwargs.robots`).
+    pub robosuite_name: &'static str,
+    /// The base scene, with `{ASSETS}` and the object markers.
+    pub base_xml: &'static str,
+    /// The arm's joints, base to wrist.
+    pub arm_joints: [&'static str; 7],
+    /// The torque actuator of each arm joint.
+    pub arm_actuators: [&'static str; 7],
+    /// robosuite's home posture.
+    pub init_qpos: [f64; 7],
+    /// The gripper's finger joints (observed as `robot0_gripper_qpos`).
+    pub finger_joints: [&'static str; 2],
+    /// The gripper's actuators, in robosuite's order.
+    pub finger_actuators: [&'static str; 2],
+    /// The finger joints' positions at reset.
+    pub finger_init_qpos: [f64; 2],
+    /// Per actuator, the direction its command moves on "close" (robosuite's `format_action`).
+    pub close_direction: [f64; 2],
+    /// Left and right finger pad collision geoms (robosuite's grasp check).
+    pub finger_pads: [&'static str; 2],
+}
+
+/// The Franka Panda with its gripper: the arm of the paper's source demos and of ours.
+pub const PANDA: RobotModel = RobotModel {
+    name: "panda",
+    robosuite_name: "Panda",
+    base_xml: include_str!("../../../viewer_assets/scenes/panda_table.xml"),
+    arm_joints: ["robot0_joint1", "robot0_joint2", "robot0_joint3", "robot0_joint4", "robot0_joint5", "robot0_joint6", "robot0_joint7"],
+    arm_actuators: ["robot0_torq_j1", "robot0_torq_j2", "robot0_torq_j3", "robot0_torq_j4", "robot0_torq_j5", "robot0_torq_j6", "robot0_torq_j7"],
+    init_qpos: [
+        0.0,
+        std::f64::consts::PI / 16.0,
+        0.0,
+        -std::f64::consts::PI / 2.0 - std::f64::consts::PI / 3.0,
+        0.0,
+        std::f64::consts::PI - 0.2,
+        std::f64::consts::PI / 4.0,
+    ],
+    finger_joints: ["gripper0_finger_joint1", "gripper0_finger_joint2"],
+    finger_actuators: ["gripper0_gripper_finger_joint1", "gripper0_gripper_finger_joint2"],
+    finger_init_qpos: [0.020833, -0.020833],
+    close_direction: [-1.0, 1.0],
+    finger_pads: ["gripper0_finger1_pad_collision", "gripper0_finger2_pad_collision"],
+};
+
+/// Rethink Robotics' Sawyer with robosuite's Rethink gripper.
+pub const SAWYER: RobotModel = RobotModel {
+    name: "sawyer",
+    robosuite_name: "Sawyer",
+    base_xml: include_str!("../../../viewer_assets/scenes/sawyer_table.xml"),
+    arm_joints: [
+        "robot0_right_j0",
+        "robot0_right_j1",
+        "robot0_right_j2",
+        "robot0_right_j3",
+        "robot0_right_j4",
+        "robot0_right_j5",
+        "robot0_right_j6",
+    ],
+    arm_actuators: [
+        "robot0_torq_right_j0",
+        "robot0_torq_right_j1",
+        "robot0_torq_right_j2",
+        "robot0_torq_right_j3",
+        "robot0_torq_right_j4",
+        "robot0_torq_right_j5",
+        "robot0_torq_right_j6",
+    ],
+    init_qpos: [0.0, -1.18, 0.0, 2.18, 0.0, 0.57, -1.57],
+    finger_joints: ["gripper0_l_finger_joint", "gripper0_r_finger_joint"],
+    finger_actuators: ["gripper0_gripper_r_finger_joint", "gripper0_gripper_l_finger_joint"],
+    finger_init_qpos: [0.020833, -0.020833],
+    close_direction: [1.0, -1.0],
+    finger_pads: ["gripper0_l_fingerpad_g0", "gripper0_r_fingerpad_g0"],
+};
+
+/// Every arm, in the order `mimicgen tasks` lists them.
+pub const ROBOTS: &[RobotModel] = &[PANDA, SAWYER];
+
+/// The arm named `name` (ours, `sawyer`, or robosuite's, `Sawyer`).
+///
+/// # Errors
+/// A message listing the arms when there is none of that name.
+pub fn robot(name: &str) -> Result<&'static RobotModel, String> {
+    ROBOTS.iter().find(|r| r.name.eq_ignore_ascii_case(name) || r.robosuite_name == name).ok_or_else(|| {
+        let names: Vec<&str> = ROBOTS.iter().map(|r| r.name).collect();
+        format!("no robot named {name:?}: the robots are {}", names.join(", "))
+    })
+}
+
+/// The arm whose joints `has_joint` finds in a scene (Panda for a scene with none of them).
+#[must_use]
+pub fn detect(has_joint: impl Fn(&str) -> bool) -> &'static RobotModel {
+    ROBOTS.iter().find(|r| has_joint(r.arm_joints[0])).unwrap_or(&PANDA)
+}
