@@ -26,6 +26,7 @@ Examples:
   mimicgen generate --source source_D0_prepared.hdf5 --config config_D1.json   # your MimicGen files: Stack D1
   mimicgen generate --num-demos 1000 --out out/big.hdf5 --resume      # continue a killed run exactly
   mimicgen generate --action-noise 0.02 --selection 1:random --offset-range 0:0,10   # spec fields for this run
+  mimicgen generate --task square --robot sawyer --out out/square_sawyer.hdf5   # Panda demos, Sawyer data
 
 The task and variant come from --task/--variant, else from the config's experiment.task.name
 (MimicGen's `Stack_D1`), else from the source file's env_args, else stack / D0; inputs that name
@@ -43,6 +44,11 @@ pub struct GenerateArgs {
     /// name, else D0.
     #[arg(long)]
     variant: Option<String>,
+    /// The arm to generate with (see `mimicgen tasks`): panda or sawyer. Default: the source
+    /// demos' arm. Another arm than theirs runs in the task's scene composed with it, from the
+    /// same end-effector poses (the paper's robot transfer); `env_args` names it for robosuite.
+    #[arg(long)]
+    robot: Option<String>,
     /// Attempts to make (successes to reach with --guarantee). Default: the spec's num_trials.
     #[arg(long)]
     num_demos: Option<usize>,
@@ -235,6 +241,7 @@ impl GenerateArgs {
             spec: self.spec.overrides(),
             shard: self.shard,
             cameras: self.cameras.config(),
+            robot: self.robot.clone(),
         }
     }
 }

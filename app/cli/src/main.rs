@@ -369,6 +369,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             for t in mimicgen_sim::registry::TASKS {
                 println!("{:<12} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
             }
+            println!();
+            for r in mimicgen_sim::robot::ROBOTS {
+                println!("robot {:<7} robosuite's {} with its default gripper (generate --robot {})", r.name, r.robosuite_name, r.name);
+            }
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -55,6 +55,10 @@ pub struct RunConfig {
     /// Render these cameras into the dataset (`agentview_image`, ...); none by default.
     #[serde(default)]
     pub cameras: Option<CameraConfig>,
+    /// The arm to generate with (`sawyer`); default: the sources' (their `model_file`), else the
+    /// Panda. Another arm than the sources' runs in the task's scene composed with it.
+    #[serde(default)]
+    pub robot: Option<String>,
 }
 
 impl Default for RunConfig {
@@ -78,6 +82,7 @@ impl Default for RunConfig {
             spec: SpecOverrides::default(),
             shard: None,
             cameras: None,
+            robot: None,
         }
     }
 }

@@ -52,6 +52,9 @@ pub(crate) struct RunDescription {
     /// The cameras rendered into the demos.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub(crate) cameras: Option<mimicgen_sim::camera::CameraConfig>,
+    /// The arm, when it is not the Panda.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) robot: Option<String>,
 }
 
 /// How far a run has got, stored in the `.partial` file after every attempt.
@@ -443,12 +446,23 @@ impl Pipeline {
             demo.manual_subtask_ends = Some(demo_ends.clone());
         }
         let model_xml = sources.demos.first().and_then(|d| d.sim.model_xml.clone());
-        let (scene, xml) = match model_xml {
-            Some(xml) => (Scene::from_model_file(&xml, &format!("{source_label} (model_file)"), task.as_ref())?, xml),
-            None => Scene::for_task_with_xml(task.as_ref())?,
+        let robot = config
+            .robot
+            .as_deref()
+            .map(mimicgen_sim::robot::robot)
+            .transpose()
+            .map_err(|reason| PipelineError::input("", "robot", reason))?;
+        let (scene, xml) = match (model_xml, robot) {
+            // Another arm than the sources': the task's scene composed with it (robot transfer).
+            (Some(xml), Some(robot)) if !xml.contains(&format!("\"{}\"", robot.arm_joints[0])) => {
+                Scene::for_task_with_robot(task.as_ref(), robot)?
+            }
+            (Some(xml), _) => (Scene::from_model_file(&xml, &format!("{source_label} (model_file)"), task.as_ref())?, xml),
+            (None, robot) => Scene::for_task_with_robot(task.as_ref(), robot.unwrap_or(&mimicgen_sim::robot::PANDA))?,
         };
         let scene_xml = mimicgen_sim::assets::portable_asset_paths(&xml);
         let mut env_args = registry::env_args_for_variant(sources.env_args.as_deref(), task.name(), &variant);
+        env_args = registry::env_args_with_robot(&env_args, scene.robot.model);
         if let Some(cameras) = &config.cameras {
             env_args = registry::env_args_with_cameras(&env_args, cameras);
         }
@@ -463,6 +477,7 @@ impl Pipeline {
             valid_fraction: config.valid_fraction,
             shard: config.shard,
             cameras: config.cameras.clone(),
+            robot: (scene.robot.model.name != mimicgen_sim::robot::PANDA.name).then(|| scene.robot.model.name.to_owned()),
         };
         let cameras = config.cameras.clone().map(|c| Cameras::new(&scene, c)).transpose()?;
         Ok(Self {

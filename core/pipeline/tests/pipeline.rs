@@ -461,3 +461,18 @@ fn cameras_render_into_the_dataset_as_robomimic_reads_them() {
     let err = Pipeline::prepare(&RunConfig { cameras: bad, ..config(&dir.path().join("bad.hdf5"), 1, 1) }).unwrap_err().to_string();
     assert!(err.contains("\"wristcam\"") && err.contains("robot0_eye_in_hand"), "{err}");
 }
+
+#[test]
+fn another_arm_runs_in_the_task_scene_composed_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sawyer.hdf5");
+    let pipeline = Pipeline::prepare(&RunConfig { robot: Some("sawyer".into()), ..config(&out, 1, 1) }).unwrap();
+    assert_eq!(pipeline.scene().robot.model.name, "sawyer");
+    let env_args: serde_json::Value = serde_json::from_str(pipeline.env_args()).unwrap();
+    assert_eq!(env_args["env_kwargs"]["robots"], serde_json::json!(["Sawyer"]));
+    // The sources' own arm keeps their scene; an unknown one is refused by name.
+    let panda = Pipeline::prepare(&RunConfig { robot: Some("panda".into()), ..config(&out, 1, 1) }).unwrap();
+    assert_eq!(panda.scene().robot.model.name, "panda");
+    let err = Pipeline::prepare(&RunConfig { robot: Some("baxter".into()), ..config(&out, 1, 1) }).unwrap_err().to_string();
+    assert!(err.contains("robot") && err.contains("baxter") && err.contains("sawyer"), "{err}");
+}

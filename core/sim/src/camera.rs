@@ -91,7 +91,7 @@ impl Cameras {
         // The offscreen buffer at the image size: MuJoCo clears and resolves all of it every frame,
         // which on a software renderer costs more than drawing an 84 x 84 image.
         let xml = with_visual(&crate::compose::with_arena(&scene.xml, "32M"), config.width, config.height, config.fast);
-        let model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Compile { file: origin.clone(), reason: format!("{e:?}") })?;
+        let model = crate::scene::compile_mjcf(&xml).map_err(|reason| SimError::Compile { file: origin.clone(), reason })?;
         let ncam = usize::try_from(model.ffi().ncam).unwrap_or_default();
         let names: Vec<String> = (0..ncam).filter_map(|i| model.id_to_name(MjtObjBase::mjOBJ_CAMERA, i).map(str::to_owned)).collect();
         let ids = config

@@ -153,6 +153,21 @@ pub fn env_args_with_cameras(env_args: &str, cameras: &crate::camera::CameraConf
     args.to_string()
 }
 
+/// `env_args` naming `robot` as robosuite names it (`env_kwargs.robots`), so robosuite builds the
+/// same arm.
+#[must_use]
+pub fn env_args_with_robot(env_args: &str, robot: &crate::robot::RobotModel) -> String {
+    let mut args: serde_json::Value = serde_json::from_str(env_args).unwrap_or_default();
+    if !args.is_object() {
+        return env_args.to_owned();
+    }
+    if !args["env_kwargs"].is_object() {
+        args["env_kwargs"] = serde_json::json!({});
+    }
+    args["env_kwargs"]["robots"] = serde_json::json!([robot.robosuite_name]);
+    args.to_string()
+}
+
 /// robosuite/robomimic's `env_args` JSON for `name` / `variant`, as the reference writes it
 /// (OSC_POSE, kp 150, 20 Hz, Panda), so robomimic can rebuild the environment.
 #[must_use]

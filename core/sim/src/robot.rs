@@ -39,7 +39,15 @@ pub const PANDA: RobotModel = RobotModel {
     robosuite_name: "Panda",
     base_xml: include_str!("../../../viewer_assets/scenes/panda_table.xml"),
     arm_joints: ["robot0_joint1", "robot0_joint2", "robot0_joint3", "robot0_joint4", "robot0_joint5", "robot0_joint6", "robot0_joint7"],
-    arm_actuators: ["robot0_torq_j1", "robot0_torq_j2", "robot0_torq_j3", "robot0_torq_j4", "robot0_torq_j5", "robot0_torq_j6", "robot0_torq_j7"],
+    arm_actuators: [
+        "robot0_torq_j1",
+        "robot0_torq_j2",
+        "robot0_torq_j3",
+        "robot0_torq_j4",
+        "robot0_torq_j5",
+        "robot0_torq_j6",
+        "robot0_torq_j7",
+    ],
     init_qpos: [
         0.0,
         std::f64::consts::PI / 16.0,

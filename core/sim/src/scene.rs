@@ -89,8 +89,7 @@ impl Scene {
     /// so that resets can move it while it stays fixed during an episode.
     pub fn compile(xml: &str, origin: &str, objects: &[(&str, &str)], control_freq_hz: f64) -> Result<Self, SimError> {
         let physics_xml = crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M");
-        let model =
-            MjModel::from_xml_string(&physics_xml).map_err(|e| SimError::Compile { file: origin.to_owned(), reason: format!("{e:?}") })?;
+        let model = compile_mjcf(&physics_xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?;
         let mut to_mocap = Vec::new();
         for (_, body_name) in objects {
             let body = id(&model, MjtObjBase::mjOBJ_BODY, body_name, origin)?;
@@ -262,6 +261,23 @@ impl Scene {
     #[must_use]
     pub fn state_dim(&self) -> usize {
         1 + usize::try_from(self.model.ffi().nq).unwrap_or_default() + usize::try_from(self.model.ffi().nv).unwrap_or_default()
+    }
+}
+
+/// Compiles an MJCF string. MuJoCo 3 refuses meshes whose volume is too small to give an inertia
+/// (some of Sawyer's visual meshes), which MuJoCo 2.3, robosuite 1.4.1's, accepted: such a scene
+/// is compiled again with shell mesh inertia (robosuite's bodies carry their own
+/// inertials, so the physics does not change). The XML written to datasets is left as it was.
+///
+/// # Errors
+/// MuJoCo's message.
+pub fn compile_mjcf(xml: &str) -> Result<MjModel, String> {
+    match MjModel::from_xml_string(xml) {
+        Ok(model) => Ok(model),
+        Err(e) if format!("{e:?}").contains("mesh volume is too small") => {
+            MjModel::from_xml_string(&xml.replace("<mesh name=", r#"<mesh inertia="shell" name="#)).map_err(|e| format!("{e:?}"))
+        }
+        Err(e) => Err(format!("{e:?}")),
     }
 }
 

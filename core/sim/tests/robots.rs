@@ -1,0 +1,35 @@
+//! Robot transfer: other arms compose into the task scenes as robosuite places them, reset to
+//! their home posture, follow OSC_POSE actions and grasp with their own gripper.
+#![allow(clippy::unwrap_used)] // tests fail loudly by design
+
+use std::sync::Arc;
+
+use mimicgen_engine::Environment as _;
+use mimicgen_sim::robot::{self, SAWYER};
+use mimicgen_sim::{Scene, SimEnv, registry};
+use rand::SeedableRng as _;
+
+#[test]
+fn sawyer_resets_home_and_follows_delta_pose_actions() {
+    let task = registry::task("stack", "D0").unwrap();
+    let (scene, xml) = Scene::for_task_with_robot(task.as_ref(), &SAWYER).unwrap();
+    assert!(xml.contains("robots/sawyer/") && !xml.contains("robots/panda/"));
+    assert_eq!(scene.robot.model.name, "sawyer");
+    let scene = Arc::new(scene);
+    let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3)).unwrap();
+    let start = env.eef_pose().translation.vector;
+    // The gripper starts above the table in front of the base, as robosuite's Sawyer does.
+    assert!(start.x > -0.3 && start.x < 0.1 && start.z > 0.9 && start.z < 1.2, "{start:?}");
+    // 20 steps of "down" and "close": the hand goes down, the fingers close.
+    let open = env.observation()["robot0_gripper_qpos"].clone();
+    for _ in 0..20 {
+        env.step(&[0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+    }
+    let end = env.eef_pose().translation.vector;
+    assert!(start.z - end.z > 0.1 && (end.xy() - start.xy()).norm() < 0.02, "{start:?} -> {end:?}");
+    let closed = env.observation()["robot0_gripper_qpos"].clone();
+    assert!((closed[0] - closed[1]).abs() < (open[0] - open[1]).abs() - 0.01, "fingers {open:?} -> {closed:?}");
+    assert_eq!(robot::robot("Sawyer").unwrap().name, "sawyer");
+    assert!(robot::robot("baxter").unwrap_err().contains("panda, sawyer"));
+}
