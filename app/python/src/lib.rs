@@ -435,9 +435,18 @@ impl Run {
         self.cancel.store(true, Ordering::Relaxed);
     }
 
-    /// The report once the run has ended (`None` before).
+    /// The report once the run has ended (`None` before); after a cancel, the report of the
+    /// cancelled run (waiting the moment its outputs take to finish).
     #[getter]
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        if self.cancel.load(Ordering::Relaxed) && self.report.lock().map_err(error)?.is_none() {
+            while let Some(m) = self.next_message_quietly(py)? {
+                if let Message::Done(r) = m {
+                    *self.report.lock().map_err(error)? = Some(*r);
+                    break;
+                }
+            }
+        }
         self.finished_report(py)
     }
 }

@@ -140,6 +140,21 @@ def test_ctrl_c_cancels_and_leaves_a_valid_dataset(tmp_path):
     assert len(mg.Dataset(out)) == report["successes"]
 
 
+def test_ctrl_c_in_the_loop_body_cancels_the_run_too(tmp_path):
+    import time
+
+    out = tmp_path / "body.hdf5"
+    run = mg.generate(out, num_demos=500, seed=2, workers=1)
+    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        for _ in run:
+            time.sleep(0.05)  # the signal lands here, in Python, not in the run's Rust code
+    timer.cancel()
+    assert run.report["cancelled"] and run.report["attempts"] < 500
+    assert len(mg.Dataset(out)) == run.report["successes"]
+
+
 def test_a_python_simulator_drives_the_rust_engine(tmp_path):
     first, second = tmp_path / "py1.hdf5", tmp_path / "py2.hdf5"
     report = mg.generate(first, env=KinematicStack, num_demos=8, seed=3, keep_failed=True).wait()

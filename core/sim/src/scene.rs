@@ -265,20 +265,30 @@ impl Scene {
 }
 
 /// Compiles an MJCF string. MuJoCo 3 refuses meshes whose volume is too small to give an inertia
-/// (some of Sawyer's visual meshes), which MuJoCo 2.3, robosuite 1.4.1's, accepted: such a scene
-/// is compiled again with shell mesh inertia (robosuite's bodies carry their own
-/// inertials, so the physics does not change). The XML written to datasets is left as it was.
+/// (some of Sawyer's visual meshes), which MuJoCo 2.3, robosuite 1.4.1's, accepted: each mesh it
+/// names so is given shell inertia, one at a time, and the scene compiled again (only that mesh
+/// changes; the XML written to datasets is left as it was).
 ///
 /// # Errors
 /// MuJoCo's message.
 pub fn compile_mjcf(xml: &str) -> Result<MjModel, String> {
-    match MjModel::from_xml_string(xml) {
-        Ok(model) => Ok(model),
-        Err(e) if format!("{e:?}").contains("mesh volume is too small") => {
-            MjModel::from_xml_string(&xml.replace("<mesh name=", r#"<mesh inertia="shell" name="#)).map_err(|e| format!("{e:?}"))
+    const TOO_SMALL: &str = "mesh volume is too small: ";
+    let mut xml = std::borrow::Cow::Borrowed(xml);
+    for _ in 0..64 {
+        let message = match MjModel::from_xml_string(&xml) {
+            Ok(model) => return Ok(model),
+            Err(e) => format!("{e:?}"),
+        };
+        let Some(name) = message.split_once(TOO_SMALL).and_then(|(_, rest)| rest.split([' ', '.', '"', '\\']).next()) else {
+            return Err(message);
+        };
+        let tag = format!(r#"<mesh name="{name}""#);
+        if !xml.contains(&tag) {
+            return Err(message);
         }
-        Err(e) => Err(format!("{e:?}")),
+        xml = std::borrow::Cow::Owned(xml.replace(&tag, &format!(r#"<mesh inertia="shell" name="{name}""#)));
     }
+    MjModel::from_xml_string(&xml).map_err(|e| format!("{e:?}"))
 }
 
 /// `world_from_frame` of a frame given by MuJoCo's position and row-major 3x3 rotation.

@@ -21,14 +21,17 @@ and leaves a valid (partial) dataset; the report then says ``cancelled``. Errors
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
-from typing import Any, Dict, Iterable, List, Mapping, Optional, Protocol, Sequence, Tuple, Union
+import signal
+import threading
+from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Protocol, Sequence, Tuple, Union
 
 import numpy as np
 
 from . import _native
-from ._native import Dataset, MimicgenError, Run, Spec
+from ._native import Dataset, MimicgenError, Spec
 
 __all__ = [
     "Dataset",
@@ -116,6 +119,58 @@ def _shard(shard: Union[None, str, Tuple[int, int]]) -> Optional[Dict[str, int]]
     return {"part": int(part), "count": int(count)}
 
 
+@contextlib.contextmanager
+def _cancel_on_sigint(native: Any) -> Iterator[None]:
+    """While the body runs on the main thread, Ctrl-C first cancels ``native`` (so the run
+    finishes its outputs as valid datasets wherever the KeyboardInterrupt surfaces), then raises
+    as it would have."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.getsignal(signal.SIGINT)
+
+    def on_sigint(signum: int, frame: Any) -> None:
+        native.cancel()
+        if callable(previous):
+            previous(signum, frame)
+        else:
+            raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+class Run:
+    """A generation run going on in the background: iterate it for events (dicts with ``kind``
+    ``started`` or ``attempt``), ``wait()`` for the report, ``cancel()``. Ctrl-C while iterating or
+    waiting cancels the run, whose outputs are finished as valid datasets (``report["cancelled"]``),
+    and raises ``KeyboardInterrupt``."""
+
+    def __init__(self, native: Any) -> None:
+        self._native = native
+
+    def __iter__(self) -> Iterator[Dict[str, Any]]:
+        with _cancel_on_sigint(self._native):
+            yield from self._native
+
+    def wait(self) -> Dict[str, Any]:
+        """Waits for the end and returns the report."""
+        with _cancel_on_sigint(self._native):
+            return self._native.wait()
+
+    def cancel(self) -> None:
+        """Stops after the attempts already decided; the outputs are finished as valid datasets."""
+        self._native.cancel()
+
+    @property
+    def report(self) -> Optional[Dict[str, Any]]:
+        """The report once the run has ended (``None`` before; after a cancel, the cancelled run's)."""
+        return self._native.report
+
+
 def _cameras(cameras: Union[None, bool, Sequence[str]], size: Union[int, Tuple[int, int]], depth: bool) -> Optional[Dict[str, Any]]:
     if cameras is None or cameras is False:
         return None
@@ -182,7 +237,7 @@ def generate(
     }
     if env is not None and not callable(env):
         raise MimicgenError("env: pass a callable that returns a new environment (one per worker), e.g. a class")
-    return _native.generate(json.dumps(cfg), env)
+    return Run(_native.generate(json.dumps(cfg), env))
 
 
 def propose_subtask_ends(path: PathLike, task: Optional[str] = None, config: Optional[PathLike] = None) -> Dict[str, List[Dict[str, Any]]]:
