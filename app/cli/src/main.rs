@@ -99,6 +99,8 @@ Examples:
     Coverage(coverage::CoverageArgs),
     /// Turn a plain robomimic dataset into MimicGen source demos by replaying its states.
     Prepare(prepare::PrepareArgs),
+    /// Add camera observations to a dataset from its stored states (robomimic's states-to-obs).
+    Render(prepare::RenderArgs),
     /// Measure generation against bare physics stepping and across worker counts.
     BenchSim(bench_sim::BenchSimArgs),
     /// Measure the app's frame time with a file loaded, and the time until it is browsable.
@@ -351,6 +353,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Prepare(args) => {
             prepare::prepare(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Render(args) => {
+            prepare::render(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::BenchSim(args) => {

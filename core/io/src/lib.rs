@@ -40,4 +40,6 @@ pub use dataset::{
     write_tree,
 };
 pub use error::{IoError, Result};
-pub use writer::{ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, Observation, WriterOptions, observations_from_group};
+pub use writer::{
+    ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, Observation, WriterOptions, image_dataset, observations_from_group,
+};

@@ -161,18 +161,7 @@ impl DemoData {
                         format!("{} values do not make {steps} images of shape {:?}", stream.len(), stream.shape),
                     ));
                 }
-                let mut full = vec![steps];
-                full.extend_from_slice(&stream.shape);
-                let values = match &stream.pixels {
-                    Pixels::Rgb(p) => Values::U8(p.clone()),
-                    Pixels::Depth(p) => Values::F32(p.clone()),
-                };
-                let mut d = Dataset::new(Array { shape: full.clone(), values });
-                if steps > 0 {
-                    full[0] = 1;
-                    d.chunks = Some(full);
-                    d.deflate = Some(4);
-                }
+                let d = image_dataset(stream);
                 obs.members.insert(key.clone(), Node::Dataset(d));
             }
         }
@@ -216,6 +205,26 @@ impl DemoData {
         }
         Ok(g)
     }
+}
+
+/// A camera stream as robomimic stores it: `(T, H, W, C)`, `uint8` RGB or `float32` depth, one
+/// gzip-compressed chunk per frame.
+#[must_use]
+pub fn image_dataset(stream: &ImageStream) -> Dataset {
+    let steps = stream.steps();
+    let mut full = vec![steps];
+    full.extend_from_slice(&stream.shape);
+    let values = match &stream.pixels {
+        Pixels::Rgb(p) => Values::U8(p.clone()),
+        Pixels::Depth(p) => Values::F32(p.clone()),
+    };
+    let mut d = Dataset::new(Array { shape: full.clone(), values });
+    if steps > 0 {
+        full[0] = 1;
+        d.chunks = Some(full);
+        d.deflate = Some(4);
+    }
+    d
 }
 
 /// A demo's `obs` group split as [`DemoData`] holds it: low-dim streams as `f64`, and camera
@@ -310,6 +319,7 @@ pub struct DatasetWriter {
     options: WriterOptions,
     names: Vec<String>,
     total: i64,
+    masks: Option<BTreeMap<String, Vec<String>>>,
 }
 
 impl DatasetWriter {
@@ -337,7 +347,7 @@ impl DatasetWriter {
             tree::write_attr(&label, &data, "data", "env_args", &Array::string(env_args))?;
         }
         h5.flush().map_err(|e| err("/", "", &e))?;
-        Ok(Self { h5, data, label, partial, out, options, names: Vec::new(), total: 0 })
+        Ok(Self { h5, data, label, partial, out, options, names: Vec::new(), total: 0, masks: None })
     }
 
     /// Reopens the `<out>.partial` file an interrupted writer left, to go on appending: keeps the
@@ -379,7 +389,7 @@ impl DatasetWriter {
             names.push(name);
         }
         h5.flush().map_err(|e| err("/", "", &e))?;
-        Ok(Self { h5, data, label, partial, out, options, names, total })
+        Ok(Self { h5, data, label, partial, out, options, names, total, masks: None })
     }
 
     /// String attributes `names` of the root of the `<out>.partial` file an interrupted writer left
@@ -472,6 +482,12 @@ impl DatasetWriter {
         self.append(&DemoData::from_attempt(attempt, obs, model_xml))
     }
 
+    /// Filter keys to write as they are (`mask/<key>` with these demo names) in place of the
+    /// train/valid split of [`WriterOptions::valid_fraction`].
+    pub fn set_masks(&mut self, masks: BTreeMap<String, Vec<String>>) {
+        self.masks = Some(masks);
+    }
+
     /// Writes totals and masks, marks the file complete and moves it to its final path.
     ///
     /// # Errors
@@ -479,10 +495,18 @@ impl DatasetWriter {
     pub fn finish(self) -> Result<PathBuf> {
         let label = self.label.clone();
         tree::write_attr(&label, &self.data, "data", "total", &Array::int(self.total))?;
-        if let Some(fraction) = self.options.valid_fraction {
-            let (train, valid) = split_train_valid(&self.names, fraction, self.options.split_seed);
+        let masks: Option<Vec<(String, Vec<String>)>> = match (&self.masks, self.options.valid_fraction) {
+            (Some(masks), _) => Some(masks.iter().map(|(k, v)| (k.clone(), v.clone())).collect()),
+            (None, Some(fraction)) => {
+                let (train, valid) = split_train_valid(&self.names, fraction, self.options.split_seed);
+                Some(vec![("train".to_owned(), train), ("valid".to_owned(), valid)])
+            }
+            (None, None) => None,
+        };
+        if let Some(masks) = masks.filter(|m| !m.is_empty()) {
             let mask = self.h5.create_group("mask").map_err(|e| IoError::hdf5(&label, "/", "mask", &e))?;
-            for (key, names) in [("train", train), ("valid", valid)] {
+            for (key, names) in masks {
+                let key = key.as_str();
                 let len = names.iter().map(String::len).max().unwrap_or(1).max(1);
                 let d = Dataset::new(Array { shape: vec![names.len()], values: Values::Fixed { len, strings: names } });
                 tree::write_dataset(&label, &mask, "mask", key, &d)?;

@@ -37,6 +37,7 @@ pub mod merge;
 mod overrides;
 pub mod prepare;
 pub mod preview;
+pub mod render;
 mod run;
 
 pub use config::RunConfig;

@@ -15,7 +15,7 @@ use mimicgen_sim::{Scene, SimEnv, registry};
 
 use crate::PipelineError;
 
-fn rows(demo: &Group, field: &str, file: &str, name: &str) -> Result<Rows, PipelineError> {
+pub(crate) fn rows(demo: &Group, field: &str, file: &str, name: &str) -> Result<Rows, PipelineError> {
     let at = format!("data/{name}/{field}");
     let d = demo.dataset(field).ok_or_else(|| PipelineError::input(file, format!("data/{name}"), format!("has no `{field}`")))?;
     let width = d.array.shape.get(1).copied().unwrap_or(1);

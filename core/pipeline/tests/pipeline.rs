@@ -476,3 +476,43 @@ fn another_arm_runs_in_the_task_scene_composed_with_it() {
     let err = Pipeline::prepare(&RunConfig { robot: Some("baxter".into()), ..config(&out, 1, 1) }).unwrap_err().to_string();
     assert!(err.contains("robot") && err.contains("baxter") && err.contains("sawyer"), "{err}");
 }
+
+#[test]
+fn render_adds_camera_observations_to_a_dataset_and_keeps_the_rest() {
+    use mimicgen_io::tree::{Dataset, Group, Values};
+    use mimicgen_sim::camera::CameraConfig;
+    let dir = tempfile::tempdir().unwrap();
+    let mut file = RobomimicDataset::open(data("../io/tests/data/source_D0_prepared.hdf5")).unwrap();
+    let Some(Node::Group(demos)) = file.root.members.get_mut("data") else { panic!("no data") };
+    demos.members.retain(|name, _| name == "demo_0" || name == "demo_1");
+    let mut mask = Group::default();
+    let train = Array { shape: vec![1], values: Values::Fixed { len: 6, strings: vec!["demo_1".into()] } };
+    mask.members.insert("train".into(), Node::Dataset(Dataset::new(train)));
+    file.root.members.insert("mask".into(), Node::Group(mask));
+    let input = dir.path().join("in.hdf5");
+    mimicgen_io::write_tree(&input, &file.root).unwrap();
+    let out = dir.path().join("out.hdf5");
+    let cameras = CameraConfig { names: vec!["agentview".into()], height: 16, width: 16, depth: false, fast: true };
+    let mut progress = Vec::new();
+    assert_eq!(mimicgen_pipeline::render::render(&input, &out, &cameras, None, false, |d, t| progress.push((d, t))).unwrap(), 2);
+    assert_eq!(progress, [(1, 2), (2, 2)]);
+    let (a, b) = (RobomimicDataset::open(&input).unwrap(), RobomimicDataset::open(&out).unwrap());
+    for name in ["demo_0", "demo_1"] {
+        let (before, after) = (a.demo(name).unwrap(), b.demo(name).unwrap());
+        assert_eq!(before.dataset("actions"), after.dataset("actions"));
+        assert_eq!(before.dataset_at("obs/robot0_eef_pos"), after.dataset_at("obs/robot0_eef_pos"));
+        let image = after.dataset_at("obs/agentview_image").unwrap();
+        let steps = before.dataset("actions").unwrap().array.shape[0];
+        assert_eq!(image.array.shape, [steps, 16, 16, 3]);
+        assert!(matches!(image.array.values, Values::U8(_)));
+    }
+    assert_eq!(b.masks().unwrap()["train"], ["demo_1"]);
+    let env_args: serde_json::Value = serde_json::from_str(b.env_args().unwrap()).unwrap();
+    assert_eq!(env_args["env_kwargs"]["camera_names"], serde_json::json!(["agentview"]));
+    // An existing output is kept; an unknown camera is named.
+    let err = mimicgen_pipeline::render::render(&input, &out, &cameras, None, false, |_, _| ()).unwrap_err().to_string();
+    assert!(err.contains("--out") && err.contains("--overwrite"), "{err}");
+    let wrist = CameraConfig { names: vec!["wristcam".into()], ..cameras };
+    let err = mimicgen_pipeline::render::render(&input, &out, &wrist, None, true, |_, _| ()).unwrap_err().to_string();
+    assert!(err.contains("\"wristcam\""), "{err}");
+}
