@@ -31,6 +31,9 @@ pub struct RobotModel {
     pub close_direction: [f64; 2],
     /// Left and right finger pad collision geoms (robosuite's grasp check).
     pub finger_pads: [&'static str; 2],
+    /// Body pairs whose contacts the simulation excludes: pairs that touch exactly at rest, which
+    /// MuJoCo 3 counts as a contact and MuJoCo 2.3 (robosuite 1.4.1's) does not.
+    pub contact_excludes: &'static [(&'static str, &'static str)],
 }
 
 /// The Franka Panda with its gripper: the arm of the paper's source demos and of ours.
@@ -62,6 +65,7 @@ pub const PANDA: RobotModel = RobotModel {
     finger_init_qpos: [0.020833, -0.020833],
     close_direction: [-1.0, 1.0],
     finger_pads: ["gripper0_finger1_pad_collision", "gripper0_finger2_pad_collision"],
+    contact_excludes: &[],
 };
 
 /// Rethink Robotics' Sawyer with robosuite's Rethink gripper.
@@ -93,6 +97,9 @@ pub const SAWYER: RobotModel = RobotModel {
     finger_init_qpos: [0.020833, -0.020833],
     close_direction: [1.0, -1.0],
     finger_pads: ["gripper0_l_fingerpad_g0", "gripper0_r_fingerpad_g0"],
+    // The first link's collision sphere rests exactly on the base's cylinder: in MuJoCo 3 that
+    // contact's friction holds joint 0 back (3.7 N m at rest), which robosuite's arm never feels.
+    contact_excludes: &[("robot0_right_arm_base_link", "robot0_right_l0")],
 };
 
 /// Every arm, in the order `mimicgen tasks` lists them.
@@ -107,6 +114,20 @@ pub fn robot(name: &str) -> Result<&'static RobotModel, String> {
         let names: Vec<&str> = ROBOTS.iter().map(|r| r.name).collect();
         format!("no robot named {name:?}: the robots are {}", names.join(", "))
     })
+}
+
+/// `xml` with `robot`'s contact exclusions (for the simulation; datasets keep robosuite's XML).
+#[must_use]
+pub fn with_contact_excludes(xml: &str, robot: &RobotModel) -> String {
+    if robot.contact_excludes.is_empty() {
+        return xml.to_owned();
+    }
+    let excludes: String =
+        robot.contact_excludes.iter().map(|(a, b)| format!(r#"<exclude body1="{a}" body2="{b}"/>"#)).collect::<Vec<_>>().join("");
+    match xml.rfind("</mujoco>") {
+        Some(end) => format!("{}<contact>{excludes}</contact>\n{}", &xml[..end], &xml[end..]),
+        None => xml.to_owned(),
+    }
 }
 
 /// The arm whose joints `has_joint` finds in a scene (Panda for a scene with none of them).

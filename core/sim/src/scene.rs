@@ -88,7 +88,9 @@ impl Scene {
     /// An object body without joints that is not a mocap body yet (robosuite's pegs) is made one,
     /// so that resets can move it while it stays fixed during an episode.
     pub fn compile(xml: &str, origin: &str, objects: &[(&str, &str)], control_freq_hz: f64) -> Result<Self, SimError> {
-        let physics_xml = crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M");
+        let robot = crate::robot::detect(|name| xml.contains(&format!("\"{name}\"")));
+        let physics_xml =
+            crate::robot::with_contact_excludes(&crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M"), robot);
         let model = compile_mjcf(&physics_xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?;
         let mut to_mocap = Vec::new();
         for (_, body_name) in objects {
