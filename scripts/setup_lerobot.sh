@@ -15,7 +15,8 @@ want="$(sha256sum "$here/requirements-lerobot.txt" | cut -d' ' -f1)"
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   echo "setup_lerobot: creating Python environment in $venv (about 4 GB of wheels)"
   python3 -m venv --clear "$venv"
-  "$venv/bin/pip" install -q --disable-pip-version-check --no-deps --only-binary=:all: \
+  # --no-cache-dir: the wheels are 4 GB; a copy in pip's cache would double that on disk.
+  "$venv/bin/pip" install -q --disable-pip-version-check --no-cache-dir --no-deps --only-binary=:all: \
     -r "$here/requirements-lerobot.txt"
   "$venv/bin/python" -c 'import ledataset.datasets.lerobot_dataset, pyarrow, av; print("setup_lerobot: LeRobotDataset imports")'
   echo "$want" > "$stamp"
