@@ -44,7 +44,7 @@ pub struct GenerateArgs {
     /// name, else D0.
     #[arg(long)]
     variant: Option<String>,
-    /// The arm to generate with (see `mimicgen tasks`): panda or sawyer. Default: the source
+    /// The arm to generate with (see `mimicgen tasks`): panda, sawyer or iiwa. Default: the source
     /// demos' arm. Another arm than theirs runs in the task's scene composed with it, from the
     /// same end-effector poses (the paper's robot transfer); `env_args` names it for robosuite.
     #[arg(long)]

@@ -288,7 +288,7 @@ impl Environment for SimEnv {
             for (adr, q) in robot.arm_qpos.iter().zip(&arm) {
                 qpos[*adr] = *q;
             }
-            for (adr, q) in robot.finger_qpos.iter().zip(robot.model.finger_init_qpos) {
+            for (adr, q) in robot.finger_qpos.iter().zip(robot.model.finger_init_qpos.iter().copied()) {
                 qpos[*adr] = q;
             }
         }

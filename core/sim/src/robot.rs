@@ -21,12 +21,12 @@ pub struct RobotModel {
     pub arm_actuators: [&'static str; 7],
     /// robosuite's home posture.
     pub init_qpos: [f64; 7],
-    /// The gripper's finger joints (observed as `robot0_gripper_qpos`).
-    pub finger_joints: [&'static str; 2],
+    /// The gripper's joints (observed as `robot0_gripper_qpos`).
+    pub finger_joints: &'static [&'static str],
     /// The gripper's actuators, in robosuite's order.
     pub finger_actuators: [&'static str; 2],
-    /// The finger joints' positions at reset.
-    pub finger_init_qpos: [f64; 2],
+    /// The gripper joints' positions at reset.
+    pub finger_init_qpos: &'static [f64],
     /// Per actuator, the direction its command moves on "close" (robosuite's `format_action`).
     pub close_direction: [f64; 2],
     /// Left and right finger pad collision geoms (robosuite's grasp check).
@@ -60,9 +60,9 @@ pub const PANDA: RobotModel = RobotModel {
         std::f64::consts::PI - 0.2,
         std::f64::consts::PI / 4.0,
     ],
-    finger_joints: ["gripper0_finger_joint1", "gripper0_finger_joint2"],
+    finger_joints: &["gripper0_finger_joint1", "gripper0_finger_joint2"],
     finger_actuators: ["gripper0_gripper_finger_joint1", "gripper0_gripper_finger_joint2"],
-    finger_init_qpos: [0.020833, -0.020833],
+    finger_init_qpos: &[0.020833, -0.020833],
     close_direction: [-1.0, 1.0],
     finger_pads: ["gripper0_finger1_pad_collision", "gripper0_finger2_pad_collision"],
     contact_excludes: &[],
@@ -92,9 +92,9 @@ pub const SAWYER: RobotModel = RobotModel {
         "robot0_torq_right_j6",
     ],
     init_qpos: [0.0, -1.18, 0.0, 2.18, 0.0, 0.57, -1.57],
-    finger_joints: ["gripper0_l_finger_joint", "gripper0_r_finger_joint"],
+    finger_joints: &["gripper0_l_finger_joint", "gripper0_r_finger_joint"],
     finger_actuators: ["gripper0_gripper_r_finger_joint", "gripper0_gripper_l_finger_joint"],
-    finger_init_qpos: [0.020833, -0.020833],
+    finger_init_qpos: &[0.020833, -0.020833],
     close_direction: [1.0, -1.0],
     finger_pads: ["gripper0_l_fingerpad_g0", "gripper0_r_fingerpad_g0"],
     // The first link's collision sphere rests exactly on the base's cylinder: in MuJoCo 3 that
@@ -102,8 +102,47 @@ pub const SAWYER: RobotModel = RobotModel {
     contact_excludes: &[("robot0_right_arm_base_link", "robot0_right_l0")],
 };
 
+/// KUKA's LBR IIWA 7 with robosuite's Robotiq 140 gripper (six coupled joints, two actuators).
+pub const IIWA: RobotModel = RobotModel {
+    name: "iiwa",
+    robosuite_name: "IIWA",
+    base_xml: include_str!("../../../viewer_assets/scenes/iiwa_table.xml"),
+    arm_joints: [
+        "robot0_joint_1",
+        "robot0_joint_2",
+        "robot0_joint_3",
+        "robot0_joint_4",
+        "robot0_joint_5",
+        "robot0_joint_6",
+        "robot0_joint_7",
+    ],
+    arm_actuators: [
+        "robot0_torq_j1",
+        "robot0_torq_j2",
+        "robot0_torq_j3",
+        "robot0_torq_j4",
+        "robot0_torq_j5",
+        "robot0_torq_j6",
+        "robot0_torq_j7",
+    ],
+    init_qpos: [0.0, 0.65, 0.0, -1.89, 0.0, 0.6, 0.0],
+    finger_joints: &[
+        "gripper0_finger_joint",
+        "gripper0_left_inner_finger_joint",
+        "gripper0_left_inner_knuckle_joint",
+        "gripper0_right_outer_knuckle_joint",
+        "gripper0_right_inner_finger_joint",
+        "gripper0_right_inner_knuckle_joint",
+    ],
+    finger_actuators: ["gripper0_finger_1", "gripper0_finger_2"],
+    finger_init_qpos: &[0.012, 0.065, 0.065, -0.012, 0.065, 0.065],
+    close_direction: [1.0, -1.0],
+    finger_pads: ["gripper0_left_fingerpad_collision", "gripper0_right_fingerpad_collision"],
+    contact_excludes: &[],
+};
+
 /// Every arm, in the order `mimicgen tasks` lists them.
-pub const ROBOTS: &[RobotModel] = &[PANDA, SAWYER];
+pub const ROBOTS: &[RobotModel] = &[PANDA, SAWYER, IIWA];
 
 /// The arm named `name` (ours, `sawyer`, or robosuite's, `Sawyer`).
 ///

@@ -141,10 +141,12 @@ impl Scene {
             robot.arm_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
             robot.arm_actuators.push(actuator(actuator_name)?);
         }
-        for (name, actuator_name) in model_of.finger_joints.iter().zip(model_of.finger_actuators) {
+        for name in model_of.finger_joints {
             let j = joint(name)?;
             robot.finger_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
             robot.finger_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
+        }
+        for actuator_name in model_of.finger_actuators {
             robot.finger_actuators.push(actuator(actuator_name)?);
         }
         let mut scene_objects = Vec::with_capacity(objects.len());

@@ -47,3 +47,28 @@ fn sawyer_resets_home_and_follows_delta_pose_actions() {
     assert_eq!(robot::robot("Sawyer").unwrap().name, "sawyer");
     assert!(robot::robot("baxter").unwrap_err().contains("panda, sawyer"));
 }
+
+#[test]
+fn iiwa_with_its_robotiq_gripper_composes_rests_and_closes() {
+    let task = registry::task("square", "D0").unwrap();
+    let (scene, xml) = Scene::for_task_with_robot(task.as_ref(), &robot::IIWA).unwrap();
+    assert!(xml.contains("robots/iiwa/") && xml.contains("robotiq_140"), "the IIWA with robosuite's Robotiq 140");
+    assert_eq!((scene.robot.model.name, scene.robot.finger_qpos.len()), ("iiwa", 6));
+    let scene = Arc::new(scene);
+    let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(4)).unwrap();
+    let name = |g: i32| scene.model.id_to_name(MjtObjBase::mjOBJ_GEOM, usize::try_from(g).unwrap()).unwrap_or("").to_owned();
+    let touching: Vec<(String, String)> = env.data().contact().iter().map(|c| (name(c.geom[0]), name(c.geom[1]))).collect();
+    assert!(!touching.iter().any(|(a, b)| a.starts_with("robot0_") && b.starts_with("robot0_")), "{touching:?}");
+    let start = env.eef_pose().translation.vector;
+    let open = env.observation()["robot0_gripper_qpos"].clone();
+    assert_eq!(open.len(), 6);
+    for _ in 0..20 {
+        env.step(&[0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+    }
+    let end = env.eef_pose().translation.vector;
+    assert!(start.z - end.z > 0.1, "{start:?} -> {end:?}");
+    // Closing drives the two driven knuckles towards their closed ends (+0.7 and -0.7 rad).
+    let closed = env.observation()["robot0_gripper_qpos"].clone();
+    assert!(closed[0] > open[0] + 0.1 && closed[3] < open[3] - 0.1, "gripper {open:?} -> {closed:?}");
+}
