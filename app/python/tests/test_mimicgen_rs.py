@@ -180,6 +180,17 @@ def test_a_python_simulator_error_ends_the_run_with_its_message(tmp_path):
         mg.generate(tmp_path / "b.hdf5", env=Broken, num_demos=2).wait()
 
 
+def test_another_arm_from_the_same_source_demos(tmp_path):
+    import json
+
+    out = tmp_path / "sawyer.hdf5"
+    report = mg.generate(out, robot="sawyer", num_demos=3, seed=1).wait()
+    assert report["successes"] >= 2
+    assert json.loads(mg.Dataset(out).env_args)["env_kwargs"]["robots"] == ["Sawyer"]
+    with pytest.raises(mg.MimicgenError, match="baxter"):
+        mg.generate(tmp_path / "b.hdf5", robot="baxter", num_demos=1).wait()
+
+
 def test_cameras_and_a_lerobot_export_that_pyarrow_reads(tmp_path):
     import pyarrow.parquet as pq
 

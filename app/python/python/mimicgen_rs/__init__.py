@@ -184,6 +184,7 @@ def generate(
     *,
     task: Optional[str] = None,
     variant: Optional[str] = None,
+    robot: Optional[str] = None,
     source: Optional[PathLike] = None,
     config: Optional[PathLike] = None,
     num_demos: Optional[int] = None,
@@ -208,7 +209,8 @@ def generate(
     ``spec`` sets spec fields for this run: ``{"action_noise": 0.02, "nn_k": {1: 5},
     "selection": "nearest_neighbor_object", "offset_range": (0, 10)}`` (a value for every
     subtask, or a dict by subtask index). ``shard="0/4"`` makes share 0 of 4 (join them with
-    :func:`merge`). ``cameras=True`` renders agentview and the wrist camera into every kept demo
+    :func:`merge`). ``robot="sawyer"`` (or ``"iiwa"``) generates with that arm from the same
+    source demos. ``cameras=True`` renders agentview and the wrist camera into every kept demo
     (``obs/<camera>_image``, uint8), or name them: ``cameras=["agentview", "frontview"]``, at
     ``camera_size`` (``84`` or ``(height, width)``). ``env`` is a callable returning an :class:`Environment` (one per worker) to
     drive instead of the bundled MuJoCo backend.
@@ -218,6 +220,7 @@ def generate(
     cfg = {
         "task": task,
         "variant": variant,
+        "robot": robot,
         "config": _path(config),
         "source": _path(source),
         "out": os.fspath(out),
