@@ -23,6 +23,19 @@ pub(crate) fn rows(demo: &Group, field: &str, file: &str, name: &str) -> Result<
     Rows::from_vec(width, values, &format!("{file}: {at}")).map_err(|e| PipelineError::engine(file, e))
 }
 
+/// The task named by `--task`, else by the file's `env_args`.
+///
+/// # Errors
+/// [`PipelineError::Input`] naming `--task` or the `env_args` attribute.
+pub(crate) fn task_of(task: Option<&str>, env_args: Option<&str>, file: &str) -> Result<Arc<dyn mimicgen_sim::Task>, PipelineError> {
+    match task {
+        Some(name) => registry::task(name, "D0").map_err(|e| PipelineError::input("", "--task", e)),
+        None => registry::task_from_env_args(env_args)
+            .map(|(task, _)| task)
+            .map_err(|e| PipelineError::input(file, "data attribute env_args", format!("{e}; pass --task"))),
+    }
+}
+
 /// Replays every demo of `input` and writes MimicGen source demos to `out`. `task` names the task
 /// when the file's `env_args` do not; `on_demo(done, total, name)` is called after each demo.
 /// Returns the number of demos written.
@@ -35,14 +48,7 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
     let file = input.display().to_string();
     let dataset = RobomimicDataset::open(input)?;
     let env_args = dataset.env_args().map(str::to_owned);
-    let task = match task {
-        Some(name) => registry::task(name, "D0").map_err(|e| PipelineError::input("", "--task", e))?,
-        None => {
-            registry::task_from_env_args(env_args.as_deref())
-                .map_err(|e| PipelineError::input(file.clone(), "data attribute env_args", format!("{e}; pass --task")))?
-                .0
-        }
-    };
+    let task = task_of(task, env_args.as_deref(), &file)?;
     let mut writer = DatasetWriter::create(out, WriterOptions { env_args, compress_obs: true, valid_fraction: None, split_seed: 0 })?;
     let mut scenes: BTreeMap<String, Arc<Scene>> = BTreeMap::new();
     let names = dataset.demo_names().to_vec();

@@ -34,14 +34,7 @@ pub fn render(
     let file = input.display().to_string();
     let reader = DemoReader::open_with(input, ReadOptions::default())?;
     let env_args = reader.env_args_json().map(str::to_owned);
-    let task = match task {
-        Some(name) => registry::task(name, "D0").map_err(|e| PipelineError::input("", "--task", e))?,
-        None => {
-            registry::task_from_env_args(env_args.as_deref())
-                .map_err(|e| PipelineError::input(file.clone(), "data attribute env_args", format!("{e}; pass --task")))?
-                .0
-        }
-    };
+    let task = crate::prepare::task_of(task, env_args.as_deref(), &file)?;
     crate::run::clear_outputs(out, None, overwrite, false)?;
     let options = WriterOptions {
         env_args: env_args.map(|a| registry::env_args_with_cameras(&a, cameras)),

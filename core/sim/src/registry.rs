@@ -132,10 +132,9 @@ pub fn env_args_for_variant(source_env_args: Option<&str>, name: &str, variant: 
     }
 }
 
-/// `env_args` with robosuite's camera settings for `cameras` (what robomimic reads to render the
-/// same images in the environment it rebuilds).
-#[must_use]
-pub fn env_args_with_cameras(env_args: &str, cameras: &crate::camera::CameraConfig) -> String {
+/// `env_args` with `edit` applied to its `env_kwargs` (made an object if missing); unchanged when
+/// it is not a JSON object.
+fn with_env_kwargs(env_args: &str, edit: impl FnOnce(&mut serde_json::Value)) -> String {
     let mut args: serde_json::Value = serde_json::from_str(env_args).unwrap_or_default();
     if !args.is_object() {
         return env_args.to_owned();
@@ -143,29 +142,29 @@ pub fn env_args_with_cameras(env_args: &str, cameras: &crate::camera::CameraConf
     if !args["env_kwargs"].is_object() {
         args["env_kwargs"] = serde_json::json!({});
     }
-    let kwargs = &mut args["env_kwargs"];
-    kwargs["use_camera_obs"] = true.into();
-    kwargs["has_offscreen_renderer"] = true.into();
-    kwargs["camera_names"] = cameras.names.clone().into();
-    kwargs["camera_heights"] = cameras.height.into();
-    kwargs["camera_widths"] = cameras.width.into();
-    kwargs["camera_depths"] = cameras.depth.into();
+    edit(&mut args["env_kwargs"]);
     args.to_string()
+}
+
+/// `env_args` with robosuite's camera settings for `cameras` (what robomimic reads to render the
+/// same images in the environment it rebuilds).
+#[must_use]
+pub fn env_args_with_cameras(env_args: &str, cameras: &crate::camera::CameraConfig) -> String {
+    with_env_kwargs(env_args, |kwargs| {
+        kwargs["use_camera_obs"] = true.into();
+        kwargs["has_offscreen_renderer"] = true.into();
+        kwargs["camera_names"] = cameras.names.clone().into();
+        kwargs["camera_heights"] = cameras.height.into();
+        kwargs["camera_widths"] = cameras.width.into();
+        kwargs["camera_depths"] = cameras.depth.into();
+    })
 }
 
 /// `env_args` naming `robot` as robosuite names it (`env_kwargs.robots`), so robosuite builds the
 /// same arm.
 #[must_use]
 pub fn env_args_with_robot(env_args: &str, robot: &crate::robot::RobotModel) -> String {
-    let mut args: serde_json::Value = serde_json::from_str(env_args).unwrap_or_default();
-    if !args.is_object() {
-        return env_args.to_owned();
-    }
-    if !args["env_kwargs"].is_object() {
-        args["env_kwargs"] = serde_json::json!({});
-    }
-    args["env_kwargs"]["robots"] = serde_json::json!([robot.robosuite_name]);
-    args.to_string()
+    with_env_kwargs(env_args, |kwargs| kwargs["robots"] = serde_json::json!([robot.robosuite_name]))
 }
 
 /// robosuite/robomimic's `env_args` JSON for `name` / `variant`, as the reference writes it

@@ -36,21 +36,17 @@ pub struct RobotModel {
     pub contact_excludes: &'static [(&'static str, &'static str)],
 }
 
+/// The arm's torque actuators as robosuite names them for the Panda and the IIWA.
+const TORQUE_ACTUATORS: [&str; 7] =
+    ["robot0_torq_j1", "robot0_torq_j2", "robot0_torq_j3", "robot0_torq_j4", "robot0_torq_j5", "robot0_torq_j6", "robot0_torq_j7"];
+
 /// The Franka Panda with its gripper: the arm of the paper's source demos and of ours.
 pub const PANDA: RobotModel = RobotModel {
     name: "panda",
     robosuite_name: "Panda",
     base_xml: include_str!("../../../viewer_assets/scenes/panda_table.xml"),
     arm_joints: ["robot0_joint1", "robot0_joint2", "robot0_joint3", "robot0_joint4", "robot0_joint5", "robot0_joint6", "robot0_joint7"],
-    arm_actuators: [
-        "robot0_torq_j1",
-        "robot0_torq_j2",
-        "robot0_torq_j3",
-        "robot0_torq_j4",
-        "robot0_torq_j5",
-        "robot0_torq_j6",
-        "robot0_torq_j7",
-    ],
+    arm_actuators: TORQUE_ACTUATORS,
     init_qpos: [
         0.0,
         std::f64::consts::PI / 16.0,
@@ -116,15 +112,7 @@ pub const IIWA: RobotModel = RobotModel {
         "robot0_joint_6",
         "robot0_joint_7",
     ],
-    arm_actuators: [
-        "robot0_torq_j1",
-        "robot0_torq_j2",
-        "robot0_torq_j3",
-        "robot0_torq_j4",
-        "robot0_torq_j5",
-        "robot0_torq_j6",
-        "robot0_torq_j7",
-    ],
+    arm_actuators: TORQUE_ACTUATORS,
     init_qpos: [0.0, 0.65, 0.0, -1.89, 0.0, 0.6, 0.0],
     finger_joints: &[
         "gripper0_finger_joint",

@@ -88,9 +88,11 @@ impl Scene {
     /// An object body without joints that is not a mocap body yet (robosuite's pegs) is made one,
     /// so that resets can move it while it stays fixed during an episode.
     pub fn compile(xml: &str, origin: &str, objects: &[(&str, &str)], control_freq_hz: f64) -> Result<Self, SimError> {
-        let robot = crate::robot::detect(|name| xml.contains(&format!("\"{name}\"")));
-        let physics_xml =
-            crate::robot::with_contact_excludes(&crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M"), robot);
+        let robot_model = crate::robot::detect(|name| xml.contains(&format!("\"{name}\"")));
+        let physics_xml = crate::robot::with_contact_excludes(
+            &crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M"),
+            robot_model,
+        );
         let model = compile_mjcf(&physics_xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?;
         let mut to_mocap = Vec::new();
         for (_, body_name) in objects {
@@ -119,9 +121,8 @@ impl Scene {
             let a = id(&model, MjtObjBase::mjOBJ_ACTUATOR, name, origin)?;
             Ok((a, model.actuator_ctrlrange()[a]))
         };
-        let model_of = crate::robot::detect(|name| model.name_to_id(MjtObjBase::mjOBJ_JOINT, name).is_some());
         let mut robot = RobotIndices {
-            model: model_of,
+            model: robot_model,
             arm_qpos: Vec::new(),
             arm_dof: Vec::new(),
             arm_actuators: Vec::new(),
@@ -131,22 +132,22 @@ impl Scene {
             finger_actuators: Vec::new(),
             eef_site: id(&model, MjtObjBase::mjOBJ_SITE, "gripper0_grip_site", origin)?,
             finger_pads: [
-                vec![id(&model, MjtObjBase::mjOBJ_GEOM, model_of.finger_pads[0], origin)?],
-                vec![id(&model, MjtObjBase::mjOBJ_GEOM, model_of.finger_pads[1], origin)?],
+                vec![id(&model, MjtObjBase::mjOBJ_GEOM, robot_model.finger_pads[0], origin)?],
+                vec![id(&model, MjtObjBase::mjOBJ_GEOM, robot_model.finger_pads[1], origin)?],
             ],
         };
-        for (name, actuator_name) in model_of.arm_joints.iter().zip(model_of.arm_actuators) {
+        for (name, actuator_name) in robot_model.arm_joints.iter().zip(robot_model.arm_actuators) {
             let j = joint(name)?;
             robot.arm_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
             robot.arm_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
             robot.arm_actuators.push(actuator(actuator_name)?);
         }
-        for name in model_of.finger_joints {
+        for name in robot_model.finger_joints {
             let j = joint(name)?;
             robot.finger_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
             robot.finger_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
         }
-        for actuator_name in model_of.finger_actuators {
+        for actuator_name in robot_model.finger_actuators {
             robot.finger_actuators.push(actuator(actuator_name)?);
         }
         let mut scene_objects = Vec::with_capacity(objects.len());
