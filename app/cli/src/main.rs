@@ -372,7 +372,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Tasks => {
-            for t in mimicgen_sim::registry::TASKS {
+            for t in mimicgen_sim::registry::tasks() {
                 println!("{:<12} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
             }
             println!();

@@ -74,13 +74,13 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
             ui.checkbox(&mut f.overwrite, "replace existing outputs").on_hover_text("--overwrite");
             ui.end_row();
             ui.label("Variant");
-            let variants = mimicgen_sim::registry::TASKS.iter().find(|t| t.name == file.task).map_or(&[][..], |t| t.variants);
+            let variants = mimicgen_sim::registry::tasks().iter().find(|t| t.name == file.task).map_or(&[][..], |t| t.variants.as_slice());
             egui::ComboBox::from_id_salt("variant").selected_text(f.variant.clone().unwrap_or_else(|| "the file's".to_owned())).show_ui(
                 ui,
                 |ui| {
                     ui.selectable_value(&mut f.variant, None, "the file's");
                     for v in variants {
-                        ui.selectable_value(&mut f.variant, Some((*v).to_owned()), *v);
+                        ui.selectable_value(&mut f.variant, Some(v.clone()), v.as_str());
                     }
                 },
             );

@@ -12,8 +12,10 @@ use crate::generate::{StepLabels, Trajectory, execute_step};
 use crate::pose::{Pose, Rot, Vec3, pose_from_parts, yaw_of};
 use crate::transform::{Waypoint, WaypointKind, interpolate_poses};
 
-/// What to pick, where to put it, and the timing of the gripper.
-#[derive(Debug, Clone, PartialEq)]
+/// What to pick, where to put it, and the timing of the gripper. A task file's `[[script]]`
+/// table: fields it leaves out take [`PickPlaceScript::default`]'s values.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct PickPlaceScript {
     /// Object to pick.
     pub pick: String,
@@ -75,6 +77,32 @@ fn moves(from: &Pose, to: &Pose, speed_m: f64) -> Vec<Pose> {
 
 fn env_err(what: &str) -> EnvError {
     EnvError::Fatal { reason: format!("the scene has no object {what:?}") }
+}
+
+impl Default for PickPlaceScript {
+    /// A careful operator's pick-and-place of a small cube (grasp at its centre, any quarter turn)
+    /// onto another; `pick` and `place_on` empty.
+    fn default() -> Self {
+        Self {
+            pick: String::new(),
+            place_on: String::new(),
+            grasp_point_m: [0.0; 3],
+            grasp_height_m: -0.002,
+            grasp_symmetry_rad: std::f64::consts::FRAC_PI_2,
+            grasp_yaw_offset_rad: 0.0,
+            release_height_m: 0.051,
+            close_steps: (6, 9),
+            open_steps: (3, 5),
+            grasp_offset_m: 0.003,
+            approach_height_m: (0.06, 0.12),
+            lift_height_m: (0.12, 0.18),
+            preplace_height_m: (0.03, 0.08),
+            retreat_height_m: 0.08,
+            place_yaw_symmetry_rad: None,
+            settle_steps: 0,
+            wait_for_arm: true,
+        }
+    }
 }
 
 impl PickPlaceScript {

@@ -7,8 +7,10 @@ use std::path::Path;
 /// The base scene: robosuite's table arena with a Panda on its mount, asset paths as `{ASSETS}/`.
 pub const PANDA_TABLE_XML: &str = crate::robot::PANDA.base_xml;
 
-/// An object model to add to a scene.
-#[derive(Debug, Clone, PartialEq)]
+/// An object model to add to a scene: a task file's `model`, tagged by `kind` (`box`,
+/// `square_nut`, `round_nut`, `fixed_box`, `fixed_cylinder`, `compound`).
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ObjectModel {
     /// A box with a free joint, as robosuite's `BoxObject`: a collision geom and a textured visual
     /// geom, body `<name>_main`, joint `<name>_joint0`, geom `<name>_g0`.
@@ -53,6 +55,46 @@ pub enum ObjectModel {
         /// Default position (m), the one a scene has before any reset.
         pos: [f64; 3],
     },
+    /// An object built from primitive geoms (ours, for the tasks whose objects robosuite does not
+    /// ship): body `<name>_main`, with a free joint, or fixed in the world (a mocap body the task
+    /// may move between episodes); collision geoms `<name>_g<i>` and coloured visual copies.
+    Compound {
+        /// Object name (`needle`).
+        name: String,
+        /// Its geoms, in the object frame.
+        geoms: Vec<Part>,
+        /// Fixed in the world rather than free.
+        #[serde(default)]
+        fixed: bool,
+        /// Colour of every geom without its own.
+        rgba: [f64; 4],
+    },
+}
+
+/// One primitive geom of a [`ObjectModel::Compound`].
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Part {
+    /// MuJoCo geom type: `box`, `cylinder`, `capsule` or `sphere`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// MuJoCo `size` (half extents for a box; radius and half length for a cylinder).
+    pub size: Vec<f64>,
+    /// Position in the object frame (m).
+    #[serde(default)]
+    pub pos: [f64; 3],
+    /// Turn about the object frame's z axis (deg).
+    #[serde(default)]
+    pub yaw_deg: f64,
+    /// Turn about the x axis (deg), applied before the yaw: 90 lays a cylinder along y.
+    #[serde(default)]
+    pub roll_deg: f64,
+    /// Colour; the object's when absent.
+    #[serde(default)]
+    pub rgba: Option<[f64; 4]>,
+    /// Density (kg/m^3); MuJoCo's default (water) when absent.
+    #[serde(default)]
+    pub density: Option<f64>,
 }
 
 /// robosuite's square nut: `(position, half extents)` of its five box geoms, in the nut frame.
@@ -78,17 +120,19 @@ const ROUND_NUT_GEOMS: [([f64; 3], [f64; 3], f64); 9] = [
 ];
 
 /// Where robosuite's round nut handle is, in the nut frame (m): its `handle_site`.
-pub const ROUND_NUT_HANDLE: [f64; 3] = [0.06, 0.0, 0.0];
+const ROUND_NUT_HANDLE: [f64; 3] = [0.06, 0.0, 0.0];
 
 /// Where robosuite's square nut handle is, in the nut frame (m): its `handle_site`.
-pub const SQUARE_NUT_HANDLE: [f64; 3] = [0.054, 0.0, 0.0];
+const SQUARE_NUT_HANDLE: [f64; 3] = [0.054, 0.0, 0.0];
 
 impl ObjectModel {
     /// The body whose frame is the object's pose.
     #[must_use]
     pub fn body_name(&self) -> String {
         match self {
-            Self::Box { name, .. } | Self::SquareNut { name } | Self::RoundNut { name } => format!("{name}_main"),
+            Self::Box { name, .. } | Self::SquareNut { name } | Self::RoundNut { name } | Self::Compound { name, .. } => {
+                format!("{name}_main")
+            }
             Self::FixedBox { body, .. } | Self::FixedCylinder { body, .. } => body.clone(),
         }
     }
@@ -101,6 +145,7 @@ impl ObjectModel {
             }
             Self::SquareNut { name } | Self::RoundNut { name } => write_brass(out, name),
             Self::FixedBox { body, .. } | Self::FixedCylinder { body, .. } => write_brass(out, body),
+            Self::Compound { .. } => {}
         }
     }
 
@@ -134,6 +179,7 @@ impl ObjectModel {
                 );
                 let _ = writeln!(out, "    </body>");
             }
+            Self::Compound { name, geoms, fixed, rgba } => write_compound(out, name, geoms, *fixed, *rgba),
             Self::FixedBox { body, half_size: [x, y, z], pos: [px, py, pz] } => {
                 let _ = writeln!(out, r#"    <body name="{body}" pos="{px} {py} {pz}" mocap="true">"#);
                 let _ = writeln!(
@@ -148,6 +194,36 @@ impl ObjectModel {
             }
         }
     }
+}
+
+/// A [`ObjectModel::Compound`]: collision geoms (group 0) and visual copies (group 1).
+fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgba: [f64; 4]) {
+    let joint = if fixed { r#" mocap="true""# } else { r#" gravcomp="0""# };
+    let _ = writeln!(out, r#"    <body name="{name}_main" pos="0 0 0"{joint}>"#);
+    if !fixed {
+        let _ = writeln!(out, r#"      <joint name="{name}_joint0" type="free" damping="0.0005"/>"#);
+    }
+    let words = |v: &[f64]| v.iter().map(f64::to_string).collect::<Vec<_>>().join(" ");
+    for (i, part) in geoms.iter().enumerate() {
+        let [r, g, b, a] = part.rgba.unwrap_or(rgba);
+        let turn = if part.yaw_deg == 0.0 && part.roll_deg == 0.0 {
+            String::new()
+        } else {
+            format!(r#" euler="{} 0 {}""#, part.roll_deg.to_radians(), part.yaw_deg.to_radians())
+        };
+        let (kind, size, pos) = (&part.kind, words(&part.size), words(&part.pos));
+        let density = part.density.map_or_else(String::new, |d| format!(r#" density="{d}""#));
+        let _ = writeln!(
+            out,
+            r#"      <geom name="{name}_g{i}" type="{kind}" size="{size}" pos="{pos}"{turn}{density} friction="0.95 0.3 0.1" condim="4" solimp="0.998 0.998 0.001" solref="0.02 1" group="0" rgba="{r} {g} {b} {a}"/>"#
+        );
+        let _ = writeln!(
+            out,
+            r#"      <geom name="{name}_g{i}_vis" type="{kind}" size="{size}" pos="{pos}"{turn} contype="0" conaffinity="0" group="1" mass="0" rgba="{r} {g} {b} {a}"/>"#
+        );
+    }
+    let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 -1"/>"#);
+    let _ = writeln!(out, "    </body>");
 }
 
 /// One of robosuite's nuts: box `geoms` (`(position, half extents, yaw)` in the nut frame) round a

@@ -108,6 +108,15 @@ impl SimEnv {
         pose_from_xpos_xmat(&self.data.xpos()[body], &mat)
     }
 
+    /// Linear speed of object `i` (m/s); 0 for a fixed one.
+    #[must_use]
+    pub fn object_speed(&self, i: usize) -> f64 {
+        self.scene.objects[i].dof_adr.map_or(0.0, |v| {
+            let qvel = self.data.qvel();
+            (qvel[v].powi(2) + qvel[v + 1].powi(2) + qvel[v + 2].powi(2)).sqrt()
+        })
+    }
+
     /// Places object `i` at `world_from_object`: at rest for an object with a free joint; a fixed
     /// (mocap) object moves there and stays. Call `forward` (or step) before reading poses.
     pub fn place_object(&mut self, i: usize, world_from_object: &Pose) {

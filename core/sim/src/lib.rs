@@ -18,11 +18,13 @@ pub mod registry;
 pub mod robot;
 pub mod scene;
 pub mod task;
+pub mod task_file;
 
 pub use env::SimEnv;
 pub use geometry::{GeomPoser, Part, Shape, VisibleGeom};
 pub use scene::Scene;
-pub use task::{Lift, NutAssembly, Square, Stack, StackThree, Task};
+pub use task::Task;
+pub use task_file::{DataTask, TaskFile};
 
 /// Everything that can go wrong building or running a simulation.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

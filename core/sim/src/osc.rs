@@ -30,9 +30,6 @@ impl Default for OscConfig {
     }
 }
 
-/// Joints of the arm the controller drives (the Panda's seven).
-pub const ARM_DOF: usize = 7;
-
 /// The controller's goal and posture.
 #[derive(Debug, Clone)]
 pub struct Osc {
@@ -89,9 +86,18 @@ impl Osc {
         self.goal_rot = delta.to_rotation_matrix().into_inner() * rot;
     }
 
-    /// Arm torques for the current state (before clipping to the actuators' ranges). `data` must
-    /// hold the current kinematics, mass matrix and bias forces (after `mj_forward` or `mj_step1`).
-    pub fn torques(&mut self, data: &MjData<Arc<MjModel>>, robot: &RobotIndices) -> [f64; ARM_DOF] {
+    /// Arm torques for the current state (before clipping to the actuators' ranges), one per arm
+    /// joint. `data` must hold the current kinematics, mass matrix and bias forces (after
+    /// `mj_forward` or `mj_step1`).
+    pub fn torques(&mut self, data: &MjData<Arc<MjModel>>, robot: &RobotIndices) -> Vec<f64> {
+        // Fixed-size matrices (no allocation per physics step) for the arms there are.
+        match robot.arm_dof.len() {
+            6 => self.torques_n::<6>(data, robot).to_vec(),
+            _ => self.torques_n::<7>(data, robot).to_vec(),
+        }
+    }
+
+    fn torques_n<const ARM_DOF: usize>(&mut self, data: &MjData<Arc<MjModel>>, robot: &RobotIndices) -> [f64; ARM_DOF] {
         let model = data.model();
         let nv = usize::try_from(model.ffi().nv).unwrap_or_default();
         let site = i32::try_from(robot.eef_site).unwrap_or_default();

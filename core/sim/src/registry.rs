@@ -1,80 +1,49 @@
 //! The tasks this backend knows, their variants, and robosuite's `env_args` metadata for them.
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
-use crate::task::{Lift, NutAssembly, Square, Stack, StackThree, Task};
+use crate::task::Task;
+use crate::task_file::{DataTask, TaskFile};
 
-/// A task the backend can build.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct TaskInfo {
-    /// Name on the command line.
-    pub name: &'static str,
-    /// Its variants (reset distributions).
-    pub variants: &'static [&'static str],
-    /// One line on what it is.
-    pub description: &'static str,
-    /// robosuite's environment name prefix (`Stack` -> `Stack_D0`).
-    pub env_name: &'static str,
-    /// The task as an instruction (LeRobot's `task` of each frame).
-    pub instruction: &'static str,
+/// `(name, task file, generation spec)` of every task we ship, in the order `mimicgen tasks`
+/// lists them: `core/sim/tasks/<name>.task.toml` and `<name>.toml`.
+const BUNDLED: &[(&str, &str, &str)] = &[
+    ("stack", include_str!("../tasks/stack.task.toml"), include_str!("../tasks/stack.toml")),
+    ("stack_three", include_str!("../tasks/stack_three.task.toml"), include_str!("../tasks/stack_three.toml")),
+    ("nut_assembly", include_str!("../tasks/nut_assembly.task.toml"), include_str!("../tasks/nut_assembly.toml")),
+    ("lift", include_str!("../tasks/lift.task.toml"), include_str!("../tasks/lift.toml")),
+    ("square", include_str!("../tasks/square.task.toml"), include_str!("../tasks/square.toml")),
+];
+
+/// The bundled task files, parsed once (an error names the file that does not parse).
+fn parsed() -> &'static Result<Vec<TaskFile>, String> {
+    static FILES: OnceLock<Result<Vec<TaskFile>, String>> = OnceLock::new();
+    FILES.get_or_init(|| {
+        BUNDLED.iter().map(|(name, text, _)| TaskFile::from_toml_str(text, &format!("core/sim/tasks/{name}.task.toml"))).collect()
+    })
 }
 
-/// Every task, in the order `mimicgen tasks` lists them.
-pub const TASKS: &[TaskInfo] = &[
-    TaskInfo {
-        name: "stack",
-        variants: &["D0", "D1"],
-        description: "red cube onto green cube; D0 both in a 0.16 m square, D1 in 0.40 m; random yaw",
-        env_name: "Stack",
-        instruction: "stack the red cube on top of the green cube",
-    },
-    TaskInfo {
-        name: "stack_three",
-        variants: &["D0", "D1"],
-        description: "red onto green, then blue onto red; D0 cubes in a 0.20 m square, D1 in 0.40 m; random yaw",
-        env_name: "StackThree",
-        instruction: "stack the red cube on the green cube, then the blue cube on the red cube",
-    },
-    TaskInfo {
-        name: "nut_assembly",
-        variants: &["D0", "D1"],
-        description: "square nut onto the square peg, then round nut onto the round peg; D0 robosuite's reset (each nut in a 0.005 x 0.115 m strip), D1 both in 0.25 x 0.5 m",
-        env_name: "NutAssembly",
-        instruction: "put the square nut on the square peg and the round nut on the round peg",
-    },
-    TaskInfo {
-        name: "lift",
-        variants: &["D0", "D1"],
-        description: "pick the red cube up; D0 robosuite's reset (0.06 m square), D1 0.30 m; random yaw; bundled demos: robosuite's 3 human ones",
-        env_name: "Lift",
-        instruction: "lift the red cube",
-    },
-    TaskInfo {
-        name: "square",
-        variants: &["D0", "D1", "D2"],
-        description: "square nut onto its peg; D0 peg fixed, nut in 0.005 x 0.115 m; D1 peg in 0.4 x 0.4 m, nut in 0.23 x 0.51 m; D2 both in 0.5 x 0.5 m, peg yaw too",
-        env_name: "Square",
-        instruction: "put the square nut on the square peg",
-    },
-];
+/// Every task, in the order `mimicgen tasks` lists them (none if a bundled file does not parse,
+/// which the registry's tests rule out).
+#[must_use]
+pub fn tasks() -> &'static [TaskFile] {
+    parsed().as_deref().unwrap_or_default()
+}
+
+fn names() -> String {
+    BUNDLED.iter().map(|(name, ..)| *name).collect::<Vec<_>>().join(", ")
+}
 
 /// The instruction of task `name` (its name when unknown).
 #[must_use]
 pub fn instruction(name: &str) -> String {
-    TASKS.iter().find(|t| t.name == name).map_or_else(|| name.replace('_', " "), |t| t.instruction.to_owned())
+    tasks().iter().find(|t| t.name == name).map_or_else(|| name.replace('_', " "), |t| t.instruction.clone())
 }
 
 /// The bundled task spec (our TOML, the paper's settings) for `name`.
 #[must_use]
 pub fn default_spec_toml(name: &str) -> Option<&'static str> {
-    match name {
-        "stack" => Some(include_str!("../tasks/stack.toml")),
-        "stack_three" => Some(include_str!("../tasks/stack_three.toml")),
-        "square" => Some(include_str!("../tasks/square.toml")),
-        "lift" => Some(include_str!("../tasks/lift.toml")),
-        "nut_assembly" => Some(include_str!("../tasks/nut_assembly.toml")),
-        _ => None,
-    }
+    BUNDLED.iter().find(|(n, ..)| *n == name).map(|(_, _, spec)| *spec)
 }
 
 /// Builds `name` / `variant`.
@@ -82,14 +51,10 @@ pub fn default_spec_toml(name: &str) -> Option<&'static str> {
 /// # Errors
 /// A message naming the known tasks or variants.
 pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
-    match name.to_ascii_lowercase().as_str() {
-        "stack" => Ok(Arc::new(Stack::variant(variant)?)),
-        "stack_three" => Ok(Arc::new(StackThree::variant(variant)?)),
-        "square" => Ok(Arc::new(Square::variant(variant)?)),
-        "lift" => Ok(Arc::new(Lift::variant(variant)?)),
-        "nut_assembly" => Ok(Arc::new(NutAssembly::variant(variant)?)),
-        other => Err(format!("unknown task {other:?}; known tasks: {}", TASKS.iter().map(|t| t.name).collect::<Vec<_>>().join(", "))),
-    }
+    let files = parsed().as_ref().map_err(Clone::clone)?;
+    let wanted = name.to_ascii_lowercase();
+    let file = files.iter().find(|t| t.name == wanted).ok_or_else(|| format!("unknown task {wanted:?}; known tasks: {}", names()))?;
+    Ok(Arc::new(DataTask::new(file.clone(), variant)?))
 }
 
 /// The task and variant a robosuite `env_name` names (`Stack_D0` -> stack, D0; `StackThree_D1`
@@ -99,10 +64,11 @@ pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
 /// A message naming the known environments when `env_name` is not one of them.
 pub fn task_from_env_name(env_name: &str) -> Result<(Arc<dyn Task>, String), String> {
     let (base, variant) = env_name.rsplit_once('_').filter(|(_, v)| v.starts_with('D')).unwrap_or((env_name, "D0"));
-    let info = TASKS.iter().find(|t| t.env_name.eq_ignore_ascii_case(base)).ok_or_else(|| {
-        format!("environment {env_name:?} is not one of ours ({})", TASKS.iter().map(|t| t.env_name).collect::<Vec<_>>().join(", "))
+    let info = tasks().iter().find(|t| t.env_name.eq_ignore_ascii_case(base)).ok_or_else(|| {
+        let envs: Vec<&str> = tasks().iter().map(|t| t.env_name.as_str()).collect();
+        format!("environment {env_name:?} is not one of ours ({})", envs.join(", "))
     })?;
-    Ok((task(info.name, variant)?, variant.to_owned()))
+    Ok((task(&info.name, variant)?, variant.to_owned()))
 }
 
 /// The task and variant a dataset's `env_args` JSON names through its `env_name`.
@@ -171,7 +137,7 @@ pub fn env_args_with_robot(env_args: &str, robot: &crate::robot::RobotModel) -> 
 /// (OSC_POSE, kp 150, 20 Hz, Panda), so robomimic can rebuild the environment.
 #[must_use]
 pub fn env_args(name: &str, variant: &str) -> String {
-    let env_name = TASKS.iter().find(|t| t.name == name).map_or(name, |t| t.env_name);
+    let env_name = tasks().iter().find(|t| t.name == name).map_or(name, |t| t.env_name.as_str());
     serde_json::json!({
         "env_name": format!("{env_name}_{}", variant.to_ascii_uppercase()),
         "env_version": "1.4.1",
@@ -214,6 +180,19 @@ pub fn env_args(name: &str, variant: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_bundled_task_file_parses_and_builds_each_variant() {
+        let files = parsed().as_ref().unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(files.len(), BUNDLED.len());
+        for (file, (name, ..)) in files.iter().zip(BUNDLED) {
+            assert_eq!(&file.name, name);
+            for variant in &file.variants {
+                let task = task(name, variant).unwrap_or_else(|e| panic!("{e}"));
+                assert_eq!(task.coverage_dimensions().len(), 3 * file.objects.len());
+            }
+        }
+    }
 
     #[test]
     fn env_names_map_to_tasks() {

@@ -15,12 +15,12 @@ pub struct RobotModel {
     pub robosuite_name: &'static str,
     /// The base scene, with `{ASSETS}` and the object markers.
     pub base_xml: &'static str,
-    /// The arm's joints, base to wrist.
-    pub arm_joints: [&'static str; 7],
+    /// The arm's joints, base to wrist (seven, or six for the UR5e).
+    pub arm_joints: &'static [&'static str],
     /// The torque actuator of each arm joint.
-    pub arm_actuators: [&'static str; 7],
+    pub arm_actuators: &'static [&'static str],
     /// robosuite's home posture.
-    pub init_qpos: [f64; 7],
+    pub init_qpos: &'static [f64],
     /// The gripper's joints (observed as `robot0_gripper_qpos`).
     pub finger_joints: &'static [&'static str],
     /// The gripper's actuators, in robosuite's order.
@@ -37,17 +37,17 @@ pub struct RobotModel {
 }
 
 /// The arm's torque actuators as robosuite names them for the Panda and the IIWA.
-const TORQUE_ACTUATORS: [&str; 7] =
-    ["robot0_torq_j1", "robot0_torq_j2", "robot0_torq_j3", "robot0_torq_j4", "robot0_torq_j5", "robot0_torq_j6", "robot0_torq_j7"];
+const TORQUE_ACTUATORS: &[&str] =
+    &["robot0_torq_j1", "robot0_torq_j2", "robot0_torq_j3", "robot0_torq_j4", "robot0_torq_j5", "robot0_torq_j6", "robot0_torq_j7"];
 
 /// The Franka Panda with its gripper: the arm of the paper's source demos and of ours.
 pub const PANDA: RobotModel = RobotModel {
     name: "panda",
     robosuite_name: "Panda",
     base_xml: include_str!("../../../viewer_assets/scenes/panda_table.xml"),
-    arm_joints: ["robot0_joint1", "robot0_joint2", "robot0_joint3", "robot0_joint4", "robot0_joint5", "robot0_joint6", "robot0_joint7"],
+    arm_joints: &["robot0_joint1", "robot0_joint2", "robot0_joint3", "robot0_joint4", "robot0_joint5", "robot0_joint6", "robot0_joint7"],
     arm_actuators: TORQUE_ACTUATORS,
-    init_qpos: [
+    init_qpos: &[
         0.0,
         std::f64::consts::PI / 16.0,
         0.0,
@@ -69,7 +69,7 @@ pub const SAWYER: RobotModel = RobotModel {
     name: "sawyer",
     robosuite_name: "Sawyer",
     base_xml: include_str!("../../../viewer_assets/scenes/sawyer_table.xml"),
-    arm_joints: [
+    arm_joints: &[
         "robot0_right_j0",
         "robot0_right_j1",
         "robot0_right_j2",
@@ -78,7 +78,7 @@ pub const SAWYER: RobotModel = RobotModel {
         "robot0_right_j5",
         "robot0_right_j6",
     ],
-    arm_actuators: [
+    arm_actuators: &[
         "robot0_torq_right_j0",
         "robot0_torq_right_j1",
         "robot0_torq_right_j2",
@@ -87,7 +87,7 @@ pub const SAWYER: RobotModel = RobotModel {
         "robot0_torq_right_j5",
         "robot0_torq_right_j6",
     ],
-    init_qpos: [0.0, -1.18, 0.0, 2.18, 0.0, 0.57, -1.57],
+    init_qpos: &[0.0, -1.18, 0.0, 2.18, 0.0, 0.57, -1.57],
     finger_joints: &["gripper0_l_finger_joint", "gripper0_r_finger_joint"],
     finger_actuators: ["gripper0_gripper_r_finger_joint", "gripper0_gripper_l_finger_joint"],
     finger_init_qpos: &[0.020833, -0.020833],
@@ -103,7 +103,7 @@ pub const IIWA: RobotModel = RobotModel {
     name: "iiwa",
     robosuite_name: "IIWA",
     base_xml: include_str!("../../../viewer_assets/scenes/iiwa_table.xml"),
-    arm_joints: [
+    arm_joints: &[
         "robot0_joint_1",
         "robot0_joint_2",
         "robot0_joint_3",
@@ -113,7 +113,7 @@ pub const IIWA: RobotModel = RobotModel {
         "robot0_joint_7",
     ],
     arm_actuators: TORQUE_ACTUATORS,
-    init_qpos: [0.0, 0.65, 0.0, -1.89, 0.0, 0.6, 0.0],
+    init_qpos: &[0.0, 0.65, 0.0, -1.89, 0.0, 0.6, 0.0],
     finger_joints: &[
         "gripper0_finger_joint",
         "gripper0_left_inner_finger_joint",
@@ -129,8 +129,32 @@ pub const IIWA: RobotModel = RobotModel {
     contact_excludes: &[],
 };
 
+/// Universal Robots' UR5e (six joints) with robosuite's Robotiq 85 gripper, whose two actuators
+/// take the same command (robosuite broadcasts its one-number action to both).
+pub const UR5E: RobotModel = RobotModel {
+    name: "ur5e",
+    robosuite_name: "UR5e",
+    base_xml: include_str!("../../../viewer_assets/scenes/ur5e_table.xml"),
+    arm_joints: &[
+        "robot0_shoulder_pan_joint",
+        "robot0_shoulder_lift_joint",
+        "robot0_elbow_joint",
+        "robot0_wrist_1_joint",
+        "robot0_wrist_2_joint",
+        "robot0_wrist_3_joint",
+    ],
+    arm_actuators: TORQUE_ACTUATORS.split_at(6).0,
+    init_qpos: &[-0.470, -1.735, 2.480, -2.275, -1.590, -1.991],
+    finger_joints: IIWA.finger_joints,
+    finger_actuators: IIWA.finger_actuators,
+    finger_init_qpos: &[-0.026, -0.267, -0.200, -0.026, -0.267, -0.200],
+    close_direction: [1.0, 1.0],
+    finger_pads: IIWA.finger_pads,
+    contact_excludes: &[],
+};
+
 /// Every arm, in the order `mimicgen tasks` lists them.
-pub const ROBOTS: &[RobotModel] = &[PANDA, SAWYER, IIWA];
+pub const ROBOTS: &[RobotModel] = &[PANDA, SAWYER, IIWA, UR5E];
 
 /// The arm named `name` (ours, `sawyer`, or robosuite's, `Sawyer`).
 ///

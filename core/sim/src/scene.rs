@@ -87,7 +87,7 @@ impl Scene {
     ///
     /// An object body without joints that is not a mocap body yet (robosuite's pegs) is made one,
     /// so that resets can move it while it stays fixed during an episode.
-    pub fn compile(xml: &str, origin: &str, objects: &[(&str, &str)], control_freq_hz: f64) -> Result<Self, SimError> {
+    pub fn compile(xml: &str, origin: &str, objects: &[(String, String)], control_freq_hz: f64) -> Result<Self, SimError> {
         let robot_model = crate::robot::detect(|name| xml.contains(&format!("\"{name}\"")));
         let physics_xml = crate::robot::with_contact_excludes(
             &crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M"),
@@ -102,10 +102,10 @@ impl Scene {
                     return Err(SimError::MissingName {
                         file: origin.to_owned(),
                         kind: "joint (or a parent that is the world) of body".to_owned(),
-                        name: (*body_name).to_owned(),
+                        name: body_name.clone(),
                     });
                 }
-                to_mocap.push(*body_name);
+                to_mocap.push(body_name.as_str());
             }
         }
         if !to_mocap.is_empty() {

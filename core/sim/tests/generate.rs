@@ -5,7 +5,7 @@ use std::ops::ControlFlow;
 use std::sync::Arc;
 
 use mimicgen_engine::{Generator, TaskSpec};
-use mimicgen_sim::{Scene, SimEnv, Stack};
+use mimicgen_sim::{Scene, SimEnv, registry};
 
 fn data(path: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -17,7 +17,7 @@ fn reference_sources_generate_stack_demos() {
     spec.generation.num_trials = 6;
     let sources = mimicgen_io::read_source_dataset(data("../io/tests/data/source_D0_prepared.hdf5"), &spec.source).unwrap();
     let xml = sources.demos[0].sim.model_xml.clone().unwrap();
-    let task = Arc::new(Stack::variant("D0").unwrap());
+    let task = registry::task("stack", "D0").unwrap();
     let scene = Arc::new(Scene::from_model_file(&xml, "source_D0_prepared.hdf5", task.as_ref()).unwrap());
     let generator = Generator::new(spec, sources).unwrap();
     let mut envs = vec![SimEnv::new(Arc::clone(&scene), task.clone()), SimEnv::new(scene, task)];
@@ -35,7 +35,7 @@ fn reference_sources_generate_stack_demos() {
 
 #[test]
 fn composed_stack_scene_matches_the_reference_scene() {
-    let task = Arc::new(Stack::variant("D0").unwrap());
+    let task = registry::task("stack", "D0").unwrap();
     let composed = Scene::for_task(task.as_ref()).unwrap();
     let sources = mimicgen_io::read_source_dataset(data("../io/tests/data/source_D0_prepared.hdf5"), &Default::default()).unwrap();
     let reference = Scene::from_model_file(sources.demos[0].sim.model_xml.as_ref().unwrap(), "model_file", task.as_ref()).unwrap();
@@ -56,11 +56,11 @@ fn composed_stack_scene_matches_the_reference_scene() {
 fn scripted_demonstrator_stacks_in_mujoco() {
     use mimicgen_engine::Environment as _;
     use rand::SeedableRng;
-    let task = Arc::new(Stack::variant("D0").unwrap());
+    let task = registry::task("stack", "D0").unwrap();
     let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let script = task.scripts().remove(0);
     let mut env = SimEnv::new(scene, task);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-    let script = Stack::script();
     let mut successes = 0;
     for i in 0..10 {
         env.reset(&mut rng).unwrap();
@@ -75,7 +75,7 @@ fn scripted_demonstrator_stacks_in_mujoco() {
 #[test]
 fn same_seed_same_demos_with_one_or_two_workers_and_blowups_are_failures() {
     use mimicgen_engine::{EnvError, Environment as _};
-    let task: Arc<dyn mimicgen_sim::Task> = Arc::new(Stack::variant("D1").unwrap());
+    let task: Arc<dyn mimicgen_sim::Task> = registry::task("stack", "D1").unwrap();
     let mut spec = TaskSpec::from_toml_str(mimicgen_sim::registry::default_spec_toml("stack").unwrap(), "stack.toml").unwrap();
     spec.generation.num_trials = 4;
     let sources = mimicgen_io::read_source_dataset(data("data/stack_D0_source.hdf5"), &spec.source).unwrap();
@@ -115,13 +115,13 @@ fn same_seed_same_demos_with_one_or_two_workers_and_blowups_are_failures() {
 
 #[test]
 fn bad_scenes_name_the_file_and_what_is_missing() {
-    let task = Stack::variant("D0").unwrap();
+    let task = registry::task("stack", "D0").unwrap();
     let err = Scene::compile("<mujoco><worldbody><body><geom type='box'/></body>", "broken.xml", &[], 20.0).unwrap_err().to_string();
     assert!(err.contains("broken.xml") && err.contains("cannot compile"), "{err}");
     // A valid scene without the task's objects (the composed scene with no objects at all).
     let assets = mimicgen_sim::assets::robosuite_assets_dir().unwrap();
     let empty = mimicgen_sim::compose::compose_scene(&assets, &[], mimicgen_sim::compose::BASE_TABLE_TOP_Z);
-    let err = Scene::compile(&empty, "empty.xml", &mimicgen_sim::Task::objects(&task), 20.0).unwrap_err().to_string();
+    let err = Scene::compile(&empty, "empty.xml", &task.objects(), 20.0).unwrap_err().to_string();
     assert!(err.contains("empty.xml") && err.contains("cubeA_main"), "{err}");
-    assert!(Stack::variant("D7").unwrap_err().contains("D0 and D1"));
+    assert!(registry::task("stack", "D7").err().unwrap_or_default().contains("D0 and D1"));
 }

@@ -7,12 +7,12 @@ use std::ops::ControlFlow;
 use std::sync::Arc;
 
 use mimicgen_engine::{Environment as _, Generator, TaskSpec};
-use mimicgen_sim::{NutAssembly, Scene, SimEnv, Task, registry};
+use mimicgen_sim::{Scene, SimEnv, Task, registry};
 use rand::SeedableRng as _;
 
 #[test]
 fn the_nuts_rest_in_their_strips_and_the_pegs_stay_put() {
-    let task: Arc<dyn Task> = Arc::new(NutAssembly::variant("D0").unwrap());
+    let task: Arc<dyn Task> = registry::task("nut_assembly", "D0").unwrap();
     let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
     assert_eq!(scene.objects.len(), 4);
     assert!(scene.objects[2].mocap.is_some() && scene.objects[3].mocap.is_some(), "pegs are fixed bodies");
@@ -29,9 +29,9 @@ fn the_nuts_rest_in_their_strips_and_the_pegs_stay_put() {
     assert!(square.y > 0.1 && round.y < -0.1);
     assert!((poses["round_peg"].translation.vector - nalgebra::Vector3::new(0.23, -0.1, 0.85)).norm() < 1e-12);
     assert!(!task.is_success(&env));
-    assert!(NutAssembly::variant("D2").is_err());
+    assert!(registry::task("nut_assembly", "D2").is_err());
     // D1: both nuts anywhere in front of the pegs, never overlapping.
-    let wide: Arc<dyn Task> = Arc::new(NutAssembly::variant("D1").unwrap());
+    let wide: Arc<dyn Task> = registry::task("nut_assembly", "D1").unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
     for _ in 0..200 {
         let poses = wide.sample_scene(&mut rng).unwrap();

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use mimicgen_engine::Environment;
 use mimicgen_engine::pose::{Mat4, pose_from_matrix};
 use mimicgen_io::RobomimicDataset;
-use mimicgen_sim::{Scene, SimEnv, Stack};
+use mimicgen_sim::{Scene, SimEnv, registry};
 
 fn data(path: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -25,7 +25,7 @@ fn rows(group: &mimicgen_io::tree::Group, path: &str) -> Vec<Vec<f64>> {
 
 fn env_for(dataset: &RobomimicDataset, demo: &str) -> SimEnv {
     let xml = dataset.demo(demo).unwrap().attrs["model_file"].as_str().unwrap().to_owned();
-    let task = Arc::new(Stack::variant("D0").unwrap());
+    let task = registry::task("stack", "D0").unwrap();
     let scene = Scene::from_model_file(&xml, demo, task.as_ref()).unwrap();
     SimEnv::new(Arc::new(scene), task)
 }

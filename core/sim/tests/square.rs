@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts, yaw_of};
 use mimicgen_engine::{Environment as _, Generator, TaskSpec};
-use mimicgen_sim::{Scene, SimEnv, Square, Task, registry};
+use mimicgen_sim::{Scene, SimEnv, Task, registry};
 use rand::SeedableRng as _;
 
 fn data(path: &str) -> std::path::PathBuf {
@@ -18,7 +18,7 @@ fn data(path: &str) -> std::path::PathBuf {
 
 #[test]
 fn the_peg_moves_between_episodes_and_stays_put_within_one() {
-    let task: Arc<dyn Task> = Arc::new(Square::variant("D2").unwrap());
+    let task: Arc<dyn Task> = registry::task("square", "D2").unwrap();
     let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
     assert!(scene.objects[1].mocap.is_some() && scene.objects[0].qpos_adr.is_some());
     let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
@@ -55,7 +55,7 @@ fn the_peg_moves_between_episodes_and_stays_put_within_one() {
 
 #[test]
 fn success_is_robosuites_on_peg_check() {
-    let task: Arc<dyn Task> = Arc::new(Square::variant("D0").unwrap());
+    let task: Arc<dyn Task> = registry::task("square", "D0").unwrap();
     let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
     let mut env = SimEnv::new(scene, task);
     env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
@@ -94,7 +94,7 @@ fn bundled_demos_succeed_and_generated_demos_carry_their_peg() {
     assert!((d0_scene_peg - Vec3::new(0.23, 0.1, 0.85)).norm() < 1e-12, "robosuite's default peg, {d0_scene_peg:?}");
 
     // Generate on D1 (the peg moves) from the D0 demos, as `mimicgen generate` does.
-    let d1: Arc<dyn Task> = Arc::new(Square::variant("D1").unwrap());
+    let d1: Arc<dyn Task> = registry::task("square", "D1").unwrap();
     let mut spec = TaskSpec::from_toml_str(registry::default_spec_toml("square").unwrap(), "square.toml").unwrap();
     spec.generation.num_trials = 6;
     let generator = Generator::new(spec, sources).unwrap();

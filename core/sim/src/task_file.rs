@@ -1,0 +1,541 @@
+//! Tasks described as data: a task file (`core/sim/tasks/<task>.task.toml`, next to the task's
+//! generation spec) names the scene's objects and how each variant places them, the subtask-end
+//! signals and the success condition as [`Predicate`]s, robosuite's object observation as
+//! [`ObsTerm`]s, and the scripted demonstrator's pick-and-places. [`DataTask`] is the [`Task`]
+//! such a file describes; no task needs code of its own.
+//!
+//! ```toml
+//! name = "stack"
+//! env_name = "Stack"                      # robosuite's environment (`Stack_D0`)
+//! description = "red cube onto green cube"
+//! instruction = "stack the red cube on top of the green cube"
+//! variants = ["D0", "D1"]
+//!
+//! [[object]]
+//! name = "cubeA"
+//! model = { kind = "box", name = "cubeA", half_size = [0.02, 0.02, 0.02], rgba = [0.5, 0, 0, 1], texture = ["redwood", "textures/red-wood.png"] }
+//! height_m = 0.03                         # its origin above the table top at reset
+//! radius_m = 0.028                        # kept this far from every object placed before it
+//! place.D0 = { x = [-0.08, 0.08], y = [-0.08, 0.08] }   # yaw_deg defaults to [0, 360]
+//! place.D1 = { x = [-0.2, 0.2], y = [-0.2, 0.2] }
+//!
+//! [signals]
+//! grasp = { grasped = "cubeA" }
+//!
+//! [success]
+//! all = [{ lifted = { object = "cubeA", above_m = 0.04 } }, { contact = ["cubeA", "cubeB"] }, { not = { grasped = "cubeA" } }]
+//! ```
+
+use std::collections::BTreeMap;
+use std::f64::consts::{PI, TAU};
+
+use mimicgen_engine::EnvError;
+use mimicgen_engine::coverage::{Coordinate, Dimension};
+use mimicgen_engine::demonstrator::PickPlaceScript;
+use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
+use rand::{Rng, RngCore};
+use serde::Deserialize;
+
+use crate::compose::{BASE_TABLE_TOP_Z, ObjectModel};
+use crate::env::SimEnv;
+use crate::task::Task;
+
+/// A task file.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TaskFile {
+    /// Name on the command line (`stack`).
+    pub name: String,
+    /// robosuite's environment name prefix (`Stack` -> `Stack_D0`).
+    pub env_name: String,
+    /// One line on what it is.
+    pub description: String,
+    /// The task as an instruction (LeRobot's `task` of each frame).
+    pub instruction: String,
+    /// Its variants (reset distributions), D0 first: the one the bundled demos were recorded in.
+    pub variants: Vec<String>,
+    /// Height of the table top (m), robosuite's `table_offset` z.
+    #[serde(default = "base_table_top_z")]
+    pub table_top_z: f64,
+    /// The objects, in the order of the object observation and the datasets' `object_poses`.
+    #[serde(rename = "object")]
+    pub objects: Vec<ObjectDef>,
+    /// The order objects are placed in at reset (each kept clear of those before it); the
+    /// objects' order when empty.
+    #[serde(default)]
+    pub place_order: Vec<String>,
+    /// Subtask-end signals by name.
+    pub signals: BTreeMap<String, Predicate>,
+    /// When the task is done.
+    pub success: Predicate,
+    /// robosuite's `object` observation, term by term.
+    pub observation: Vec<ObsEntry>,
+    /// The scripted demonstrator's pick-and-places, in order.
+    #[serde(default, rename = "script")]
+    pub scripts: Vec<PickPlaceScript>,
+}
+
+fn base_table_top_z() -> f64 {
+    BASE_TABLE_TOP_Z
+}
+
+/// One object of a task.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectDef {
+    /// Name in datasets and predicates (`cubeA`).
+    pub name: String,
+    /// What the composed scene adds for it.
+    pub model: ObjectModel,
+    /// Height of its origin above the table top at reset (m).
+    pub height_m: f64,
+    /// Radius of the circle kept clear of every object placed before it (m).
+    #[serde(default)]
+    pub radius_m: f64,
+    /// Where each variant places it.
+    pub place: BTreeMap<String, Region>,
+}
+
+/// Where an object is placed: uniform x, y (m, around the table centre) and yaw (deg). A range
+/// whose ends are equal is that value.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Region {
+    /// x range (m).
+    pub x: [f64; 2],
+    /// y range (m).
+    pub y: [f64; 2],
+    /// Yaw range (deg).
+    #[serde(default = "any_yaw")]
+    pub yaw_deg: [f64; 2],
+}
+
+fn any_yaw() -> [f64; 2] {
+    [0.0, 360.0]
+}
+
+/// A condition on the scene's state, from which signals and success are built. `eef` names the
+/// gripper's grip site where an object is expected.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Predicate {
+    /// Both finger pads touch the object (robosuite's `check_grasp`).
+    Grasped(String),
+    /// The object's origin is more than `above_m` above the table top.
+    Lifted {
+        /// The object.
+        object: String,
+        /// Height (m).
+        above_m: f64,
+    },
+    /// The two objects' collision geoms touch.
+    Contact([String; 2]),
+    /// `object`'s origin is within `xy_m` of `of`'s along world x and y, and its height above
+    /// `of`'s origin is within `dz_m` (robosuite's `on_peg`).
+    Inside {
+        /// The object.
+        object: String,
+        /// The one it should be in.
+        of: String,
+        /// Largest |dx| and |dy| (m).
+        xy_m: f64,
+        /// Range of z(object) - z(of) (m).
+        #[serde(default = "any_height")]
+        dz_m: [f64; 2],
+    },
+    /// `object`'s yaw matches `with`'s within `tolerance_deg`, modulo `symmetry_deg`.
+    Aligned {
+        /// The object.
+        object: String,
+        /// The one it should be turned like.
+        with: String,
+        /// Tolerance (deg).
+        tolerance_deg: f64,
+        /// The object's yaw symmetry (deg): 90 for a square.
+        #[serde(default = "full_turn")]
+        symmetry_deg: f64,
+    },
+    /// `object`'s origin is at least `min_m` from `from`'s.
+    Apart {
+        /// The object (or `eef`).
+        object: String,
+        /// The other (or `eef`).
+        from: String,
+        /// Distance (m).
+        min_m: f64,
+    },
+    /// `object` moves slower than `max_speed_m_s`.
+    AtRest {
+        /// The object.
+        object: String,
+        /// Speed (m/s).
+        max_speed_m_s: f64,
+    },
+    /// Every one holds.
+    All(Vec<Predicate>),
+    /// At least one holds.
+    Any(Vec<Predicate>),
+    /// It does not hold.
+    Not(Box<Predicate>),
+}
+
+fn any_height() -> [f64; 2] {
+    [f64::NEG_INFINITY, f64::INFINITY]
+}
+
+fn full_turn() -> f64 {
+    360.0
+}
+
+/// One term of the object observation, optionally only in some variants.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct ObsEntry {
+    /// What it observes.
+    #[serde(flatten)]
+    pub term: ObsTerm,
+    /// The variants that have it; all when empty.
+    #[serde(default)]
+    pub variants: Vec<String>,
+}
+
+/// robosuite's object observables.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ObsTerm {
+    /// Position and `xyzw` quaternion (MuJoCo's own, so its sign matches robosuite's): 7 values.
+    Pose(String),
+    /// Position: 3 values.
+    Position(String),
+    /// Object position minus the grip site's: 3 values.
+    FromEef(String),
+    /// Grip site position minus the object's: 3 values.
+    ToEef(String),
+    /// Second object's position minus the first's: 3 values.
+    Between([String; 2]),
+    /// The object's pose in the gripper frame (grip site position, hand orientation), position
+    /// and `xyzw` quaternion with w >= 0: 7 values.
+    InGripper(String),
+}
+
+impl TaskFile {
+    /// Parses and checks a task file; `origin` names it in errors.
+    ///
+    /// # Errors
+    /// A message naming `origin` and the field: TOML that does not parse, a name that is not one
+    /// of the objects, a variant without a placement for some object, an empty range.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, String> {
+        let file: Self = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
+        file.check().map_err(|e| format!("{origin}: {e}"))?;
+        Ok(file)
+    }
+
+    fn check(&self) -> Result<(), String> {
+        if self.variants.is_empty() {
+            return Err("field `variants`: a task needs at least one variant".to_owned());
+        }
+        let known = |name: &str, field: &str| -> Result<(), String> {
+            if name == "eef" || self.objects.iter().any(|o| o.name == name) {
+                Ok(())
+            } else {
+                Err(format!("field `{field}` names object {name:?}, which is not one of {}", self.object_names().join(", ")))
+            }
+        };
+        for object in &self.objects {
+            for variant in &self.variants {
+                let region = object
+                    .place
+                    .get(variant)
+                    .ok_or_else(|| format!("object {:?} has no `place.{variant}` for variant {variant}", object.name))?;
+                if [region.x, region.y, region.yaw_deg].iter().any(|[lo, hi]| lo > hi || !lo.is_finite() || !hi.is_finite()) {
+                    return Err(format!("object {:?}: `place.{variant}` has a range whose ends are not finite and ordered", object.name));
+                }
+            }
+            if let Some(extra) = object.place.keys().find(|v| !self.variants.contains(v)) {
+                return Err(format!("object {:?} has `place.{extra}` but the variants are {}", object.name, self.variants.join(", ")));
+            }
+        }
+        for name in &self.place_order {
+            known(name, "place_order")?;
+        }
+        if !self.place_order.is_empty() && self.place_order.len() != self.objects.len() {
+            return Err("field `place_order` must list every object once".to_owned());
+        }
+        for (signal, predicate) in &self.signals {
+            predicate.names().iter().try_for_each(|n| known(n, &format!("signals.{signal}")))?;
+        }
+        self.success.names().iter().try_for_each(|n| known(n, "success"))?;
+        for entry in &self.observation {
+            entry.term.names().iter().try_for_each(|n| known(n, "observation"))?;
+            if let Some(v) = entry.variants.iter().find(|v| !self.variants.contains(v)) {
+                return Err(format!("an `observation` term names variant {v}, which the task does not have"));
+            }
+        }
+        for script in &self.scripts {
+            known(&script.pick, "script.pick")?;
+            known(&script.place_on, "script.place_on")?;
+        }
+        Ok(())
+    }
+
+    fn object_names(&self) -> Vec<&str> {
+        self.objects.iter().map(|o| o.name.as_str()).collect()
+    }
+
+    /// The object indices in placement order.
+    fn placement_order(&self) -> Vec<usize> {
+        if self.place_order.is_empty() {
+            return (0..self.objects.len()).collect();
+        }
+        self.place_order.iter().filter_map(|n| self.objects.iter().position(|o| &o.name == n)).collect()
+    }
+}
+
+impl Predicate {
+    /// The object names it refers to.
+    fn names(&self) -> Vec<&str> {
+        match self {
+            Self::Grasped(o) => vec![o],
+            Self::Lifted { object, .. } | Self::AtRest { object, .. } => vec![object],
+            Self::Contact([a, b]) => vec![a, b],
+            Self::Inside { object, of: other, .. }
+            | Self::Aligned { object, with: other, .. }
+            | Self::Apart { object, from: other, .. } => {
+                vec![object, other]
+            }
+            Self::All(all) | Self::Any(all) => all.iter().flat_map(Self::names).collect(),
+            Self::Not(p) => p.names(),
+        }
+    }
+}
+
+impl ObsTerm {
+    fn names(&self) -> Vec<&str> {
+        match self {
+            Self::Pose(o) | Self::Position(o) | Self::FromEef(o) | Self::ToEef(o) | Self::InGripper(o) => vec![o],
+            Self::Between([a, b]) => vec![a, b],
+        }
+    }
+}
+
+/// The task a [`TaskFile`] describes, in one of its variants.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DataTask {
+    file: TaskFile,
+    variant: String,
+    /// Each object's region in this variant, in object order.
+    regions: Vec<Region>,
+}
+
+impl DataTask {
+    /// `file`'s task in `variant` (any case).
+    ///
+    /// # Errors
+    /// A message listing the variants when `variant` is not one of them.
+    pub fn new(file: TaskFile, variant: &str) -> Result<Self, String> {
+        let wanted = variant.to_ascii_uppercase();
+        let Some(variant) = file.variants.iter().find(|v| v.eq_ignore_ascii_case(&wanted)).cloned() else {
+            return Err(format!("{} has variants {}, not {variant:?}", file.name, and_list(&file.variants)));
+        };
+        let regions = file
+            .objects
+            .iter()
+            .map(|o| o.place.get(&variant).copied().unwrap_or(Region { x: [0.0; 2], y: [0.0; 2], yaw_deg: [0.0; 2] }))
+            .collect();
+        Ok(Self { file, variant, regions })
+    }
+
+    /// The task file.
+    #[must_use]
+    pub fn file(&self) -> &TaskFile {
+        &self.file
+    }
+
+    /// The variant.
+    #[must_use]
+    pub fn variant(&self) -> &str {
+        &self.variant
+    }
+
+    fn index(&self, name: &str) -> Option<usize> {
+        self.file.objects.iter().position(|o| o.name == name)
+    }
+
+    /// World position of object `name`, or of the grip site for `eef`.
+    fn position(&self, env: &SimEnv, name: &str) -> Vec3 {
+        use mimicgen_engine::Environment as _;
+        match self.index(name) {
+            Some(i) => env.object_pose(i).translation.vector,
+            None => env.eef_pose().translation.vector,
+        }
+    }
+
+    /// Whether `predicate` holds in `env`'s current state.
+    #[must_use]
+    pub fn holds(&self, predicate: &Predicate, env: &SimEnv) -> bool {
+        let index = |name: &str| self.index(name).unwrap_or_default();
+        match predicate {
+            Predicate::Grasped(o) => env.is_grasping(index(o)),
+            Predicate::Lifted { object, above_m } => self.position(env, object).z > self.file.table_top_z + above_m,
+            Predicate::Contact([a, b]) => {
+                let objects = &env.scene().objects;
+                env.in_contact(&objects[index(a)].geoms, &objects[index(b)].geoms)
+            }
+            Predicate::Inside { object, of, xy_m, dz_m } => {
+                let d = self.position(env, object) - self.position(env, of);
+                d.x.abs() < *xy_m && d.y.abs() < *xy_m && d.z >= dz_m[0] && d.z <= dz_m[1]
+            }
+            Predicate::Aligned { object, with, tolerance_deg, symmetry_deg } => {
+                let yaw = |name: &str| mimicgen_engine::pose::yaw_of(&env.object_pose(index(name)));
+                let period = symmetry_deg.to_radians();
+                let diff = (yaw(object) - yaw(with)).rem_euclid(period);
+                diff.min(period - diff) <= tolerance_deg.to_radians()
+            }
+            Predicate::Apart { object, from, min_m } => (self.position(env, object) - self.position(env, from)).norm() >= *min_m,
+            Predicate::AtRest { object, max_speed_m_s } => env.object_speed(index(object)) < *max_speed_m_s,
+            Predicate::All(all) => all.iter().all(|p| self.holds(p, env)),
+            Predicate::Any(any) => any.iter().any(|p| self.holds(p, env)),
+            Predicate::Not(p) => !self.holds(p, env),
+        }
+    }
+
+    fn observe(&self, term: &ObsTerm, env: &SimEnv, out: &mut Vec<f64>) {
+        use mimicgen_engine::Environment as _;
+        let index = |name: &str| self.index(name).unwrap_or_default();
+        let eef = env.eef_pose().translation.vector;
+        match term {
+            ObsTerm::Pose(o) => {
+                let i = index(o);
+                out.extend(env.object_pose(i).translation.vector.iter());
+                let [w, x, y, z] = env.data().xquat()[env.scene().objects[i].body];
+                out.extend([x, y, z, w]);
+            }
+            ObsTerm::Position(o) => out.extend(self.position(env, o).iter()),
+            ObsTerm::FromEef(o) => out.extend((self.position(env, o) - eef).iter()),
+            ObsTerm::ToEef(o) => out.extend((eef - self.position(env, o)).iter()),
+            ObsTerm::Between([a, b]) => out.extend((self.position(env, b) - self.position(env, a)).iter()),
+            ObsTerm::InGripper(o) => {
+                let hand = env.data().xquat()[env.scene().robot.hand_body];
+                let world_from_gripper =
+                    pose_from_parts(eef, Rot::from_quaternion(nalgebra::Quaternion::new(hand[0], hand[1], hand[2], hand[3])));
+                let gripper_from_object = world_from_gripper.inverse() * env.object_pose(index(o));
+                let q = gripper_from_object.rotation.quaternion();
+                let sign = if q.w < 0.0 { -1.0 } else { 1.0 };
+                out.extend(gripper_from_object.translation.vector.iter());
+                out.extend([sign * q.i, sign * q.j, sign * q.k, sign * q.w]);
+            }
+        }
+    }
+}
+
+fn and_list(items: &[String]) -> String {
+    match items {
+        [] => String::new(),
+        [one] => one.clone(),
+        [init @ .., last] => format!("{} and {last}", init.join(", ")),
+    }
+}
+
+fn uniform(rng: &mut dyn RngCore, [lo, hi]: [f64; 2]) -> f64 {
+    if hi > lo { rng.random_range(lo..hi) } else { lo }
+}
+
+impl Task for DataTask {
+    fn name(&self) -> &str {
+        &self.file.name
+    }
+
+    fn objects(&self) -> Vec<(String, String)> {
+        self.file.objects.iter().map(|o| (o.name.clone(), o.model.body_name())).collect()
+    }
+
+    fn object_models(&self) -> Vec<ObjectModel> {
+        self.file.objects.iter().map(|o| o.model.clone()).collect()
+    }
+
+    fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
+        // robosuite's `UniformRandomSampler`: objects one by one, each position redrawn (up to
+        // 10 000 times) until its circle clears those of the objects placed before it.
+        let mut poses = vec![Pose::identity(); self.file.objects.len()];
+        let mut placed: Vec<(f64, f64, f64)> = Vec::new();
+        for i in self.file.placement_order() {
+            let (object, region) = (&self.file.objects[i], self.regions[i]);
+            let mut found = None;
+            for _ in 0..10_000 {
+                let (x, y) = (uniform(rng, region.x), uniform(rng, region.y));
+                if placed.iter().all(|(px, py, pr)| (px - x).hypot(py - y) > pr + object.radius_m) {
+                    found = Some((x, y));
+                    break;
+                }
+            }
+            let (x, y) = found.ok_or_else(|| EnvError::Fatal {
+                reason: format!("cannot place {} in {region:?} clear of the objects placed before it", object.name),
+            })?;
+            let yaw = uniform(rng, region.yaw_deg).to_radians();
+            placed.push((x, y, object.radius_m));
+            poses[i] =
+                pose_from_parts(Vec3::new(x, y, self.file.table_top_z + object.height_m), Rot::from_axis_angle(&Vec3::z_axis(), yaw));
+        }
+        Ok(poses)
+    }
+
+    fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64> {
+        self.file.signals.iter().map(|(name, p)| (name.clone(), i64::from(self.holds(p, env)))).collect()
+    }
+
+    fn is_success(&self, env: &SimEnv) -> bool {
+        self.holds(&self.file.success, env)
+    }
+
+    fn object_obs(&self, env: &SimEnv) -> Vec<f64> {
+        let mut obs = Vec::new();
+        for entry in &self.file.observation {
+            if entry.variants.is_empty() || entry.variants.contains(&self.variant) {
+                self.observe(&entry.term, env, &mut obs);
+            }
+        }
+        obs
+    }
+
+    fn scripts(&self) -> Vec<PickPlaceScript> {
+        self.file.scripts.clone()
+    }
+
+    fn coverage_dimensions(&self) -> Vec<Dimension> {
+        let mut dims = Vec::with_capacity(self.file.objects.len() * 3);
+        for (object, r) in self.file.objects.iter().zip(&self.regions) {
+            let [lo, hi] = r.yaw_deg.map(f64::to_radians);
+            let yaw = if hi - lo >= TAU - 1e-9 { (-PI, PI) } else { (lo, hi) };
+            for (coordinate, (low, high)) in [(Coordinate::X, (r.x[0], r.x[1])), (Coordinate::Y, (r.y[0], r.y[1])), (Coordinate::Yaw, yaw)]
+            {
+                dims.push(Dimension { object: object.name.clone(), coordinate, low, high });
+            }
+        }
+        dims
+    }
+
+    fn table_top_z(&self) -> f64 {
+        self.file.table_top_z
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const STACK: &str = include_str!("../tasks/stack.task.toml");
+
+    #[test]
+    fn bad_task_files_name_the_file_and_field() {
+        let wrong_object = STACK.replace("grasped = \"cubeA\"", "grasped = \"cubeZ\"");
+        let err = TaskFile::from_toml_str(&wrong_object, "my.task.toml").unwrap_err();
+        assert!(err.contains("my.task.toml") && err.contains("signals.grasp") && err.contains("cubeZ"), "{err}");
+        let missing_variant = STACK.replace("variants = [\"D0\", \"D1\"]", "variants = [\"D0\", \"D1\", \"D2\"]");
+        let err = TaskFile::from_toml_str(&missing_variant, "my.task.toml").unwrap_err();
+        assert!(err.contains("place.D2"), "{err}");
+        let typo = STACK.replace("above_m", "abov_m");
+        let err = TaskFile::from_toml_str(&typo, "my.task.toml").unwrap_err();
+        assert!(err.contains("my.task.toml") && err.contains("abov_m"), "{err}");
+        let file = TaskFile::from_toml_str(STACK, "stack").unwrap_or_else(|e| panic!("{e}"));
+        assert!(DataTask::new(file, "D7").unwrap_err().contains("D0 and D1"));
+    }
+}
