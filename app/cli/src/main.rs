@@ -377,7 +377,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             }
             println!();
             for r in mimicgen_sim::robot::ROBOTS {
-                println!("robot {:<7} robosuite's {} with its default gripper (generate --robot {})", r.name, r.robosuite_name, r.name);
+                println!(
+                    "robot {:<7} robosuite's {} with its default gripper (generate --robot {}): {}",
+                    r.name, r.robosuite_name, r.name, r.status
+                );
             }
             Ok(ExitCode::SUCCESS)
         }

@@ -54,6 +54,18 @@ pub struct PickPlaceScript {
     /// Before descending to grasp or place, hover until the arm has caught up with its target
     /// (a careful operator); `false` goes on as soon as the motion has been commanded (a hasty one).
     pub wait_for_arm: bool,
+    /// The point of the picked object that is placed (in its frame, m): its centre for a cube,
+    /// a needle's tip half for threading.
+    pub place_point_m: [f64; 3],
+    /// Where on the target it goes (in the target's frame, m): its centre for a cube, the centre
+    /// of a ring raised above its base.
+    pub target_point_m: [f64; 3],
+    /// Approach the place along this offset (in the picked object's frame once turned, m): the
+    /// pre-place pose is the place pose moved by it, reached from above, and the last motion is a
+    /// straight push from there (a needle into a ring). `None`: hover above and descend.
+    pub approach_m: Option<[f64; 3]>,
+    /// Let go at the place and retreat; `false` holds the object there to the end (threading).
+    pub release: bool,
 }
 
 /// One leg of a scripted motion: goal, speed (m per step), gripper command, steps to pause at the
@@ -101,6 +113,10 @@ impl Default for PickPlaceScript {
             place_yaw_symmetry_rad: None,
             settle_steps: 0,
             wait_for_arm: true,
+            place_point_m: [0.0; 3],
+            target_point_m: [0.0; 3],
+            approach_m: None,
+            release: true,
         }
     }
 }
@@ -159,19 +175,36 @@ impl PickPlaceScript {
         // Like an operator watching the object in the hand: aim the place from where the object
         // actually sits in the gripper (closing the fingers may have pushed it), turning it to
         // the target's yaw when the fit needs it; aim again once above the target.
-        let place_xy = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), self.release_height_m);
+        let place_xy = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), self.release_height_m)
+            + world_from_target.rotation * Vec3::from(self.target_point_m);
         let home = start.translation.vector;
         let place = self.aim(env, &world_from_target, place_xy, &grasp_rot, &home)?;
         let (hover, pause) = (rng.random_range(self.preplace_height_m.0..self.preplace_height_m.1), rng.random_range(0..3));
-        self.follow(env, traj, rng, &mut current, vec![(above(&place, hover), fast, 1.0, pause, true)])?;
+        // The pre-place pose: above the place, or back along the approach (the held object's
+        // frame, as it will be turned at the place) and first above that.
+        let before = |place: &Pose, env: &E| -> Result<Pose, EnvError> {
+            let Some(approach) = self.approach_m else { return Ok(above(place, hover)) };
+            let now = env.object_poses().get(&self.pick).copied().ok_or_else(|| env_err(&self.pick))?;
+            let turned = place.rotation * env.eef_pose().rotation.inverse() * now.rotation;
+            Ok(pose_from_parts(place.translation.vector + turned * Vec3::from(approach), place.rotation))
+        };
+        let pre = before(&place, &*env)?;
+        let mut legs = Vec::new();
+        if self.approach_m.is_some() {
+            legs.push((above(&pre, hover), fast, 1.0, 0, false));
+        }
+        legs.push((pre, fast, 1.0, pause, true));
+        self.follow(env, traj, rng, &mut current, legs)?;
         let place = self.aim(env, &world_from_target, place_xy, &place.rotation, &home)?;
-        current = above(&place, hover);
-        let put: Vec<Leg> = vec![
-            (place, slow, 1.0, rng.random_range(1..4), true),
-            (place, slow, -1.0, rng.random_range(self.open_steps.0..=self.open_steps.1), false),
+        current = before(&place, &*env)?;
+        let mut put: Vec<Leg> = vec![(place, slow, 1.0, rng.random_range(1..4), true)];
+        if self.release {
+            put.push((place, slow, -1.0, rng.random_range(self.open_steps.0..=self.open_steps.1), false));
             // Retreat, and hold a moment before the recording stops, as an operator would.
-            (above(&place, self.retreat_height_m), fast, -1.0, rng.random_range(3..6), false),
-        ];
+            put.push((above(&place, self.retreat_height_m), fast, -1.0, rng.random_range(3..6), false));
+        } else {
+            put.push((place, slow, 1.0, rng.random_range(3..6), false));
+        }
         self.follow(env, traj, rng, &mut current, put)?;
         Ok(())
     }
@@ -191,7 +224,7 @@ impl PickPlaceScript {
     ) -> Result<Pose, EnvError> {
         let objects = env.object_poses();
         let now = objects.get(&self.pick).ok_or_else(|| env_err(&self.pick))?;
-        let held = env.eef_pose().translation.vector - now.translation.vector;
+        let held = env.eef_pose().translation.vector - (now.translation.vector + now.rotation * Vec3::from(self.place_point_m));
         let place = |turn: f64| {
             let turn = Rot::from_axis_angle(&Vec3::z_axis(), turn);
             pose_from_parts(target.translation.vector + place_offset + turn * held, turn * commanded)

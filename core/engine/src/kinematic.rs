@@ -203,21 +203,12 @@ pub fn pick_place_script() -> PickPlaceScript {
     PickPlaceScript {
         pick: "cubeA".to_owned(),
         place_on: "cubeB".to_owned(),
-        grasp_point_m: [0.0; 3],
         grasp_height_m: 0.0,
-        grasp_symmetry_rad: std::f64::consts::FRAC_PI_2,
-        grasp_yaw_offset_rad: 0.0,
         release_height_m: 2.0 * CUBE_HALF_M + 0.002,
         close_steps: (2, 4),
         open_steps: (2, 3),
-        grasp_offset_m: 0.003,
-        approach_height_m: (0.06, 0.12),
         lift_height_m: (0.08, 0.14),
-        preplace_height_m: (0.03, 0.08),
-        retreat_height_m: 0.08,
-        place_yaw_symmetry_rad: None,
-        settle_steps: 0,
-        wait_for_arm: true,
+        ..PickPlaceScript::default()
     }
 }
 

@@ -16,6 +16,13 @@ const FILES: &[(&str, &str, &str, &[u8])] = &[
     ("square", "D0", "square_D0_source.hdf5", include_bytes!("../../sim/data/square_D0_source.hdf5")),
     ("lift", "D0", "lift_D0_source.hdf5", include_bytes!("../../sim/data/lift_D0_source.hdf5")),
     ("nut_assembly", "D0", "nut_assembly_D0_source.hdf5", include_bytes!("../../sim/data/nut_assembly_D0_source.hdf5")),
+    (
+        "three_piece_assembly",
+        "D0",
+        "three_piece_assembly_D0_source.hdf5",
+        include_bytes!("../../sim/data/three_piece_assembly_D0_source.hdf5"),
+    ),
+    ("threading", "D0", "threading_D0_source.hdf5", include_bytes!("../../sim/data/threading_D0_source.hdf5")),
 ];
 
 /// The spec bundled for `task` (the paper's settings, `core/sim/tasks/<task>.toml`).

@@ -13,6 +13,8 @@ pub struct RobotModel {
     pub name: &'static str,
     /// robosuite's name (`env_args.env_kwargs.robots`).
     pub robosuite_name: &'static str,
+    /// How well it generates from the bundled Panda demos (`mimicgen tasks` prints it).
+    pub status: &'static str,
     /// The base scene, with `{ASSETS}` and the object markers.
     pub base_xml: &'static str,
     /// The arm's joints, base to wrist (seven, or six for the UR5e).
@@ -44,6 +46,7 @@ const TORQUE_ACTUATORS: &[&str] =
 pub const PANDA: RobotModel = RobotModel {
     name: "panda",
     robosuite_name: "Panda",
+    status: "the arm of the bundled source demos",
     base_xml: include_str!("../../../viewer_assets/scenes/panda_table.xml"),
     arm_joints: &["robot0_joint1", "robot0_joint2", "robot0_joint3", "robot0_joint4", "robot0_joint5", "robot0_joint6", "robot0_joint7"],
     arm_actuators: TORQUE_ACTUATORS,
@@ -68,6 +71,7 @@ pub const PANDA: RobotModel = RobotModel {
 pub const SAWYER: RobotModel = RobotModel {
     name: "sawyer",
     robosuite_name: "Sawyer",
+    status: "Square D0 / D1 73.9 / 72.4 % (paper 55.8 / 38.8)",
     base_xml: include_str!("../../../viewer_assets/scenes/sawyer_table.xml"),
     arm_joints: &[
         "robot0_right_j0",
@@ -102,6 +106,7 @@ pub const SAWYER: RobotModel = RobotModel {
 pub const IIWA: RobotModel = RobotModel {
     name: "iiwa",
     robosuite_name: "IIWA",
+    status: "Square D0 / D1 12.7 / 8.8 % (paper 37.7 / 26.5)",
     base_xml: include_str!("../../../viewer_assets/scenes/iiwa_table.xml"),
     arm_joints: &[
         "robot0_joint_1",
@@ -134,6 +139,7 @@ pub const IIWA: RobotModel = RobotModel {
 pub const UR5E: RobotModel = RobotModel {
     name: "ur5e",
     robosuite_name: "UR5e",
+    status: "not usable yet: Square D0 0.1 % (paper 64.7); its Robotiq 85 fingers sag open under MuJoCo 3 and never reach the object",
     base_xml: include_str!("../../../viewer_assets/scenes/ur5e_table.xml"),
     arm_joints: &[
         "robot0_shoulder_pan_joint",

@@ -143,6 +143,22 @@ pub enum Predicate {
         #[serde(default = "any_height")]
         dz_m: [f64; 2],
     },
+    /// A point of `object` is within `within_m` of a point of `of` (each in its object's frame;
+    /// robosuite's threading check: the needle's middle inside the ring).
+    Near {
+        /// The object.
+        object: String,
+        /// The point on it (m, its frame).
+        #[serde(default)]
+        point_m: [f64; 3],
+        /// The other object.
+        of: String,
+        /// The point on that one (m, its frame).
+        #[serde(default)]
+        of_point_m: [f64; 3],
+        /// Distance (m).
+        within_m: f64,
+    },
     /// `object`'s yaw matches `with`'s within `tolerance_deg`, modulo `symmetry_deg`.
     Aligned {
         /// The object.
@@ -298,6 +314,7 @@ impl Predicate {
             Self::Lifted { object, .. } | Self::AtRest { object, .. } => vec![object],
             Self::Contact([a, b]) => vec![a, b],
             Self::Inside { object, of: other, .. }
+            | Self::Near { object, of: other, .. }
             | Self::Aligned { object, with: other, .. }
             | Self::Apart { object, from: other, .. } => {
                 vec![object, other]
@@ -383,6 +400,13 @@ impl DataTask {
             Predicate::Inside { object, of, xy_m, dz_m } => {
                 let d = self.position(env, object) - self.position(env, of);
                 d.x.abs() < *xy_m && d.y.abs() < *xy_m && d.z >= dz_m[0] && d.z <= dz_m[1]
+            }
+            Predicate::Near { object, point_m, of, of_point_m, within_m } => {
+                let point = |name: &str, p: &[f64; 3]| {
+                    let pose = env.object_pose(index(name));
+                    pose.translation.vector + pose.rotation * Vec3::from(*p)
+                };
+                (point(object, point_m) - point(of, of_point_m)).norm() < *within_m
             }
             Predicate::Aligned { object, with, tolerance_deg, symmetry_deg } => {
                 let yaw = |name: &str| mimicgen_engine::pose::yaw_of(&env.object_pose(index(name)));
