@@ -66,6 +66,9 @@ pub struct PickPlaceScript {
     pub approach_m: Option<[f64; 3]>,
     /// Let go at the place and retreat; `false` holds the object there to the end (threading).
     pub release: bool,
+    /// After the place, move the closed gripper through these points (in the target's frame, m),
+    /// keeping its orientation: a push (closing a lid).
+    pub then_m: Vec<[f64; 3]>,
 }
 
 /// One leg of a scripted motion: goal, speed (m per step), gripper command, steps to pause at the
@@ -117,6 +120,7 @@ impl Default for PickPlaceScript {
             target_point_m: [0.0; 3],
             approach_m: None,
             release: true,
+            then_m: Vec::new(),
         }
     }
 }
@@ -206,6 +210,22 @@ impl PickPlaceScript {
             put.push((place, slow, 1.0, rng.random_range(3..6), false));
         }
         self.follow(env, traj, rng, &mut current, put)?;
+        if !self.then_m.is_empty() {
+            let target = *env.object_poses().get(&self.place_on).ok_or_else(|| env_err(&self.place_on))?;
+            let mut push: Vec<Leg> = self
+                .then_m
+                .iter()
+                .map(|p| {
+                    (pose_from_parts(target.translation.vector + target.rotation * Vec3::from(*p), current.rotation), fast, 1.0, 0, false)
+                })
+                .collect();
+            // Hold the last point (a press) until the arm is there and a while after.
+            if let Some(last) = push.last_mut() {
+                last.3 = rng.random_range(10..16);
+                last.4 = true;
+            }
+            self.follow(env, traj, rng, &mut current, push)?;
+        }
         Ok(())
     }
 

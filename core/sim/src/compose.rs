@@ -68,7 +68,25 @@ pub enum ObjectModel {
         fixed: bool,
         /// Colour of every geom without its own.
         rgba: [f64; 4],
+        /// A hinged part (a lid), if it has one.
+        #[serde(default)]
+        hinge: Option<Hinge>,
     },
+}
+
+/// A hinged part of a [`ObjectModel::Compound`]: body `<name>_lid` on joint `<name>_hinge`.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Hinge {
+    /// The hinge's position in the object frame (m).
+    pub pos: [f64; 3],
+    /// Its axis in the object frame.
+    pub axis: [f64; 3],
+    /// The part's turn about the axis from closed to open at reset (deg): the joint reads 0 open
+    /// and `-open_deg` closed.
+    pub open_deg: f64,
+    /// Its geoms, relative to the hinge, as they sit when closed.
+    pub geoms: Vec<Part>,
 }
 
 /// One primitive geom of a [`ObjectModel::Compound`].
@@ -179,7 +197,7 @@ impl ObjectModel {
                 );
                 let _ = writeln!(out, "    </body>");
             }
-            Self::Compound { name, geoms, fixed, rgba } => write_compound(out, name, geoms, *fixed, *rgba),
+            Self::Compound { name, geoms, fixed, rgba, hinge } => write_compound(out, name, geoms, *fixed, *rgba, hinge.as_ref()),
             Self::FixedBox { body, half_size: [x, y, z], pos: [px, py, pz] } => {
                 let _ = writeln!(out, r#"    <body name="{body}" pos="{px} {py} {pz}" mocap="true">"#);
                 let _ = writeln!(
@@ -196,13 +214,31 @@ impl ObjectModel {
     }
 }
 
-/// A [`ObjectModel::Compound`]: collision geoms (group 0) and visual copies (group 1).
-fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgba: [f64; 4]) {
+/// A [`ObjectModel::Compound`]: collision geoms (group 0) and visual copies (group 1), and its
+/// hinged part.
+fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgba: [f64; 4], hinge: Option<&Hinge>) {
     let joint = if fixed { r#" mocap="true""# } else { r#" gravcomp="0""# };
     let _ = writeln!(out, r#"    <body name="{name}_main" pos="0 0 0"{joint}>"#);
     if !fixed {
         let _ = writeln!(out, r#"      <joint name="{name}_joint0" type="free" damping="0.0005"/>"#);
     }
+    write_parts(out, &format!("{name}_g"), geoms, rgba, "      ");
+    if let Some(h) = hinge {
+        let words = |v: &[f64]| v.iter().map(f64::to_string).collect::<Vec<_>>().join(" ");
+        let (pos, axis) = (words(&h.pos), words(&h.axis));
+        let open = h.open_deg.to_radians();
+        let range = if open < 0.0 { format!("0 {}", -open) } else { format!("{} 0", -open) };
+        let _ = writeln!(out, r#"      <body name="{name}_lid" pos="{pos}" axisangle="{axis} {open}">"#);
+        let _ = writeln!(out, r#"        <joint name="{name}_hinge" type="hinge" axis="{axis}" range="{range}" damping="0.01"/>"#);
+        write_parts(out, &format!("{name}_lid_g"), &h.geoms, rgba, "        ");
+        let _ = writeln!(out, "      </body>");
+    }
+    let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 -1"/>"#);
+    let _ = writeln!(out, "    </body>");
+}
+
+/// Collision geoms `<prefix><i>` and their visual copies.
+fn write_parts(out: &mut String, prefix: &str, geoms: &[Part], rgba: [f64; 4], indent: &str) {
     let words = |v: &[f64]| v.iter().map(f64::to_string).collect::<Vec<_>>().join(" ");
     for (i, part) in geoms.iter().enumerate() {
         let [r, g, b, a] = part.rgba.unwrap_or(rgba);
@@ -215,15 +251,13 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
         let density = part.density.map_or_else(String::new, |d| format!(r#" density="{d}""#));
         let _ = writeln!(
             out,
-            r#"      <geom name="{name}_g{i}" type="{kind}" size="{size}" pos="{pos}"{turn}{density} friction="0.95 0.3 0.1" condim="4" solimp="0.998 0.998 0.001" solref="0.02 1" group="0" rgba="{r} {g} {b} {a}"/>"#
+            r#"{indent}<geom name="{prefix}{i}" type="{kind}" size="{size}" pos="{pos}"{turn}{density} friction="0.95 0.3 0.1" condim="4" solimp="0.998 0.998 0.001" solref="0.02 1" group="0" rgba="{r} {g} {b} {a}"/>"#
         );
         let _ = writeln!(
             out,
-            r#"      <geom name="{name}_g{i}_vis" type="{kind}" size="{size}" pos="{pos}"{turn} contype="0" conaffinity="0" group="1" mass="0" rgba="{r} {g} {b} {a}"/>"#
+            r#"{indent}<geom name="{prefix}{i}_vis" type="{kind}" size="{size}" pos="{pos}"{turn} contype="0" conaffinity="0" group="1" mass="0" rgba="{r} {g} {b} {a}"/>"#
         );
     }
-    let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 -1"/>"#);
-    let _ = writeln!(out, "    </body>");
 }
 
 /// One of robosuite's nuts: box `geoms` (`(position, half extents, yaw)` in the nut frame) round a

@@ -15,6 +15,7 @@ const BUNDLED: &[(&str, &str, &str)] = &[
     ("square", include_str!("../tasks/square.task.toml"), include_str!("../tasks/square.toml")),
     ("three_piece_assembly", include_str!("../tasks/three_piece_assembly.task.toml"), include_str!("../tasks/three_piece_assembly.toml")),
     ("threading", include_str!("../tasks/threading.task.toml"), include_str!("../tasks/threading.toml")),
+    ("coffee", include_str!("../tasks/coffee.task.toml"), include_str!("../tasks/coffee.toml")),
 ];
 
 /// The bundled task files, parsed once (an error names the file that does not parse).

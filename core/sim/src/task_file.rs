@@ -159,6 +159,18 @@ pub enum Predicate {
         /// Distance (m).
         within_m: f64,
     },
+    /// A hinge or slide joint of the scene (`machine_hinge`) reads within `[min, max]` (deg for a
+    /// hinge).
+    Joint {
+        /// MuJoCo joint name.
+        joint: String,
+        /// Lower bound.
+        #[serde(default = "minus_infinity")]
+        min: f64,
+        /// Upper bound.
+        #[serde(default = "plus_infinity")]
+        max: f64,
+    },
     /// `object`'s yaw matches `with`'s within `tolerance_deg`, modulo `symmetry_deg`.
     Aligned {
         /// The object.
@@ -199,6 +211,14 @@ fn any_height() -> [f64; 2] {
     [f64::NEG_INFINITY, f64::INFINITY]
 }
 
+fn minus_infinity() -> f64 {
+    f64::NEG_INFINITY
+}
+
+fn plus_infinity() -> f64 {
+    f64::INFINITY
+}
+
 fn full_turn() -> f64 {
     360.0
 }
@@ -231,6 +251,8 @@ pub enum ObsTerm {
     /// The object's pose in the gripper frame (grip site position, hand orientation), position
     /// and `xyzw` quaternion with w >= 0: 7 values.
     InGripper(String),
+    /// A joint's position (rad for a hinge): 1 value.
+    Joint(String),
 }
 
 impl TaskFile {
@@ -311,6 +333,7 @@ impl Predicate {
     fn names(&self) -> Vec<&str> {
         match self {
             Self::Grasped(o) => vec![o],
+            Self::Joint { .. } => Vec::new(),
             Self::Lifted { object, .. } | Self::AtRest { object, .. } => vec![object],
             Self::Contact([a, b]) => vec![a, b],
             Self::Inside { object, of: other, .. }
@@ -329,6 +352,7 @@ impl ObsTerm {
     fn names(&self) -> Vec<&str> {
         match self {
             Self::Pose(o) | Self::Position(o) | Self::FromEef(o) | Self::ToEef(o) | Self::InGripper(o) => vec![o],
+            Self::Joint(_) => Vec::new(),
             Self::Between([a, b]) => vec![a, b],
         }
     }
@@ -408,6 +432,13 @@ impl DataTask {
                 };
                 (point(object, point_m) - point(of, of_point_m)).norm() < *within_m
             }
+            Predicate::Joint { joint, min, max } => {
+                // A hinge's bounds are in degrees, a slide's in metres.
+                joint_position(env, joint).is_some_and(|(q, hinge)| {
+                    let q = if hinge { q.to_degrees() } else { q };
+                    q >= *min && q <= *max
+                })
+            }
             Predicate::Aligned { object, with, tolerance_deg, symmetry_deg } => {
                 let yaw = |name: &str| mimicgen_engine::pose::yaw_of(&env.object_pose(index(name)));
                 let period = symmetry_deg.to_radians();
@@ -437,6 +468,7 @@ impl DataTask {
             ObsTerm::FromEef(o) => out.extend((self.position(env, o) - eef).iter()),
             ObsTerm::ToEef(o) => out.extend((eef - self.position(env, o)).iter()),
             ObsTerm::Between([a, b]) => out.extend((self.position(env, b) - self.position(env, a)).iter()),
+            ObsTerm::Joint(j) => out.push(joint_position(env, j).map_or(0.0, |(q, _)| q)),
             ObsTerm::InGripper(o) => {
                 let hand = env.data().xquat()[env.scene().robot.hand_body];
                 let world_from_gripper =
@@ -449,6 +481,15 @@ impl DataTask {
             }
         }
     }
+}
+
+/// Position of joint `name` and whether it is a hinge; `None` if the scene has no such joint.
+fn joint_position(env: &SimEnv, name: &str) -> Option<(f64, bool)> {
+    use mujoco_rs::prelude::*;
+    let model = &env.scene().model;
+    let j = model.name_to_id(MjtObjBase::mjOBJ_JOINT, name)?;
+    let adr = usize::try_from(model.jnt_qposadr()[j]).ok()?;
+    Some((env.data().qpos()[adr], model.jnt_type()[j] == MjtJoint::mjJNT_HINGE))
 }
 
 fn and_list(items: &[String]) -> String {

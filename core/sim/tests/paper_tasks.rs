@@ -1,4 +1,4 @@
-//! The paper's tasks built from primitive geoms (Threading, Three Piece Assembly), described only
+//! The paper's tasks built from primitive geoms (Threading, Three Piece Assembly, Coffee), described only
 //! by their task files: scenes compose and rest, nothing succeeds at reset, the bundled scripted
 //! demos end in success with their signals in order, and generation from them succeeds.
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
@@ -49,7 +49,9 @@ fn bundled_demos_succeed_and_generate(task_name: &str, signals: &[&str], variant
         env.reset_to_state(demo.sim.states.row(0)).unwrap();
         assert!(!task.is_success(&env), "{} starts unsolved", demo.name);
         env.reset_to_state(demo.sim.states.row(demo.len() - 1)).unwrap();
-        assert!(task.is_success(&env), "{} ends in success", demo.name);
+        let poses = env.object_poses();
+        let rel: Vec<_> = poses.values().map(|p| p.translation.vector).collect();
+        assert!(task.is_success(&env), "{} ends in success: {rel:?} obs {:?}", demo.name, task.object_obs(&env));
     }
     let spec = TaskSpec::from_toml_str(registry::default_spec_toml(task_name).unwrap(), "spec").unwrap();
     let generator = Generator::new(spec, sources).unwrap().with_seed(1);
@@ -90,4 +92,24 @@ fn three_piece_assembly_scenes_rest_and_its_demos_assemble() {
         assert!(moved < 0.01 && !success, "three_piece_assembly {variant}: moved {moved:.4} m, success {success}");
     }
     bundled_demos_succeed_and_generate("three_piece_assembly", &["grasp_1", "insert_1", "grasp_2"], "D0");
+}
+
+#[test]
+fn coffee_starts_open_and_its_demos_insert_the_pod_and_shut_the_lid() {
+    for variant in ["D0", "D1", "D2"] {
+        let (moved, success) = settle("coffee", variant);
+        assert!(moved < 0.01 && !success, "coffee {variant}: moved {moved:.4} m, success {success}");
+    }
+    // The lid starts open (hinge at 0), resting against its stop, and the hinge is observed.
+    let task = registry::task("coffee", "D0").unwrap();
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let mut env = SimEnv::new(scene, Arc::clone(&task));
+    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
+    for _ in 0..20 {
+        env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
+    }
+    let obs = task.object_obs(&env);
+    assert_eq!(obs.len(), 7 + 7 + 7 + 7 + 1);
+    assert!(obs[28].abs() < 0.05, "hinge at {:.3} rad", obs[28]);
+    bundled_demos_succeed_and_generate("coffee", &["grasp"], "D0");
 }
