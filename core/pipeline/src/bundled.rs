@@ -24,6 +24,7 @@ const FILES: &[(&str, &str, &str, &[u8])] = &[
     ),
     ("threading", "D0", "threading_D0_source.hdf5", include_bytes!("../../sim/data/threading_D0_source.hdf5")),
     ("coffee", "D0", "coffee_D0_source.hdf5", include_bytes!("../../sim/data/coffee_D0_source.hdf5")),
+    ("pick_place", "D0", "pick_place_D0_source.hdf5", include_bytes!("../../sim/data/pick_place_D0_source.hdf5")),
 ];
 
 /// The spec bundled for `task` (the paper's settings, `core/sim/tasks/<task>.toml`).

@@ -55,6 +55,22 @@ pub enum ObjectModel {
         /// Default position (m), the one a scene has before any reset.
         pos: [f64; 3],
     },
+    /// An object from a mesh in robosuite's assets, as robosuite's `MilkObject` and the like: body
+    /// `<name>_main` with a free joint, the mesh as collision geom `<name>_g0` and, textured, as
+    /// visual geom.
+    Mesh {
+        /// Object name (`milk`).
+        name: String,
+        /// The mesh file under the assets directory (`objects/meshes/milk.msh`).
+        mesh: String,
+        /// The mesh's scale.
+        #[serde(default = "unit_scale")]
+        scale: [f64; 3],
+        /// The texture file under the assets directory (`textures/ceramic.png`).
+        texture: String,
+        /// Density (kg/m^3).
+        density: f64,
+    },
     /// An object built from primitive geoms (ours, for the tasks whose objects robosuite does not
     /// ship): body `<name>_main`, with a free joint, or fixed in the world (a mocap body the task
     /// may move between episodes); collision geoms `<name>_g<i>` and coloured visual copies.
@@ -87,6 +103,10 @@ pub struct Hinge {
     pub open_deg: f64,
     /// Its geoms, relative to the hinge, as they sit when closed.
     pub geoms: Vec<Part>,
+}
+
+fn unit_scale() -> [f64; 3] {
+    [1.0; 3]
 }
 
 /// One primitive geom of a [`ObjectModel::Compound`].
@@ -148,7 +168,11 @@ impl ObjectModel {
     #[must_use]
     pub fn body_name(&self) -> String {
         match self {
-            Self::Box { name, .. } | Self::SquareNut { name } | Self::RoundNut { name } | Self::Compound { name, .. } => {
+            Self::Box { name, .. }
+            | Self::SquareNut { name }
+            | Self::RoundNut { name }
+            | Self::Compound { name, .. }
+            | Self::Mesh { name, .. } => {
                 format!("{name}_main")
             }
             Self::FixedBox { body, .. } | Self::FixedCylinder { body, .. } => body.clone(),
@@ -164,6 +188,14 @@ impl ObjectModel {
             Self::SquareNut { name } | Self::RoundNut { name } => write_brass(out, name),
             Self::FixedBox { body, .. } | Self::FixedCylinder { body, .. } => write_brass(out, body),
             Self::Compound { .. } => {}
+            Self::Mesh { name, mesh, scale: [sx, sy, sz], texture, .. } => {
+                let _ = writeln!(out, r#"    <mesh name="{name}_mesh" file="{{ASSETS}}/{mesh}" scale="{sx} {sy} {sz}"/>"#);
+                let _ = writeln!(out, r#"    <texture type="2d" name="{name}_tex" file="{{ASSETS}}/{texture}"/>"#);
+                let _ = writeln!(
+                    out,
+                    r#"    <material name="{name}_mat" texture="{name}_tex" reflectance="0.5" texrepeat="1 1" texuniform="true"/>"#
+                );
+            }
         }
     }
 
@@ -195,6 +227,20 @@ impl ObjectModel {
                     out,
                     r#"      <geom name="{body}_vis" size="{r} {h}" type="cylinder" contype="0" conaffinity="0" group="1" material="{body}_bmetal"/>"#
                 );
+                let _ = writeln!(out, "    </body>");
+            }
+            Self::Mesh { name, density, .. } => {
+                let _ = writeln!(out, r#"    <body name="{name}_main" pos="0 0 0" gravcomp="0">"#);
+                let _ = writeln!(out, r#"      <joint name="{name}_joint0" type="free" damping="0.0005"/>"#);
+                let _ = writeln!(
+                    out,
+                    r#"      <geom name="{name}_g0" type="mesh" mesh="{name}_mesh" solimp="0.998 0.998 0.001" solref="0.001 1" density="{density}" friction="0.95 0.3 0.1" condim="4" group="0" rgba="0.5 0 0 1"/>"#
+                );
+                let _ = writeln!(
+                    out,
+                    r#"      <geom name="{name}_vis" type="mesh" mesh="{name}_mesh" contype="0" conaffinity="0" group="1" mass="0" material="{name}_mat"/>"#
+                );
+                let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 -1"/>"#);
                 let _ = writeln!(out, "    </body>");
             }
             Self::Compound { name, geoms, fixed, rgba, hinge } => write_compound(out, name, geoms, *fixed, *rgba, hinge.as_ref()),

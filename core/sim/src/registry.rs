@@ -16,6 +16,7 @@ const BUNDLED: &[(&str, &str, &str)] = &[
     ("three_piece_assembly", include_str!("../tasks/three_piece_assembly.task.toml"), include_str!("../tasks/three_piece_assembly.toml")),
     ("threading", include_str!("../tasks/threading.task.toml"), include_str!("../tasks/threading.toml")),
     ("coffee", include_str!("../tasks/coffee.task.toml"), include_str!("../tasks/coffee.toml")),
+    ("pick_place", include_str!("../tasks/pick_place.task.toml"), include_str!("../tasks/pick_place.toml")),
 ];
 
 /// The bundled task files, parsed once (an error names the file that does not parse).

@@ -137,6 +137,9 @@ pub enum Predicate {
         object: String,
         /// The one it should be in.
         of: String,
+        /// The point of `of` it is measured from (m, `of`'s frame): a compartment of a bin.
+        #[serde(default)]
+        of_point_m: [f64; 3],
         /// Largest |dx| and |dy| (m).
         xy_m: f64,
         /// Range of z(object) - z(of) (m).
@@ -421,8 +424,15 @@ impl DataTask {
                 let objects = &env.scene().objects;
                 env.in_contact(&objects[index(a)].geoms, &objects[index(b)].geoms)
             }
-            Predicate::Inside { object, of, xy_m, dz_m } => {
-                let d = self.position(env, object) - self.position(env, of);
+            Predicate::Inside { object, of, of_point_m, xy_m, dz_m } => {
+                let point = match self.index(of) {
+                    Some(i) => {
+                        let pose = env.object_pose(i);
+                        pose.translation.vector + pose.rotation * Vec3::from(*of_point_m)
+                    }
+                    None => self.position(env, of),
+                };
+                let d = self.position(env, object) - point;
                 d.x.abs() < *xy_m && d.y.abs() < *xy_m && d.z >= dz_m[0] && d.z <= dz_m[1]
             }
             Predicate::Near { object, point_m, of, of_point_m, within_m } => {

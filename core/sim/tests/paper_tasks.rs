@@ -1,4 +1,5 @@
-//! The paper's tasks built from primitive geoms (Threading, Three Piece Assembly, Coffee), described only
+//! The paper's tasks added as task files (Threading, Three Piece Assembly, Coffee from primitive
+//! geoms; Pick Place with robosuite's object meshes), described only
 //! by their task files: scenes compose and rest, nothing succeeds at reset, the bundled scripted
 //! demos end in success with their signals in order, and generation from them succeeds.
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
@@ -112,4 +113,15 @@ fn coffee_starts_open_and_its_demos_insert_the_pod_and_shut_the_lid() {
     assert_eq!(obs.len(), 7 + 7 + 7 + 7 + 1);
     assert!(obs[28].abs() < 0.05, "hinge at {:.3} rad", obs[28]);
     bundled_demos_succeed_and_generate("coffee", &["grasp"], "D0");
+}
+
+#[test]
+fn pick_place_objects_rest_on_the_table_and_its_demos_fill_the_bin() {
+    let (moved, success) = settle("pick_place", "D0");
+    assert!(moved < 0.01 && !success, "pick_place: moved {moved:.4} m, success {success}");
+    let task = registry::task("pick_place", "D0").unwrap();
+    let names: Vec<String> = task.objects().into_iter().map(|(o, _)| o).collect();
+    assert_eq!(names, ["milk", "bread", "cereal", "can", "bin"]);
+    let signals = ["grasp_milk", "place_milk", "grasp_bread", "place_bread", "grasp_cereal", "place_cereal", "grasp_can"];
+    bundled_demos_succeed_and_generate("pick_place", &signals, "D0");
 }
