@@ -91,7 +91,13 @@ Examples:
     },
     /// Record scripted source demos of a task (the bundled defaults are made this way).
     Demos(generate::DemosArgs),
-    /// List the tasks and their variants.
+    /// List the tasks, their variants and the arms.
+    ///
+    /// Every task is a task file (`core/sim/tasks/<task>.task.toml`: objects, placement per
+    /// variant, signals and success from predicates, observation, demonstrator). Add your own
+    /// without code: put `<name>.task.toml` (and its generation spec `<name>.toml`) in a
+    /// directory and point MIMICGEN_TASK_DIR at it; `docs/tasks.md` has the format.
+    #[command(after_help = "Examples:\n  mimicgen tasks\n  MIMICGEN_TASK_DIR=my_tasks mimicgen demos --task tower --out tower_sources.hdf5")]
     Tasks,
     /// Show a dataset's demos in the Rerun viewer (3D scene, paths by subtask, signals).
     View(view::ViewArgs),
@@ -372,8 +378,11 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Tasks => {
+            if let Err(e) = mimicgen_sim::registry::task("stack", "D0") {
+                anyhow::bail!("{e}");
+            }
             for t in mimicgen_sim::registry::tasks() {
-                println!("{:<12} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
+                println!("{:<21} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
             }
             println!();
             for r in mimicgen_sim::robot::ROBOTS {

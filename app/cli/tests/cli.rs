@@ -100,3 +100,57 @@ fn annotate_writes_typed_ends_where_mimicgen_reads_them() {
     let same = mimicgen().args(["annotate"]).arg(&out).args(["--auto", "--out"]).arg(&out).args(["--overwrite"]).output().unwrap();
     assert!(!same.status.success());
 }
+
+#[test]
+fn a_task_file_of_ones_own_is_listed_recorded_and_generated() {
+    // A new task with no code: Stack's file renamed, the red cube swapped for a taller block and
+    // both placed wider; its generation spec is Stack's.
+    let dir = std::env::temp_dir().join(format!("mimicgen-task-dir-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let stack = std::fs::read_to_string(repo_path("core/sim/tasks/stack.task.toml")).unwrap();
+    let tower = stack
+        .replace("name = \"stack\"", "name = \"tower\"")
+        .replace("env_name = \"Stack\"", "env_name = \"Tower\"")
+        .replace("half_size = [0.02, 0.02, 0.02]", "half_size = [0.02, 0.02, 0.03]")
+        .replace("height_m = 0.03\n", "height_m = 0.04\n")
+        .replace("release_height_m = 0.051", "release_height_m = 0.061");
+    std::fs::write(dir.join("tower.task.toml"), tower).unwrap();
+    let spec = std::fs::read_to_string(repo_path("core/sim/tasks/stack.toml")).unwrap().replace("name = \"stack\"", "name = \"tower\"");
+    std::fs::write(dir.join("tower.toml"), spec).unwrap();
+    let run = |args: &[&str]| mimicgen().env("MIMICGEN_TASK_DIR", &dir).args(args).output().unwrap();
+    let listed = String::from_utf8_lossy(&run(&["tasks"]).stdout).into_owned();
+    assert!(listed.contains("tower") && listed.contains("pick_place") && listed.contains("ur5e"), "{listed}");
+    let sources = dir.join("tower_sources.hdf5");
+    let out = run(&["demos", "--task", "tower", "--num-demos", "2", "--out", sources.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let generated = dir.join("tower_D1.hdf5");
+    let out = run(&[
+        "generate",
+        "--task",
+        "tower",
+        "--variant",
+        "D1",
+        "--source",
+        sources.to_str().unwrap(),
+        "--num-demos",
+        "4",
+        "--out",
+        generated.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let info = String::from_utf8_lossy(&mimicgen().args(["info"]).arg(&generated).output().unwrap().stdout).into_owned();
+    assert!(info.contains("Tower_D1"), "{info}");
+    // A file naming an object it does not have is refused, naming the file and the field.
+    std::fs::write(
+        dir.join("broken.task.toml"),
+        std::fs::read_to_string(dir.join("tower.task.toml"))
+            .unwrap()
+            .replace("name = \"tower\"", "name = \"broken\"")
+            .replace("grasped = \"cubeA\"", "grasped = \"cubeZ\""),
+    )
+    .unwrap();
+    let out = run(&["generate", "--task", "tower", "--num-demos", "1", "--out", dir.join("x.hdf5").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("broken.task.toml") && err.contains("cubeZ"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -74,7 +74,7 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
             ui.checkbox(&mut f.overwrite, "replace existing outputs").on_hover_text("--overwrite");
             ui.end_row();
             ui.label("Variant");
-            let variants = mimicgen_sim::registry::tasks().iter().find(|t| t.name == file.task).map_or(&[][..], |t| t.variants.as_slice());
+            let variants = mimicgen_sim::registry::tasks().find(|t| t.name == file.task).map_or(&[][..], |t| t.variants.as_slice());
             egui::ComboBox::from_id_salt("variant").selected_text(f.variant.clone().unwrap_or_else(|| "the file's".to_owned())).show_ui(
                 ui,
                 |ui| {

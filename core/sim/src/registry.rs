@@ -19,35 +19,83 @@ const BUNDLED: &[(&str, &str, &str)] = &[
     ("pick_place", include_str!("../tasks/pick_place.task.toml"), include_str!("../tasks/pick_place.toml")),
 ];
 
-/// The bundled task files, parsed once (an error names the file that does not parse).
-fn parsed() -> &'static Result<Vec<TaskFile>, String> {
-    static FILES: OnceLock<Result<Vec<TaskFile>, String>> = OnceLock::new();
+/// The environment variable naming a directory of the user's own task files: every
+/// `<name>.task.toml` there (with its generation spec `<name>.toml` beside it, if any) joins the
+/// bundled tasks, replacing a bundled task of the same name.
+pub const TASK_DIR_VAR: &str = "MIMICGEN_TASK_DIR";
+
+/// A task file and its generation spec.
+struct Entry {
+    file: TaskFile,
+    spec: Option<&'static str>,
+}
+
+/// The bundled task files and the user's, parsed once (an error names the file that does not
+/// parse).
+fn parsed() -> &'static Result<Vec<Entry>, String> {
+    static FILES: OnceLock<Result<Vec<Entry>, String>> = OnceLock::new();
     FILES.get_or_init(|| {
-        BUNDLED.iter().map(|(name, text, _)| TaskFile::from_toml_str(text, &format!("core/sim/tasks/{name}.task.toml"))).collect()
+        let mut entries = BUNDLED
+            .iter()
+            .map(|(name, text, spec)| {
+                let file = TaskFile::from_toml_str(text, &format!("core/sim/tasks/{name}.task.toml"))?;
+                Ok(Entry { file, spec: Some(*spec) })
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        if let Some(dir) = std::env::var_os(TASK_DIR_VAR) {
+            for entry in user_tasks(std::path::Path::new(&dir))? {
+                match entries.iter_mut().find(|e| e.file.name == entry.file.name) {
+                    Some(bundled) => *bundled = entry,
+                    None => entries.push(entry),
+                }
+            }
+        }
+        Ok(entries)
     })
 }
 
-/// Every task, in the order `mimicgen tasks` lists them (none if a bundled file does not parse,
-/// which the registry's tests rule out).
-#[must_use]
-pub fn tasks() -> &'static [TaskFile] {
-    parsed().as_deref().unwrap_or_default()
+/// The task files in `dir`, by file name. Each is read once per process, so its text is kept for
+/// the process's life.
+fn user_tasks(dir: &std::path::Path) -> Result<Vec<Entry>, String> {
+    let listing = std::fs::read_dir(dir).map_err(|e| format!("{TASK_DIR_VAR}={}: {e}", dir.display()))?;
+    let mut paths: Vec<std::path::PathBuf> =
+        listing.filter_map(Result::ok).map(|e| e.path()).filter(|p| p.to_string_lossy().ends_with(".task.toml")).collect();
+    paths.sort();
+    let mut entries = Vec::with_capacity(paths.len());
+    for path in paths {
+        let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let file = TaskFile::from_toml_str(&text, &path.display().to_string())?;
+        let spec_path = path.with_file_name(format!("{}.toml", file.name));
+        let spec = match std::fs::read_to_string(&spec_path) {
+            Ok(spec) => Some(&*Box::leak(spec.into_boxed_str())),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(e) => return Err(format!("{}: {e}", spec_path.display())),
+        };
+        entries.push(Entry { file, spec });
+    }
+    Ok(entries)
+}
+
+/// Every task, in the order `mimicgen tasks` lists them: the bundled ones, then the user's
+/// ([`TASK_DIR_VAR`]). Empty if a file does not parse; [`task`] says which.
+pub fn tasks() -> impl Iterator<Item = &'static TaskFile> {
+    parsed().as_deref().unwrap_or_default().iter().map(|e| &e.file)
 }
 
 fn names() -> String {
-    BUNDLED.iter().map(|(name, ..)| *name).collect::<Vec<_>>().join(", ")
+    tasks().map(|t| t.name.as_str()).collect::<Vec<_>>().join(", ")
 }
 
 /// The instruction of task `name` (its name when unknown).
 #[must_use]
 pub fn instruction(name: &str) -> String {
-    tasks().iter().find(|t| t.name == name).map_or_else(|| name.replace('_', " "), |t| t.instruction.clone())
+    tasks().find(|t| t.name == name).map_or_else(|| name.replace('_', " "), |t| t.instruction.clone())
 }
 
-/// The bundled task spec (our TOML, the paper's settings) for `name`.
+/// The generation spec (our TOML; the paper's settings for the bundled tasks) for `name`.
 #[must_use]
 pub fn default_spec_toml(name: &str) -> Option<&'static str> {
-    BUNDLED.iter().find(|(n, ..)| *n == name).map(|(_, _, spec)| *spec)
+    parsed().as_deref().unwrap_or_default().iter().find(|e| e.file.name == name).and_then(|e| e.spec)
 }
 
 /// Builds `name` / `variant`.
@@ -55,10 +103,11 @@ pub fn default_spec_toml(name: &str) -> Option<&'static str> {
 /// # Errors
 /// A message naming the known tasks or variants.
 pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
-    let files = parsed().as_ref().map_err(Clone::clone)?;
+    let entries = parsed().as_ref().map_err(Clone::clone)?;
     let wanted = name.to_ascii_lowercase();
-    let file = files.iter().find(|t| t.name == wanted).ok_or_else(|| format!("unknown task {wanted:?}; known tasks: {}", names()))?;
-    Ok(Arc::new(DataTask::new(file.clone(), variant)?))
+    let entry =
+        entries.iter().find(|e| e.file.name == wanted).ok_or_else(|| format!("unknown task {wanted:?}; known tasks: {}", names()))?;
+    Ok(Arc::new(DataTask::new(entry.file.clone(), variant)?))
 }
 
 /// The task and variant a robosuite `env_name` names (`Stack_D0` -> stack, D0; `StackThree_D1`
@@ -68,8 +117,8 @@ pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
 /// A message naming the known environments when `env_name` is not one of them.
 pub fn task_from_env_name(env_name: &str) -> Result<(Arc<dyn Task>, String), String> {
     let (base, variant) = env_name.rsplit_once('_').filter(|(_, v)| v.starts_with('D')).unwrap_or((env_name, "D0"));
-    let info = tasks().iter().find(|t| t.env_name.eq_ignore_ascii_case(base)).ok_or_else(|| {
-        let envs: Vec<&str> = tasks().iter().map(|t| t.env_name.as_str()).collect();
+    let info = tasks().find(|t| t.env_name.eq_ignore_ascii_case(base)).ok_or_else(|| {
+        let envs: Vec<&str> = tasks().map(|t| t.env_name.as_str()).collect();
         format!("environment {env_name:?} is not one of ours ({})", envs.join(", "))
     })?;
     Ok((task(&info.name, variant)?, variant.to_owned()))
@@ -141,7 +190,7 @@ pub fn env_args_with_robot(env_args: &str, robot: &crate::robot::RobotModel) -> 
 /// (OSC_POSE, kp 150, 20 Hz, Panda), so robomimic can rebuild the environment.
 #[must_use]
 pub fn env_args(name: &str, variant: &str) -> String {
-    let env_name = tasks().iter().find(|t| t.name == name).map_or(name, |t| t.env_name.as_str());
+    let env_name = tasks().find(|t| t.name == name).map_or(name, |t| t.env_name.as_str());
     serde_json::json!({
         "env_name": format!("{env_name}_{}", variant.to_ascii_uppercase()),
         "env_version": "1.4.1",
@@ -187,7 +236,7 @@ mod tests {
 
     #[test]
     fn every_bundled_task_file_parses_and_builds_each_variant() {
-        let files = parsed().as_ref().unwrap_or_else(|e| panic!("{e}"));
+        let files: Vec<&TaskFile> = parsed().as_ref().unwrap_or_else(|e| panic!("{e}")).iter().map(|e| &e.file).collect();
         assert_eq!(files.len(), BUNDLED.len());
         for (file, (name, ..)) in files.iter().zip(BUNDLED) {
             assert_eq!(&file.name, name);
