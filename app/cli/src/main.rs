@@ -97,7 +97,9 @@ Examples:
     /// variant, signals and success from predicates, observation, demonstrator). Add your own
     /// without code: put `<name>.task.toml` (and its generation spec `<name>.toml`) in a
     /// directory and point MIMICGEN_TASK_DIR at it; `docs/tasks.md` has the format.
-    #[command(after_help = "Examples:\n  mimicgen tasks\n  MIMICGEN_TASK_DIR=my_tasks mimicgen demos --task tower --out tower_sources.hdf5")]
+    #[command(
+        after_help = "Examples:\n  mimicgen tasks\n  MIMICGEN_TASK_DIR=my_tasks mimicgen demos --task tower --out tower_sources.hdf5"
+    )]
     Tasks,
     /// Show a dataset's demos in the Rerun viewer (3D scene, paths by subtask, signals).
     View(view::ViewArgs),
