@@ -269,6 +269,32 @@ fn coverage(py: Python<'_>, path: PathBuf, task: Option<String>, variant: Option
     json_of(&value)
 }
 
+/// Every task (its name, robosuite environment, variants, description, instruction and objects)
+/// and every arm, as JSON.
+#[pyfunction]
+fn tasks() -> PyResult<String> {
+    // A task file that does not parse (the user's, under MIMICGEN_TASK_DIR) is an error here.
+    mimicgen_sim::registry::task("stack", "D0").map_err(error)?;
+    let tasks: Vec<serde_json::Value> = mimicgen_sim::registry::tasks()
+        .map(|t| {
+            serde_json::json!({
+                "name": t.name,
+                "env_name": t.env_name,
+                "variants": t.variants,
+                "description": t.description,
+                "instruction": t.instruction,
+                "objects": t.objects.iter().map(|o| o.name.as_str()).collect::<Vec<_>>(),
+                "signals": t.signals.keys().collect::<Vec<_>>(),
+            })
+        })
+        .collect();
+    let robots: Vec<serde_json::Value> = mimicgen_sim::robot::ROBOTS
+        .iter()
+        .map(|r| serde_json::json!({"name": r.name, "robosuite_name": r.robosuite_name, "status": r.status}))
+        .collect();
+    json_of(&serde_json::json!({"tasks": tasks, "robots": robots}))
+}
+
 /// Joins the shards of a run into the whole run's dataset; returns the report.
 #[pyfunction]
 #[pyo3(signature = (shards, out, overwrite = false))]
@@ -470,6 +496,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(propose_subtask_ends, m)?)?;
     m.add_function(wrap_pyfunction!(write_subtask_ends, m)?)?;
     m.add_function(wrap_pyfunction!(coverage, m)?)?;
+    m.add_function(wrap_pyfunction!(tasks, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(export_lerobot, m)?)?;
     m.add_function(wrap_pyfunction!(generate, m)?)?;

@@ -191,6 +191,22 @@ def test_another_arm_from_the_same_source_demos(tmp_path):
         mg.generate(tmp_path / "b.hdf5", robot="baxter", num_demos=1).wait()
 
 
+def test_tasks_list_the_task_files_and_a_new_task_generates(tmp_path):
+    listed = mg.tasks()
+    names = [t["name"] for t in listed["tasks"]]
+    assert {"stack", "threading", "coffee", "three_piece_assembly", "pick_place"} <= set(names)
+    coffee = next(t for t in listed["tasks"] if t["name"] == "coffee")
+    assert coffee["env_name"] == "Coffee" and coffee["variants"] == ["D0", "D1", "D2"] and coffee["objects"] == ["pod", "machine"]
+    assert [r["name"] for r in listed["robots"]] == ["panda", "sawyer", "iiwa", "ur5e"]
+    # A generated Threading dataset names robosuite's environment for its variant.
+    import json
+
+    out = tmp_path / "threading.hdf5"
+    report = mg.generate(out, task="threading", variant="D1", num_demos=4, seed=1).wait()
+    assert report["attempts"] >= 4
+    assert json.loads(mg.Dataset(out).env_args)["env_name"] == "Threading_D1"
+
+
 def test_cameras_and_a_lerobot_export_that_pyarrow_reads(tmp_path):
     import pyarrow.parquet as pq
 

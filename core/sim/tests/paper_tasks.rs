@@ -96,6 +96,31 @@ fn three_piece_assembly_scenes_rest_and_its_demos_assemble() {
 }
 
 #[test]
+fn three_piece_assembly_counts_the_post_in_the_tube_not_lying_across_it() {
+    use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
+    let task = registry::task("three_piece_assembly", "D0").unwrap();
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let mut env = SimEnv::new(scene, Arc::clone(&task));
+    let assembled = |env: &mut SimEnv, post: Rot, dz: f64| {
+        env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(2)).unwrap();
+        let base = env.object_pose(0).translation.vector;
+        let tube = base + Vec3::new(0.0, 0.0, 0.019);
+        env.place_object(1, &pose_from_parts(tube, Rot::identity()));
+        env.place_object(2, &pose_from_parts(tube + Vec3::new(0.0, 0.0, dz), post));
+        for _ in 0..10 {
+            env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
+        }
+        task.is_success(env)
+    };
+    assert!(assembled(&mut env, Rot::identity(), 0.034), "the post down in the tube");
+    let lying = Rot::from_axis_angle(&Vec3::x_axis(), std::f64::consts::FRAC_PI_2);
+    assert!(!assembled(&mut env, lying, 0.038 + 0.0125), "the post lying across the tube's top");
+    // Turned 45 deg, the post's diagonal (3.4 cm) does not fit the 3 cm hole: it stands on the rim.
+    let turned = Rot::from_axis_angle(&Vec3::z_axis(), std::f64::consts::FRAC_PI_4);
+    assert!(!assembled(&mut env, turned, 0.038 + 0.026), "the post standing on the tube's rim");
+}
+
+#[test]
 fn coffee_starts_open_and_its_demos_insert_the_pod_and_shut_the_lid() {
     for variant in ["D0", "D1", "D2"] {
         let (moved, success) = settle("coffee", variant);

@@ -44,6 +44,7 @@ __all__ = [
     "generate",
     "merge",
     "propose_subtask_ends",
+    "tasks",
     "write_subtask_ends",
 ]
 __version__ = _native.__version__
@@ -259,6 +260,13 @@ def write_subtask_ends(
     subtask but the last) as the signals MimicGen reads."""
     as_json = json.dumps({str(k): [int(e) for e in v] for k, v in ends.items()})
     _native.write_subtask_ends(os.fspath(source), os.fspath(out), as_json, task, _path(config))
+
+
+def tasks() -> Dict[str, List[Dict[str, Any]]]:
+    """Every task (``name``, robosuite ``env_name``, ``variants``, ``description``, ``instruction``,
+    ``objects``, ``signals``) and every arm (``name``, ``robosuite_name``, ``status``), as
+    ``mimicgen tasks`` lists them; task files under ``$MIMICGEN_TASK_DIR`` included."""
+    return json.loads(_native.tasks())
 
 
 def coverage(path: PathLike, task: Optional[str] = None, variant: Optional[str] = None, bins: int = 3) -> Dict[str, Any]:
