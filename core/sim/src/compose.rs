@@ -270,7 +270,6 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
     }
     write_parts(out, &format!("{name}_g"), geoms, rgba, "      ");
     if let Some(h) = hinge {
-        let words = |v: &[f64]| v.iter().map(f64::to_string).collect::<Vec<_>>().join(" ");
         let (pos, axis) = (words(&h.pos), words(&h.axis));
         let open = h.open_deg.to_radians();
         let range = if open < 0.0 { format!("0 {}", -open) } else { format!("{} 0", -open) };
@@ -283,9 +282,13 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
     let _ = writeln!(out, "    </body>");
 }
 
+/// Numbers as MJCF writes a vector: `0.1 0 -2`.
+fn words(v: &[f64]) -> String {
+    v.iter().map(f64::to_string).collect::<Vec<_>>().join(" ")
+}
+
 /// Collision geoms `<prefix><i>` and their visual copies.
 fn write_parts(out: &mut String, prefix: &str, geoms: &[Part], rgba: [f64; 4], indent: &str) {
-    let words = |v: &[f64]| v.iter().map(f64::to_string).collect::<Vec<_>>().join(" ");
     for (i, part) in geoms.iter().enumerate() {
         let [r, g, b, a] = part.rgba.unwrap_or(rgba);
         let turn = if part.yaw_deg == 0.0 && part.roll_deg == 0.0 {

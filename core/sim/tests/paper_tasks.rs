@@ -75,6 +75,11 @@ fn bundled_demos_succeed_and_generate(task_name: &str, signals: &[&str], variant
 }
 
 #[test]
+fn nut_assembly_demos_put_both_nuts_on_their_pegs() {
+    bundled_demos_succeed_and_generate("nut_assembly", &["grasp_square_nut", "insert_square_nut", "grasp_round_nut"], "D0");
+}
+
+#[test]
 fn threading_scenes_rest_and_its_demos_thread_the_needle() {
     for variant in ["D0", "D1", "D2"] {
         let (moved, success) = settle("threading", variant);
