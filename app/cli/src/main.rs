@@ -380,9 +380,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Tasks => {
-            if let Err(e) = mimicgen_sim::registry::task("stack", "D0") {
-                anyhow::bail!("{e}");
-            }
+            mimicgen_sim::registry::check().map_err(anyhow::Error::msg)?;
             for t in mimicgen_sim::registry::tasks() {
                 println!("{:<21} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
             }

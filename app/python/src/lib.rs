@@ -274,7 +274,7 @@ fn coverage(py: Python<'_>, path: PathBuf, task: Option<String>, variant: Option
 #[pyfunction]
 fn tasks() -> PyResult<String> {
     // A task file that does not parse (the user's, under MIMICGEN_TASK_DIR) is an error here.
-    mimicgen_sim::registry::task("stack", "D0").map_err(error)?;
+    mimicgen_sim::registry::check().map_err(error)?;
     let tasks: Vec<serde_json::Value> = mimicgen_sim::registry::tasks()
         .map(|t| {
             serde_json::json!({

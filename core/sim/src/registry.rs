@@ -82,6 +82,14 @@ pub fn tasks() -> impl Iterator<Item = &'static TaskFile> {
     parsed().as_deref().unwrap_or_default().iter().map(|e| &e.file)
 }
 
+/// Why the task files cannot be used (a file that does not parse, named with the field), if so.
+///
+/// # Errors
+/// That message.
+pub fn check() -> Result<(), String> {
+    parsed().as_ref().map(|_| ()).map_err(Clone::clone)
+}
+
 fn names() -> String {
     tasks().map(|t| t.name.as_str()).collect::<Vec<_>>().join(", ")
 }
