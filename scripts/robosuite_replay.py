@@ -72,11 +72,16 @@ def read_env_args(f, path):
     return env_args
 
 
+# MimicGen's tasks whose robosuite environment has another name (the variants subclass it).
+ROBOSUITE_BASE = {"Square": "NutAssemblySquare"}
+
+
 def resolve_env_name(name, registered):
     """MimicGen names task variants `Stack_D0`, `Square_D1`, ...; robosuite only has the base task."""
     if name in registered:
         return name
     base = re.sub(r"_D\d+$", "", name)
+    base = ROBOSUITE_BASE.get(base, base)
     if base in registered:
         return base
     raise BadInput(f"data attr 'env_args': env_name {name!r} is not a robosuite environment "
@@ -102,7 +107,11 @@ def make_env(env_args, path, render=False):
         control_freq=kwargs.get("control_freq", 20),
     )
     # Keep only the keyword arguments the robosuite class takes (env_args may carry extras).
-    params = inspect.signature(REGISTERED_ENVS[env_name].__init__).parameters
+    # (NutAssemblySquare takes **kwargs and passes them on: read its bases' signatures too.)
+    params = set()
+    for cls in REGISTERED_ENVS[env_name].__mro__:
+        if "__init__" in vars(cls):
+            params |= set(inspect.signature(cls.__init__).parameters)
     dropped = sorted(k for k in kwargs if k not in params)
     kwargs = {k: v for k, v in kwargs.items() if k in params}
     env = robosuite.make(env_name, **kwargs)

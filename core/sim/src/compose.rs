@@ -408,18 +408,27 @@ fn parse_attrs(tag: &str) -> Option<Vec<(String, String)>> {
 /// key) and without the `remove` ones. `None` if the XML has no such body.
 #[must_use]
 pub fn edit_body(xml: &str, name: &str, set: &[(&str, String)], remove: &[&str]) -> Option<String> {
+    edit_element(xml, "body", name, set, remove)
+}
+
+/// `xml` with the start tag of the `element` named `name` (`body`, `joint`, ...) given `set`
+/// attributes (replacing any of the same key) and without the `remove` ones. `None` if the XML
+/// has no such element.
+#[must_use]
+pub fn edit_element(xml: &str, element: &str, name: &str, set: &[(&str, String)], remove: &[&str]) -> Option<String> {
+    let open = format!("<{element}");
     let mut from = 0;
-    while let Some(i) = xml[from..].find("<body").map(|i| i + from) {
+    while let Some(i) = xml[from..].find(&open).map(|i| i + from) {
         let end = xml[i..].find('>').map(|e| i + e + 1)?;
         let tag = &xml[i..end];
         let attrs = parse_attrs(tag)?;
-        if attrs.iter().any(|(k, v)| k == "name" && v == name) {
+        if tag[open.len()..].starts_with(char::is_whitespace) && attrs.iter().any(|(k, v)| k == "name" && v == name) {
             let mut kept: Vec<(String, String)> =
                 attrs.into_iter().filter(|(k, _)| !remove.contains(&k.as_str()) && !set.iter().any(|(s, _)| s == k)).collect();
             kept.extend(set.iter().map(|(k, v)| ((*k).to_owned(), v.clone())));
-            let body: String = kept.iter().map(|(k, v)| format!(" {k}=\"{v}\"")).collect();
+            let attrs: String = kept.iter().map(|(k, v)| format!(" {k}=\"{v}\"")).collect();
             let close = if tag.ends_with("/>") { "/>" } else { ">" };
-            return Some(format!("{}<body{body}{close}{}", &xml[..i], &xml[end..]));
+            return Some(format!("{}{open}{attrs}{close}{}", &xml[..i], &xml[end..]));
         }
         from = end;
     }
@@ -558,6 +567,13 @@ mod tests {
         assert!(mocap.contains(r#" mocap="true"><geom/>"#), "{mocap}");
         assert!(edit_body(xml, "peg2", &[], &[]).is_none());
         assert!(edit_body("<body name=\"peg1\" pos=\"1 2>", "peg1", &[], &[]).is_none());
+        // Another element by name: a tendon's `<joint joint=..>` and a longer tag name are skipped.
+        let joints = r#"<jointx name="j"/><fixed><joint joint="j" coef="1"/></fixed><joint name="j" range="0 1"/>"#;
+        let edited = edit_element(joints, "joint", "j", &[("limited", "false".to_owned())], &[]).unwrap_or_default();
+        assert!(
+            edited.ends_with(r#"<joint name="j" range="0 1" limited="false"/>"#) && edited.starts_with(r#"<jointx name="j"/>"#),
+            "{edited}"
+        );
     }
 
     #[test]

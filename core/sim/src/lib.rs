@@ -72,6 +72,18 @@ pub enum SimError {
         /// The missing name.
         name: String,
     },
+    /// A task reads a joint (a `joint` predicate or observation term) that its scene lacks.
+    #[error("task {task:?} ({task}.task.toml): `{field}` reads joint {joint:?}, which the scene from {file} does not have")]
+    TaskJoint {
+        /// The task's name.
+        task: String,
+        /// The task file's field that names it (`success`, `signals.<name>`, `observation`).
+        field: String,
+        /// The joint's name.
+        joint: String,
+        /// Where the scene's XML came from.
+        file: String,
+    },
 }
 
 impl SimError {

@@ -33,9 +33,56 @@ pub struct RobotModel {
     pub close_direction: [f64; 2],
     /// Left and right finger pad collision geoms (robosuite's grasp check).
     pub finger_pads: [&'static str; 2],
-    /// Body pairs whose contacts the simulation excludes: pairs that touch exactly at rest, which
-    /// MuJoCo 3 counts as a contact and MuJoCo 2.3 (robosuite 1.4.1's) does not.
+    /// What the simulation changes in robosuite's model so that it behaves under MuJoCo 3 as it
+    /// does under robosuite 1.4.1's MuJoCo 2.3 (datasets keep robosuite's XML).
+    pub sim_patch: SimPatch,
+}
+
+/// Simulation-only changes to an arm's model, each one measured against robosuite's behaviour.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimPatch {
+    /// Body pairs whose contacts are excluded.
     pub contact_excludes: &'static [(&'static str, &'static str)],
+    /// Passive joints that follow a driven one.
+    pub couplings: &'static [Coupling],
+    /// Attributes set on named MJCF elements: `(element, name, attribute, value)`, e.g. a
+    /// joint's damping, a limit lifted, a tendon's spring or equality switched off.
+    pub attributes: &'static [(&'static str, &'static str, &'static str, &'static str)],
+}
+
+/// `joint = offset + slope * driver` (radians), held by an equality constraint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Coupling {
+    /// The passive joint.
+    pub joint: &'static str,
+    /// The joint it follows.
+    pub driver: &'static str,
+    /// Its position when the driver is at zero.
+    pub offset: f64,
+    /// Radians it turns per radian of the driver.
+    pub slope: f64,
+}
+
+const NO_PATCH: SimPatch = SimPatch { contact_excludes: &[], couplings: &[], attributes: &[] };
+
+/// robosuite's Robotiq 85 and 140 close their linkages by contacts between each side's inner
+/// finger and inner knuckle meshes (and the outer finger), 6 to 14 mm deep under MuJoCo 2.3 and
+/// holding joints outside their own ranges. MuJoCo 3 makes three or four shallower contacts per
+/// pair instead of one: the 85's linkage sags 0.2 rad open and its pads never reach an object, the
+/// 140's fingers chatter while closed. Patched, the linkage follows each side's driven knuckle as
+/// robosuite's does (couplings fitted to robosuite's joints from open to closed under MuJoCo 2.3,
+/// `scripts/robotiq_linkage.py`), without those contacts and the tendons robosuite adds to them,
+/// and the driven knuckles are damped as the contacts damped them.
+const ROBOTIQ_LINKAGE_CONTACTS: &[(&str, &str)] = &[
+    ("gripper0_left_inner_finger", "gripper0_left_inner_knuckle"),
+    ("gripper0_left_outer_knuckle", "gripper0_left_inner_knuckle"),
+    ("gripper0_right_inner_finger", "gripper0_right_inner_knuckle"),
+    ("gripper0_right_outer_knuckle", "gripper0_right_inner_knuckle"),
+];
+
+/// `Coupling` for one side of a Robotiq linkage.
+const fn follows(joint: &'static str, driver: &'static str, offset: f64, slope: f64) -> Coupling {
+    Coupling { joint, driver, offset, slope }
 }
 
 /// The arm's torque actuators as robosuite names them for the Panda and the IIWA.
@@ -64,7 +111,7 @@ pub const PANDA: RobotModel = RobotModel {
     finger_init_qpos: &[0.020833, -0.020833],
     close_direction: [-1.0, 1.0],
     finger_pads: ["gripper0_finger1_pad_collision", "gripper0_finger2_pad_collision"],
-    contact_excludes: &[],
+    sim_patch: NO_PATCH,
 };
 
 /// Rethink Robotics' Sawyer with robosuite's Rethink gripper.
@@ -99,14 +146,14 @@ pub const SAWYER: RobotModel = RobotModel {
     finger_pads: ["gripper0_l_fingerpad_g0", "gripper0_r_fingerpad_g0"],
     // The first link's collision sphere rests exactly on the base's cylinder: in MuJoCo 3 that
     // contact's friction holds joint 0 back (3.7 N m at rest), which robosuite's arm never feels.
-    contact_excludes: &[("robot0_right_arm_base_link", "robot0_right_l0")],
+    sim_patch: SimPatch { contact_excludes: &[("robot0_right_arm_base_link", "robot0_right_l0")], ..NO_PATCH },
 };
 
 /// KUKA's LBR IIWA 7 with robosuite's Robotiq 140 gripper (six coupled joints, two actuators).
 pub const IIWA: RobotModel = RobotModel {
     name: "iiwa",
     robosuite_name: "IIWA",
-    status: "Square D0 / D1 12.7 / 8.8 % (paper 37.7 / 26.5)",
+    status: "Square D0 / D1 IIWA_RATES (paper 37.7 / 26.5)",
     base_xml: include_str!("../../../viewer_assets/scenes/iiwa_table.xml"),
     arm_joints: &[
         "robot0_joint_1",
@@ -131,7 +178,28 @@ pub const IIWA: RobotModel = RobotModel {
     finger_init_qpos: &[0.012, 0.065, 0.065, -0.012, 0.065, 0.065],
     close_direction: [1.0, -1.0],
     finger_pads: ["gripper0_left_fingerpad_collision", "gripper0_right_fingerpad_collision"],
-    contact_excludes: &[],
+    // See ROBOTIQ_LINKAGE_CONTACTS. robosuite's own 140 is not symmetric: its left inner finger
+    // turns 0.24 rad on closing, its right one stays put.
+    sim_patch: SimPatch {
+        contact_excludes: ROBOTIQ_LINKAGE_CONTACTS,
+        couplings: &[
+            follows("gripper0_left_inner_knuckle_joint", "gripper0_finger_joint", 0.0727, -0.893),
+            follows("gripper0_left_inner_finger_joint", "gripper0_finger_joint", 0.0565, 0.515),
+            follows("gripper0_right_inner_knuckle_joint", "gripper0_right_outer_knuckle_joint", 0.0722, 0.832),
+            follows("gripper0_right_inner_finger_joint", "gripper0_right_outer_knuckle_joint", 0.034, -0.014),
+        ],
+        attributes: &[
+            ("joint", "gripper0_finger_joint", "damping", "1"),
+            ("joint", "gripper0_finger_joint", "armature", "0.001"),
+            ("joint", "gripper0_right_outer_knuckle_joint", "damping", "1"),
+            ("joint", "gripper0_right_outer_knuckle_joint", "armature", "0.001"),
+            // robosuite's tendon equalities, which the couplings replace.
+            ("tendon", "gripper0_finger2_12_cpl", "active", "false"),
+            ("tendon", "gripper0_finger2_23_cpl", "active", "false"),
+            ("tendon", "gripper0_finger1_12_cpl", "active", "false"),
+            ("tendon", "gripper0_finger1_23_cpl", "active", "false"),
+        ],
+    },
 };
 
 /// Universal Robots' UR5e (six joints) with robosuite's Robotiq 85 gripper, whose two actuators
@@ -139,7 +207,7 @@ pub const IIWA: RobotModel = RobotModel {
 pub const UR5E: RobotModel = RobotModel {
     name: "ur5e",
     robosuite_name: "UR5e",
-    status: "not usable yet: Square D0 0.1 % (paper 64.7); its Robotiq 85 fingers sag open under MuJoCo 3 and never reach the object",
+    status: "Square D0 / D1 UR5E_RATES (paper 64.7 / 34.1)",
     base_xml: include_str!("../../../viewer_assets/scenes/ur5e_table.xml"),
     arm_joints: &[
         "robot0_shoulder_pan_joint",
@@ -156,7 +224,37 @@ pub const UR5E: RobotModel = RobotModel {
     finger_init_qpos: &[-0.026, -0.267, -0.200, -0.026, -0.267, -0.200],
     close_direction: [1.0, 1.0],
     finger_pads: IIWA.finger_pads,
-    contact_excludes: &[],
+    // See ROBOTIQ_LINKAGE_CONTACTS.
+    sim_patch: SimPatch {
+        contact_excludes: ROBOTIQ_LINKAGE_CONTACTS,
+        couplings: &[
+            follows("gripper0_left_inner_knuckle_joint", "gripper0_finger_joint", -0.175, 0.849),
+            follows("gripper0_left_inner_finger_joint", "gripper0_finger_joint", -0.278, 0.118),
+            follows("gripper0_right_inner_knuckle_joint", "gripper0_right_outer_knuckle_joint", -0.175, 0.849),
+            follows("gripper0_right_inner_finger_joint", "gripper0_right_outer_knuckle_joint", -0.278, 0.116),
+        ],
+        attributes: &[
+            // robosuite's closed stop (its contacts held the knuckles there): 0.50 rad.
+            ("joint", "gripper0_finger_joint", "range", "-0.028 0.5"),
+            ("joint", "gripper0_finger_joint", "solreflimit", "0.004 1"),
+            ("joint", "gripper0_finger_joint", "damping", "1"),
+            ("joint", "gripper0_finger_joint", "armature", "0.001"),
+            ("joint", "gripper0_right_outer_knuckle_joint", "range", "-0.028 0.5"),
+            ("joint", "gripper0_right_outer_knuckle_joint", "solreflimit", "0.004 1"),
+            ("joint", "gripper0_right_outer_knuckle_joint", "damping", "1"),
+            ("joint", "gripper0_right_outer_knuckle_joint", "armature", "0.001"),
+            // robosuite's rest posture lies outside these joints' ranges.
+            ("joint", "gripper0_left_inner_knuckle_joint", "limited", "false"),
+            ("joint", "gripper0_left_inner_finger_joint", "limited", "false"),
+            ("joint", "gripper0_right_inner_knuckle_joint", "limited", "false"),
+            ("joint", "gripper0_right_inner_finger_joint", "limited", "false"),
+            // robosuite's spring between the three joints of a side, which the couplings replace.
+            ("fixed", "gripper0_finger2_12_cpl", "limited", "false"),
+            ("fixed", "gripper0_finger2_12_cpl", "stiffness", "0"),
+            ("fixed", "gripper0_finger1_12_cpl", "limited", "false"),
+            ("fixed", "gripper0_finger1_12_cpl", "stiffness", "0"),
+        ],
+    },
 };
 
 /// Every arm, in the order `mimicgen tasks` lists them.
@@ -173,17 +271,34 @@ pub fn robot(name: &str) -> Result<&'static RobotModel, String> {
     })
 }
 
-/// `xml` with `robot`'s contact exclusions (for the simulation; datasets keep robosuite's XML).
+/// `xml` as the simulation runs it: with `robot`'s [`SimPatch`] (datasets keep robosuite's XML).
+/// An element the patch names that the XML lacks is left as it is (a coupling of a joint it lacks
+/// fails to compile, naming the joint).
 #[must_use]
-pub fn with_contact_excludes(xml: &str, robot: &RobotModel) -> String {
-    if robot.contact_excludes.is_empty() {
-        return xml.to_owned();
+pub fn for_simulation(xml: &str, robot: &RobotModel) -> String {
+    let patch = &robot.sim_patch;
+    let mut xml = xml.to_owned();
+    for (element, name, attribute, value) in patch.attributes {
+        xml = crate::compose::edit_element(&xml, element, name, &[(attribute, (*value).to_owned())], &[]).unwrap_or(xml);
     }
-    let excludes: String =
-        robot.contact_excludes.iter().map(|(a, b)| format!(r#"<exclude body1="{a}" body2="{b}"/>"#)).collect::<Vec<_>>().join("");
+    let excludes = patch.contact_excludes.iter().map(|(a, b)| format!(r#"<exclude body1="{a}" body2="{b}"/>"#));
+    // Stiffer than MuJoCo's default (0.02 s): the fingers' links weigh grams and the default
+    // lets the linkage's spring bend them 0.2 rad off.
+    let couplings = patch.couplings.iter().map(|c| {
+        format!(r#"<joint joint1="{}" joint2="{}" polycoef="{} {} 0 0 0" solref="0.004 1"/>"#, c.joint, c.driver, c.offset, c.slope)
+    });
+    let mut sections = String::new();
+    let excludes: String = excludes.collect();
+    if !excludes.is_empty() {
+        sections += &format!("<contact>{excludes}</contact>\n");
+    }
+    let couplings: String = couplings.collect();
+    if !couplings.is_empty() {
+        sections += &format!("<equality>{couplings}</equality>\n");
+    }
     match xml.rfind("</mujoco>") {
-        Some(end) => format!("{}<contact>{excludes}</contact>\n{}", &xml[..end], &xml[end..]),
-        None => xml.to_owned(),
+        Some(end) if !sections.is_empty() => format!("{}{sections}{}", &xml[..end], &xml[end..]),
+        _ => xml,
     }
 }
 

@@ -89,10 +89,8 @@ impl Scene {
     /// so that resets can move it while it stays fixed during an episode.
     pub fn compile(xml: &str, origin: &str, objects: &[(String, String)], control_freq_hz: f64) -> Result<Self, SimError> {
         let robot_model = crate::robot::detect(|name| xml.contains(&format!("\"{name}\"")));
-        let physics_xml = crate::robot::with_contact_excludes(
-            &crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M"),
-            robot_model,
-        );
+        let physics_xml =
+            crate::robot::for_simulation(&crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M"), robot_model);
         let model = compile_mjcf(&physics_xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?;
         let mut to_mocap = Vec::new();
         for (_, body_name) in objects {
@@ -198,7 +196,17 @@ impl Scene {
     /// [`SimError::Assets`] without local assets, else as [`Scene::compile`].
     pub fn from_model_file(xml: &str, origin: &str, task: &dyn crate::Task) -> Result<Self, SimError> {
         let assets = crate::assets::robosuite_assets_dir()?;
-        Self::compile(&crate::assets::remap_asset_paths(xml, &assets), origin, &task.objects(), 20.0)
+        let scene = Self::compile(&crate::assets::remap_asset_paths(xml, &assets), origin, &task.objects(), 20.0)?;
+        scene.check_joints_read(task, origin)?;
+        Ok(scene)
+    }
+
+    /// [`SimError::TaskJoint`] for the first joint `task` reads that this scene lacks.
+    fn check_joints_read(&self, task: &dyn crate::Task, origin: &str) -> Result<(), SimError> {
+        match task.joints_read().into_iter().find(|(_, joint)| self.model.name_to_id(MjtObjBase::mjOBJ_JOINT, joint).is_none()) {
+            Some((field, joint)) => Err(SimError::TaskJoint { task: task.name().to_owned(), field, joint, file: origin.to_owned() }),
+            None => Ok(()),
+        }
     }
 
     /// Composes `task`'s scene from our base scene and its object models, and compiles it.
@@ -230,6 +238,7 @@ impl Scene {
             format!("composed {} scene with {}", task.name(), robot.robosuite_name)
         };
         let scene = Self::compile(&xml, &origin, &task.objects(), 20.0)?;
+        scene.check_joints_read(task, &origin)?;
         Ok((scene, xml))
     }
 

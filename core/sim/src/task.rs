@@ -35,6 +35,10 @@ pub trait Task: Send + Sync {
     fn scripts(&self) -> Vec<PickPlaceScript>;
     /// The reset distribution as coverage dimensions: each object's x, y and yaw over its range.
     fn coverage_dimensions(&self) -> Vec<Dimension>;
+    /// `(field, joint name)` of every scene joint the task reads; scenes check they have them.
+    fn joints_read(&self) -> Vec<(String, String)> {
+        Vec::new()
+    }
     /// Height of the table top (m), robosuite's `table_offset` z.
     fn table_top_z(&self) -> f64 {
         BASE_TABLE_TOP_Z

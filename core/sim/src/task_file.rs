@@ -318,6 +318,20 @@ impl TaskFile {
         Ok(())
     }
 
+    /// `(field, joint)` of every joint its predicates and observation terms read.
+    fn joints_read(&self) -> Vec<(String, String)> {
+        let mut read: Vec<(String, String)> = Vec::new();
+        let mut add = |field: String, joints: Vec<&str>| read.extend(joints.into_iter().map(|j| (field.clone(), j.to_owned())));
+        for (signal, predicate) in &self.signals {
+            add(format!("signals.{signal}"), predicate.joints());
+        }
+        add("success".to_owned(), self.success.joints());
+        for entry in &self.observation {
+            add("observation".to_owned(), entry.term.joints());
+        }
+        read
+    }
+
     fn object_names(&self) -> Vec<&str> {
         self.objects.iter().map(|o| o.name.as_str()).collect()
     }
@@ -332,6 +346,16 @@ impl TaskFile {
 }
 
 impl Predicate {
+    /// The joint names it reads.
+    fn joints(&self) -> Vec<&str> {
+        match self {
+            Self::Joint { joint, .. } => vec![joint],
+            Self::All(all) | Self::Any(all) => all.iter().flat_map(Self::joints).collect(),
+            Self::Not(p) => p.joints(),
+            _ => Vec::new(),
+        }
+    }
+
     /// The object names it refers to.
     fn names(&self) -> Vec<&str> {
         match self {
@@ -352,6 +376,13 @@ impl Predicate {
 }
 
 impl ObsTerm {
+    fn joints(&self) -> Vec<&str> {
+        match self {
+            Self::Joint(joint) => vec![joint],
+            _ => Vec::new(),
+        }
+    }
+
     fn names(&self) -> Vec<&str> {
         match self {
             Self::Pose(o) | Self::Position(o) | Self::FromEef(o) | Self::ToEef(o) | Self::InGripper(o) => vec![o],
@@ -525,6 +556,10 @@ impl Task for DataTask {
 
     fn object_models(&self) -> Vec<ObjectModel> {
         self.file.objects.iter().map(|o| o.model.clone()).collect()
+    }
+
+    fn joints_read(&self) -> Vec<(String, String)> {
+        self.file.joints_read()
     }
 
     fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {

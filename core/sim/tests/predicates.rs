@@ -53,3 +53,14 @@ fn predicates_read_the_scene() {
     settle(&mut env, 2);
     assert_eq!(task.signals(&env)["at_rest"], 0);
 }
+
+#[test]
+fn a_joint_the_scene_lacks_is_refused_naming_the_field() {
+    // Stack's scene has no lid: a signal reading `lid_hinge` is an error when the scene is built,
+    // not a signal that silently never turns on.
+    let stack = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tasks/stack.task.toml")).unwrap();
+    let text = stack.replace("[signals]\n", "[signals]\nlid_open = { joint = { joint = \"lid_hinge\", min = 30.0 } }\n");
+    let task = DataTask::new(TaskFile::from_toml_str(&text, "stack").unwrap(), "D0").unwrap();
+    let err = Scene::for_task(&task).unwrap_err().to_string();
+    assert!(err.contains("signals.lid_open") && err.contains("\"lid_hinge\"") && err.contains("stack.task.toml"), "{err}");
+}

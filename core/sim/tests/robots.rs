@@ -66,8 +66,11 @@ fn iiwa_with_its_robotiq_gripper_composes_rests_and_closes() {
     for _ in 0..20 {
         env.step(&[0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
     }
+    // Down until the closed fingertips rest on the table, 9 cm. (robosuite's own IIWA goes 15 cm:
+    // its contact-held linkage folds under the load and the hand sinks below the table top; the
+    // patched linkage is rigid, BENCHMARKS.md.)
     let end = env.eef_pose().translation.vector;
-    assert!(start.z - end.z > 0.1, "{start:?} -> {end:?}");
+    assert!(start.z - end.z > 0.085, "{start:?} -> {end:?}");
     // Closing drives the two driven knuckles towards their closed ends (+0.7 and -0.7 rad).
     let closed = env.observation()["robot0_gripper_qpos"].clone();
     assert!(closed[0] > open[0] + 0.1 && closed[3] < open[3] - 0.1, "gripper {open:?} -> {closed:?}");
@@ -101,4 +104,39 @@ fn ur5e_six_joint_arm_follows_actions_and_closes_its_robotiq_85() {
     // robosuite sends the Robotiq 85's one command to both driven knuckles: both close (+).
     let closed = env.observation()["robot0_gripper_qpos"].clone();
     assert!(closed[0] > open[0] + 0.1 && closed[3] > open[3] + 0.1, "gripper {open:?} -> {closed:?}");
+}
+
+/// Distance (m) between the two finger pads.
+fn pad_gap(env: &SimEnv, scene: &Scene) -> f64 {
+    let [a, b] = scene.robot.model.finger_pads.map(|pad| scene.model.name_to_id(MjtObjBase::mjOBJ_GEOM, pad).unwrap());
+    let xpos = env.data().geom_xpos();
+    (0..3).map(|k| (xpos[a][k] - xpos[b][k]).powi(2)).sum::<f64>().sqrt()
+}
+
+#[test]
+fn robotiq_grippers_open_and_close_as_robosuite_s_do() {
+    // robosuite 1.4.1 under its MuJoCo 2.3 (`scripts/robotiq_linkage.py`, arm held still): the
+    // Robotiq 85's pads are 11.1 cm apart open and 2.1 cm closed on nothing, the 140's 13.0 and
+    // 2.3. Unpatched, MuJoCo 3 opened the 85 to 13.3 cm and closed it only to 7.5.
+    for (model, open_m, closed_m) in [(&robot::UR5E, 0.111, 0.021), (&robot::IIWA, 0.130, 0.023)] {
+        let task = registry::task("lift", "D0").unwrap();
+        let (scene, _) = Scene::for_task_with_robot(task.as_ref(), model).unwrap();
+        let scene = Arc::new(scene);
+        let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+        env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(6)).unwrap();
+        for _ in 0..20 {
+            env.step(&[0.0, 0.0, 0.0, 1e-6, 0.0, 0.0, -1.0]).unwrap();
+        }
+        let open = pad_gap(&env, &scene);
+        let mut closed = Vec::new();
+        for _ in 0..40 {
+            env.step(&[0.0, 0.0, 0.0, 1e-6, 0.0, 0.0, 1.0]).unwrap();
+            closed.push(pad_gap(&env, &scene));
+        }
+        let name = model.name;
+        assert!((open - open_m).abs() < 0.01, "{name}: open {open:.4} m, robosuite {open_m}");
+        // Closed within 0.5 cm of robosuite's and still: the linkage neither sags nor chatters.
+        let still = &closed[20..];
+        assert!(still.iter().all(|g| (g - closed_m).abs() < 0.005), "{name}: closed {still:.4?} m, robosuite {closed_m}");
+    }
 }
