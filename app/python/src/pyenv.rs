@@ -110,6 +110,10 @@ impl Environment for PyEnv {
         self.observe(false, |_, env| env.call_method0("is_success")?.is_truthy())
     }
 
+    fn unmet_success(&self) -> Option<String> {
+        self.observe(None, |_, env| if env.hasattr("unmet_success")? { env.call_method0("unmet_success")?.extract() } else { Ok(None) })
+    }
+
     fn target_pose_to_action(&self, world_from_target: &Pose) -> [f64; 6] {
         self.observe([0.0; 6], |py, env| {
             let v = floats(&env.call_method1("target_pose_to_action", (matrix(py, world_from_target)?,))?)?;

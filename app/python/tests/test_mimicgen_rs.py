@@ -171,6 +171,23 @@ def test_a_python_simulator_drives_the_rust_engine(tmp_path):
     same_datasets(first, second)
 
 
+class NeverStacked(KinematicStack):
+    """Never achieves the task, and says which part of it is unmet."""
+
+    def is_success(self):
+        return False
+
+    def unmet_success(self):
+        return "cube A on cube B"
+
+
+def test_a_python_simulator_names_what_is_unmet_in_the_report(tmp_path):
+    report = mg.generate(tmp_path / "never.hdf5", env=NeverStacked, num_demos=4, seed=3).wait()
+    assert report["successes"] == 0
+    reasons = {f["reason"] for f in report["failures"]}
+    assert "task not achieved: cube A on cube B failed" in reasons, report
+
+
 def test_a_python_simulator_error_ends_the_run_with_its_message(tmp_path):
     class Broken(KinematicStack):
         def step(self, action):

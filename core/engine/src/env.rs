@@ -48,6 +48,12 @@ pub trait Environment {
     /// Whether the task is currently achieved.
     fn is_success(&self) -> bool;
 
+    /// The part of the success condition that does not hold now, in words (`pod in machine`),
+    /// for failure reports; `None` when achieved or when the environment cannot say.
+    fn unmet_success(&self) -> Option<String> {
+        None
+    }
+
     /// Pose part of the action that moves the controller towards `world_from_target`.
     fn target_pose_to_action(&self, world_from_target: &Pose) -> [f64; 6];
 

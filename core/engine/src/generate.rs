@@ -43,7 +43,12 @@ pub enum FailureReason {
         signal: String,
     },
     /// Every subtask ran but the task was never achieved.
-    TaskNotAchieved,
+    TaskNotAchieved {
+        /// The part of the success condition that did not hold at the end, when the
+        /// environment can say (`pod in machine`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        unmet: Option<String>,
+    },
     /// The simulation became unstable.
     Unstable {
         /// What the simulator reported.
@@ -55,7 +60,8 @@ impl std::fmt::Display for FailureReason {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::SignalNeverOn { signal } => write!(f, "signal {signal:?} never turned on"),
-            Self::TaskNotAchieved => write!(f, "task not achieved"),
+            Self::TaskNotAchieved { unmet: None } => write!(f, "task not achieved"),
+            Self::TaskNotAchieved { unmet: Some(unmet) } => write!(f, "task not achieved: {unmet} failed"),
             Self::Unstable { reason } => write!(f, "simulation unstable: {reason}"),
         }
     }
@@ -339,7 +345,8 @@ impl Generator {
         if attempt.success {
             attempt.failure = None;
         } else if attempt.failure.is_none() {
-            attempt.failure = Some(Failure { subtask: self.spec.subtasks.len() - 1, reason: FailureReason::TaskNotAchieved });
+            let reason = FailureReason::TaskNotAchieved { unmet: env.unmet_success() };
+            attempt.failure = Some(Failure { subtask: self.spec.subtasks.len() - 1, reason });
         }
         Ok(attempt)
     }

@@ -342,6 +342,10 @@ impl Environment for SimEnv {
         self.task.is_success(self)
     }
 
+    fn unmet_success(&self) -> Option<String> {
+        self.task.unmet_success(self)
+    }
+
     fn target_pose_to_action(&self, world_from_target: &Pose) -> [f64; 6] {
         self.osc.scale().action_from_target(&self.eef_pose(), world_from_target)
     }

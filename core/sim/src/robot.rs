@@ -153,7 +153,7 @@ pub const SAWYER: RobotModel = RobotModel {
 pub const IIWA: RobotModel = RobotModel {
     name: "iiwa",
     robosuite_name: "IIWA",
-    status: "Square D0 / D1 IIWA_RATES (paper 37.7 / 26.5)",
+    status: "Square D0 / D1 27.8 / 28.2 % (paper 37.7 / 26.5)",
     base_xml: include_str!("../../../viewer_assets/scenes/iiwa_table.xml"),
     arm_joints: &[
         "robot0_joint_1",
@@ -207,7 +207,7 @@ pub const IIWA: RobotModel = RobotModel {
 pub const UR5E: RobotModel = RobotModel {
     name: "ur5e",
     robosuite_name: "UR5e",
-    status: "Square D0 / D1 UR5E_RATES (paper 64.7 / 34.1)",
+    status: "Square D0 / D1 64.0 / 65.4 % (paper 64.7 / 34.1)",
     base_xml: include_str!("../../../viewer_assets/scenes/ur5e_table.xml"),
     arm_joints: &[
         "robot0_shoulder_pan_joint",

@@ -29,6 +29,11 @@ pub trait Task: Send + Sync {
     fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64>;
     /// Whether the task is achieved in the current state.
     fn is_success(&self, env: &SimEnv) -> bool;
+    /// The part of the success condition that does not hold in the current state, in words;
+    /// `None` when achieved or when the task cannot say.
+    fn unmet_success(&self, _env: &SimEnv) -> Option<String> {
+        None
+    }
     /// robosuite's `object` observation for this task in the current state.
     fn object_obs(&self, env: &SimEnv) -> Vec<f64>;
     /// The scripted demonstrator's pick-and-places, in order (empty if the task has none).

@@ -346,6 +346,25 @@ impl TaskFile {
 }
 
 impl Predicate {
+    /// What it asks, in words (`pod in machine`), for failure reports.
+    fn words(&self) -> String {
+        let list = |all: &[Self], sep: &str| all.iter().map(Self::words).collect::<Vec<_>>().join(sep);
+        match self {
+            Self::Grasped(o) => format!("{o} grasped"),
+            Self::Lifted { object, above_m } => format!("{object} lifted {above_m:.3} m"),
+            Self::Contact([a, b]) => format!("{a} touching {b}"),
+            Self::Inside { object, of, .. } => format!("{object} in {of}"),
+            Self::Near { object, of, .. } => format!("{object} at {of}"),
+            Self::Joint { joint, min, max } => format!("{joint} in [{min}, {max}]"),
+            Self::Aligned { object, with, .. } => format!("{object} turned like {with}"),
+            Self::Apart { object, from, min_m } => format!("{object} at least {min_m:.3} m from {from}"),
+            Self::AtRest { object, .. } => format!("{object} at rest"),
+            Self::All(all) => list(all, " and "),
+            Self::Any(all) => format!("any of ({})", list(all, ", ")),
+            Self::Not(p) => format!("not ({})", p.words()),
+        }
+    }
+
     /// The joint names it reads.
     fn joints(&self) -> Vec<&str> {
         match self {
@@ -594,6 +613,14 @@ impl Task for DataTask {
 
     fn is_success(&self, env: &SimEnv) -> bool {
         self.holds(&self.file.success, env)
+    }
+
+    fn unmet_success(&self, env: &SimEnv) -> Option<String> {
+        let clauses = match &self.file.success {
+            Predicate::All(all) => all.as_slice(),
+            one => std::slice::from_ref(one),
+        };
+        clauses.iter().find(|p| !self.holds(p, env)).map(Predicate::words)
     }
 
     fn object_obs(&self, env: &SimEnv) -> Vec<f64> {

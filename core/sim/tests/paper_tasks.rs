@@ -49,10 +49,12 @@ fn bundled_demos_succeed_and_generate(task_name: &str, signals: &[&str], variant
         env.place_fixed_objects(&mimicgen_engine::demo::initial_object_poses(&demo.object_poses));
         env.reset_to_state(demo.sim.states.row(0)).unwrap();
         assert!(!task.is_success(&env), "{} starts unsolved", demo.name);
+        assert!(task.unmet_success(&env).is_some(), "{}: an unsolved state names what is unmet", demo.name);
         env.reset_to_state(demo.sim.states.row(demo.len() - 1)).unwrap();
         let poses = env.object_poses();
         let rel: Vec<_> = poses.values().map(|p| p.translation.vector).collect();
         assert!(task.is_success(&env), "{} ends in success: {rel:?} obs {:?}", demo.name, task.object_obs(&env));
+        assert_eq!(task.unmet_success(&env), None, "{}", demo.name);
     }
     let spec = TaskSpec::from_toml_str(registry::default_spec_toml(task_name).unwrap(), "spec").unwrap();
     let generator = Generator::new(spec, sources).unwrap().with_seed(1);
@@ -142,6 +144,8 @@ fn coffee_starts_open_and_its_demos_insert_the_pod_and_shut_the_lid() {
     let obs = task.object_obs(&env);
     assert_eq!(obs.len(), 7 + 7 + 7 + 7 + 1);
     assert!(obs[28].abs() < 0.05, "hinge at {:.3} rad", obs[28]);
+    // A failed attempt says which part of the success condition is unmet (its first clause here).
+    assert_eq!(task.unmet_success(&env).as_deref(), Some("pod in machine"));
     bundled_demos_succeed_and_generate("coffee", &["grasp"], "D0");
 }
 
