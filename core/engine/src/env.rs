@@ -48,7 +48,7 @@ pub trait Environment {
     /// Whether the task is currently achieved.
     fn is_success(&self) -> bool;
 
-    /// The part of the success condition that does not hold now, in words (`pod in machine`),
+    /// The parts of the success condition that do not hold now, in words (`pod in machine`),
     /// for failure reports; `None` when achieved or when the environment cannot say.
     fn unmet_success(&self) -> Option<String> {
         None

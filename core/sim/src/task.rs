@@ -29,7 +29,7 @@ pub trait Task: Send + Sync {
     fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64>;
     /// Whether the task is achieved in the current state.
     fn is_success(&self, env: &SimEnv) -> bool;
-    /// The part of the success condition that does not hold in the current state, in words;
+    /// The parts of the success condition that do not hold in the current state, in words;
     /// `None` when achieved or when the task cannot say.
     fn unmet_success(&self, _env: &SimEnv) -> Option<String> {
         None

@@ -620,7 +620,8 @@ impl Task for DataTask {
             Predicate::All(all) => all.as_slice(),
             one => std::slice::from_ref(one),
         };
-        clauses.iter().find(|p| !self.holds(p, env)).map(Predicate::words)
+        let unmet: Vec<String> = clauses.iter().filter(|p| !self.holds(p, env)).map(Predicate::words).collect();
+        (!unmet.is_empty()).then(|| unmet.join(" and "))
     }
 
     fn object_obs(&self, env: &SimEnv) -> Vec<f64> {
