@@ -281,18 +281,20 @@ pub fn for_simulation(xml: &str, robot: &RobotModel) -> String {
     for (element, name, attribute, value) in patch.attributes {
         xml = crate::compose::edit_element(&xml, element, name, &[(attribute, (*value).to_owned())], &[]).unwrap_or(xml);
     }
-    let excludes = patch.contact_excludes.iter().map(|(a, b)| format!(r#"<exclude body1="{a}" body2="{b}"/>"#));
+    let excludes: String = patch.contact_excludes.iter().map(|(a, b)| format!(r#"<exclude body1="{a}" body2="{b}"/>"#)).collect();
     // Stiffer than MuJoCo's default (0.02 s): the fingers' links weigh grams and the default
     // lets the linkage's spring bend them 0.2 rad off.
-    let couplings = patch.couplings.iter().map(|c| {
-        format!(r#"<joint joint1="{}" joint2="{}" polycoef="{} {} 0 0 0" solref="0.004 1"/>"#, c.joint, c.driver, c.offset, c.slope)
-    });
+    let couplings: String = patch
+        .couplings
+        .iter()
+        .map(|c| {
+            format!(r#"<joint joint1="{}" joint2="{}" polycoef="{} {} 0 0 0" solref="0.004 1"/>"#, c.joint, c.driver, c.offset, c.slope)
+        })
+        .collect();
     let mut sections = String::new();
-    let excludes: String = excludes.collect();
     if !excludes.is_empty() {
         sections += &format!("<contact>{excludes}</contact>\n");
     }
-    let couplings: String = couplings.collect();
     if !couplings.is_empty() {
         sections += &format!("<equality>{couplings}</equality>\n");
     }
