@@ -16,6 +16,7 @@ mod bench_sim;
 mod coverage;
 mod generate;
 mod prepare;
+mod serve;
 mod view;
 
 /// Turn a handful of robot demonstrations into large, diverse training datasets.
@@ -39,7 +40,9 @@ Examples:
   mimicgen generate --action-noise 0.02 --nn-k 1:5   spec fields for one run (K:VALUE: subtask K)
   mimicgen info source_D0.hdf5                 demos, lengths, obs/action shapes, objects, signals
   mimicgen export generated.hdf5 --mcap out.mcap   poses, actions, labels for Foxglove
-  mimicgen view generated.hdf5 --demo 3 --spawn     one demo in the Rerun viewer";
+  mimicgen view generated.hdf5 --demo 3 --spawn     one demo in the Rerun viewer
+  mimicgen app                                the inspection app in a window
+  mimicgen serve                              the same app in a browser (headless servers, over SSH)";
 
 #[derive(Subcommand)]
 enum Command {
@@ -89,6 +92,9 @@ Examples:
         #[arg(long, value_name = "FILE.png")]
         screenshot: Option<PathBuf>,
     },
+    /// The inspection app in a browser, for machines without a display: serves the app and runs
+    /// its backend here; open the printed URL (through `ssh -L 8080:localhost:8080 host`).
+    Serve(serve::ServeArgs),
     /// Record scripted source demos of a task (the bundled defaults are made this way).
     Demos(generate::DemosArgs),
     /// List the tasks, their variants and the arms.
@@ -351,6 +357,13 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             })?;
             Ok(ExitCode::SUCCESS)
         }
+        Command::Serve(args) => match serve::run(args) {
+            Ok(()) => Ok(ExitCode::SUCCESS),
+            Err(e) => {
+                eprintln!("error: {e}");
+                Ok(ExitCode::from(if e.is_user_error() { 2 } else { 1 }))
+            }
+        },
         Command::Annotate(args) => {
             annotate::run(&args)?;
             Ok(ExitCode::SUCCESS)

@@ -63,3 +63,12 @@ impl PipelineError {
         Self::Engine { file: file.into(), source }
     }
 }
+
+impl From<mimicgen_run::RunError> for PipelineError {
+    fn from(e: mimicgen_run::RunError) -> Self {
+        match e {
+            mimicgen_run::RunError::Flag { flag, reason } => Self::input("", flag, reason),
+            other => Self::input("", "", other.to_string()),
+        }
+    }
+}

@@ -34,16 +34,14 @@ mod error;
 pub mod lerobot;
 pub mod memory;
 pub mod merge;
-mod overrides;
 pub mod prepare;
 pub mod preview;
 pub mod render;
 mod run;
 
-pub use config::RunConfig;
 pub use error::PipelineError;
-pub use overrides::{OffsetRange, Scoped, SpecOverrides};
+pub use mimicgen_run::{CameraConfig, DemoReport, FailureReport, OffsetRange, Outcome, Report, RunConfig, RunInfo, Scoped, SpecOverrides};
 pub use run::{
-    AttemptEvent, AttemptRecord, DemoReport, Event, FailureReport, Observed, Outcome, PROGRESS_ATTR, Pipeline, RUN_ATTR, Report, RunInfo,
+    AttemptEvent, AttemptRecord, Event, Observed, PROGRESS_ATTR, Pipeline, RUN_ATTR,
     attempt_log_path, failed_path, read_attempt_log, sibling,
 };

@@ -16,7 +16,7 @@ use mimicgen_sim::{Scene, SimEnv, Task, registry};
 use serde::{Deserialize, Serialize};
 
 use crate::config::{check_controller, resolve_task};
-use crate::{PipelineError, RunConfig, SpecOverrides};
+use crate::{DemoReport, FailureReport, Outcome, PipelineError, Report, RunConfig, RunInfo};
 
 /// Root attribute of the output (and of its `.partial`) holding the run description.
 pub const RUN_ATTR: &str = "mimicgen_run";
@@ -84,24 +84,6 @@ pub struct AttemptRecord {
     pub kept: Option<String>,
 }
 
-/// Where an attempt went.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum Outcome {
-    /// A success, written to the dataset as `demo`.
-    Written {
-        /// Its name in the dataset.
-        demo: String,
-    },
-    /// A failure kept in the failed-attempts file as `demo`.
-    KeptFailed {
-        /// Its name in the failed-attempts file.
-        demo: String,
-    },
-    /// A failure not kept.
-    Discarded,
-}
-
 /// What a run reports as it goes. Front ends (the CLI's progress bar, the app, Python) consume
 /// these; the run itself prints nothing.
 #[derive(Debug, Clone)]
@@ -112,31 +94,6 @@ pub enum Event {
     Attempt(Box<AttemptEvent>),
     /// The run has ended (completed or cancelled) and its outputs are complete.
     Finished(Box<Report>),
-}
-
-/// The run as it starts.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RunInfo {
-    /// Task name.
-    pub task: String,
-    /// Variant.
-    pub variant: String,
-    /// Source demo file.
-    pub source: PathBuf,
-    /// Number of source demos.
-    pub num_sources: usize,
-    /// Worker threads.
-    pub workers: usize,
-    /// Run seed.
-    pub seed: u64,
-    /// Spec fields set over the spec's.
-    pub spec_overrides: SpecOverrides,
-    /// Attempts to make, or successes to reach with `guarantee`.
-    pub target: usize,
-    /// Whether `target` counts successes.
-    pub guarantee: bool,
-    /// First attempt index of this session (non-zero when resumed).
-    pub resumed_from: usize,
 }
 
 /// One decided attempt.
@@ -150,79 +107,6 @@ pub struct AttemptEvent {
     pub stats: RunStats,
     /// Seconds since this session of the run started.
     pub elapsed_s: f64,
-}
-
-/// Attempts and successes of one source demo, as reported.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct DemoReport {
-    /// Source demo index.
-    pub demo: usize,
-    /// Attempts that used it.
-    pub attempts: usize,
-    /// Of those, successes.
-    pub successes: usize,
-}
-
-/// Failures of one subtask for one reason, as reported.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FailureReport {
-    /// Subtask index.
-    pub subtask: usize,
-    /// Why (human-readable).
-    pub reason: String,
-    /// How many attempts.
-    pub count: usize,
-}
-
-/// The report of a run, written as `<out>.json` beside the dataset.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Report {
-    /// Task name.
-    pub task: String,
-    /// Variant.
-    pub variant: String,
-    /// Run seed.
-    pub seed: u64,
-    /// Worker threads.
-    pub workers: usize,
-    /// Source demo file.
-    pub source: String,
-    /// The dataset.
-    pub output: String,
-    /// The failed-attempts file, if kept.
-    pub failed_output: Option<String>,
-    /// Attempts decided (over every session of a resumed run).
-    pub attempts: usize,
-    /// Successful attempts.
-    pub successes: usize,
-    /// successes / attempts.
-    pub generation_rate: f64,
-    /// Wall time of this session.
-    pub wall_time_s: f64,
-    /// Attempts of this session per second.
-    pub attempts_per_s: f64,
-    /// Control steps simulated in this session (failed attempts included): the work done,
-    /// independent of the machine's load.
-    pub control_steps: usize,
-    /// Per source demo.
-    pub per_source_demo: Vec<DemoReport>,
-    /// Peak resident memory of the process, MiB.
-    pub peak_rss_mib: Option<f64>,
-    /// Failures by subtask and reason.
-    pub failures: Vec<FailureReport>,
-    /// Whether the run was cancelled before its stopping rule (the dataset is complete and valid,
-    /// with the attempts decided before the cancel).
-    pub cancelled: bool,
-    /// First attempt index of this session (non-zero when resumed).
-    pub resumed_from: usize,
-    /// Whether attempts ended at the first subtask that missed its signal.
-    pub early_abort: bool,
-    /// Spec fields the run set over the spec's (`--action-noise` ...), so it can be made again.
-    #[serde(default, skip_serializing_if = "SpecOverrides::is_empty")]
-    pub spec_overrides: SpecOverrides,
-    /// The share of the attempts this run made, if it was a shard.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shard: Option<Shard>,
 }
 
 /// A run ready to go: inputs read and checked, scene compiled, task resolved.

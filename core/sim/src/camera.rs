@@ -20,29 +20,7 @@ use crate::{Scene, SimError};
 /// The largest image side rendered (the offscreen buffer is made the image's size).
 pub const MAX_SIZE: usize = 4096;
 
-/// Which cameras, at what size, with or without depth.
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct CameraConfig {
-    /// robosuite camera names (`agentview`, `robot0_eye_in_hand`).
-    pub names: Vec<String>,
-    /// Image height in pixels.
-    pub height: usize,
-    /// Image width in pixels.
-    pub width: usize,
-    /// Also render depth (`<camera>_depth`, robosuite's normalized depth buffer, `float32`).
-    pub depth: bool,
-    /// Render without multisampling: about twice as fast on a software renderer, but edges differ
-    /// from robosuite's images (which use MuJoCo's default 4x multisampling).
-    #[serde(default)]
-    pub fast: bool,
-}
-
-impl Default for CameraConfig {
-    /// robomimic's image datasets: `agentview` and the wrist camera at 84 x 84, no depth.
-    fn default() -> Self {
-        Self { names: vec!["agentview".into(), "robot0_eye_in_hand".into()], height: 84, width: 84, depth: false, fast: false }
-    }
-}
+pub use mimicgen_run::CameraConfig;
 
 /// A scene's cameras, ready to render any state of it.
 #[derive(Debug)]

@@ -143,6 +143,10 @@ pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, command
         if ui.add_enabled(open && !state.save_path.trim().is_empty(), egui::Button::new("Save as")).clicked() {
             commands.push(Command::Save(state.save_path.trim().into()));
         }
+        let mut replace = model.save_overwrite;
+        if ui.checkbox(&mut replace, "replace").on_hover_text("Save over an existing file (never over the open one)").changed() {
+            commands.push(Command::SetSaveOverwrite(replace));
+        }
     });
     ui.horizontal(|ui| {
         if let Some(busy) = &model.busy {

@@ -1,12 +1,13 @@
-//! What the UI and its backend say to each other: plain, serializable requests and replies, so
-//! the same UI can later talk to a backend over a WebSocket from a browser.
+//! What the UI and its backend say to each other: plain, serializable requests and replies, the
+//! same in the desktop window (over a channel) and in the browser (as JSON over a WebSocket, in
+//! the [`ClientMessage`] and [`ServerMessage`] envelopes).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use mimicgen_engine::RunStats;
 use mimicgen_engine::coverage::Dimension;
-use mimicgen_pipeline::{Report, RunConfig, RunInfo, SpecOverrides};
+use mimicgen_run::{Report, RunConfig, RunInfo, SpecOverrides};
 use serde::{Deserialize, Serialize};
 
 /// A request to the backend (file reads, detection, writes: everything that may take time).
@@ -27,6 +28,8 @@ pub enum Request {
         ends: BTreeMap<String, Vec<usize>>,
         /// The signal each subtask end is written to.
         signal_names: Vec<String>,
+        /// Replace `out` if it exists (else an existing `out` is refused).
+        overwrite: bool,
     },
     /// Plan attempt `index` of a run seeded `seed` over `source` with these ends, and with
     /// `execute` also run it in simulation ("try it").
@@ -85,6 +88,9 @@ pub enum RunUpdate {
     Attempt(Box<AttemptRow>),
     /// The run has ended (completed or cancelled); its outputs are complete.
     Finished(Box<Report>),
+    /// A run of this config, started elsewhere (another browser tab, or before this tab was
+    /// opened), is what the updates after this one are of.
+    Joined(Box<RunConfig>),
     /// The run stopped on an error (naming the file and field).
     Failed(String),
 }
@@ -216,6 +222,8 @@ pub enum Reply {
         /// Units in all.
         total: usize,
     },
+    /// The backend greets the app when it connects (not a reply to a request).
+    Welcome(Box<Welcome>),
     /// A request failed; `error` names the file and field.
     Failed {
         /// What was being done.
@@ -234,6 +242,8 @@ pub struct LoadedFile {
     pub prepared_from: Option<PathBuf>,
     /// The task it was recorded in.
     pub task: String,
+    /// The task's variants (what a run or preview may draw scenes from).
+    pub variants: Vec<String>,
     /// The signal each subtask but the last ends with (the names written on save).
     pub signal_names: Vec<String>,
     /// The object each subtask is relative to.
@@ -418,7 +428,7 @@ impl Reply {
     #[must_use]
     pub fn ends_request(&self) -> bool {
         match self {
-            Self::Progress { .. } | Self::Run(_) | Self::Images { .. } => false,
+            Self::Progress { .. } | Self::Run(_) | Self::Images { .. } | Self::Welcome(_) => false,
             Self::Opened(file) => file.demos.len() >= file.total_demos,
             Self::MoreDemos { last, .. } => *last,
             Self::Saved { .. }
@@ -462,4 +472,36 @@ pub struct OpenedRun {
     pub rows: Vec<AttemptRow>,
     /// Its report (or one made from the files).
     pub report: Report,
+}
+
+/// What the backend tells the app when it connects.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Welcome {
+    /// The backend machine's cores (the most workers a run should take).
+    pub cores: usize,
+    /// The folder every path is confined to (`mimicgen serve --root`); none on the desktop.
+    pub root: Option<PathBuf>,
+    /// A file to open (`mimicgen serve FILE`).
+    pub file: Option<PathBuf>,
+    /// Where the 3D view is, for a browser: the Rerun web viewer's page, when the server has one.
+    pub viewer_url: Option<String>,
+}
+
+/// A request as a browser sends it: with an id its replies carry back.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClientMessage {
+    /// Chosen by the client, increasing.
+    pub id: u64,
+    /// The request.
+    pub request: Request,
+}
+
+/// A reply as the server sends it: the id of the request it answers, or none for what nobody
+/// asked for in this tab (the greeting, and the updates of a run every tab watches).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ServerMessage {
+    /// The request's id.
+    pub id: Option<u64>,
+    /// The reply.
+    pub reply: Reply,
 }

@@ -13,7 +13,7 @@ use mimicgen_engine::Pose;
 use mimicgen_engine::coverage::{Coordinate, Dimension, coverage, uniform_support_coverage};
 use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
 
-use mimicgen_pipeline::{OffsetRange, Scoped, SpecOverrides};
+use mimicgen_run::{OffsetRange, Scoped, SpecOverrides};
 
 use crate::model::{AppModel, Command, RunState, SideBySide};
 use crate::protocol::{AttemptRow, OpenedRun};
@@ -57,8 +57,7 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
             ui.add(egui::DragValue::new(&mut f.seed)).on_hover_text("--seed: the same seed gives the same dataset");
             ui.end_row();
             ui.label("Workers");
-            let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-            ui.add(egui::DragValue::new(&mut f.workers).range(1..=cores.max(1)))
+            ui.add(egui::DragValue::new(&mut f.workers).range(1..=model.welcome.cores.max(1)))
                 .on_hover_text("--workers: the dataset does not depend on it");
             ui.end_row();
             let label = ui.label("Output:");
@@ -74,7 +73,7 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
             ui.checkbox(&mut f.overwrite, "replace existing outputs").on_hover_text("--overwrite");
             ui.end_row();
             ui.label("Variant");
-            let variants = mimicgen_sim::registry::tasks().find(|t| t.name == file.task).map_or(&[][..], |t| t.variants.as_slice());
+            let variants = &file.variants;
             egui::ComboBox::from_id_salt("variant").selected_text(f.variant.clone().unwrap_or_else(|| "the file's".to_owned())).show_ui(
                 ui,
                 |ui| {

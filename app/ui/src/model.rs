@@ -7,9 +7,11 @@ use std::path::{Path, PathBuf};
 
 use mimicgen_engine::RunStats;
 use mimicgen_engine::coverage::Dimension;
-use mimicgen_pipeline::{Report, RunConfig, RunInfo, SpecOverrides};
+use mimicgen_run::{Report, RunConfig, RunInfo, SpecOverrides};
 
-use crate::protocol::{AttemptRow, Listing, LoadedFile, OpenedRun, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink};
+use crate::protocol::{
+    AttemptRow, Listing, LoadedFile, OpenedRun, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink, Welcome,
+};
 
 /// The app's screens.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -251,8 +253,10 @@ pub enum Command {
     Undo,
     /// Redo what was undone.
     Redo,
-    /// Write the annotations to a new file.
+    /// Write the annotations to a new file (an existing one only with [`Command::SetSaveOverwrite`]).
     Save(PathBuf),
+    /// Whether "Save as" may replace an existing file.
+    SetSaveOverwrite(bool),
     /// Start or stop playing the shown demo.
     TogglePlay,
     /// Advance playback by one step (the UI sends it at the control rate while playing).
@@ -376,6 +380,10 @@ pub struct AppModel {
     pub stay_on_selected: bool,
     /// Two attempts re-run to be seen side by side.
     pub side_by_side: Option<SideBySide>,
+    /// What the backend said of itself when it connected.
+    pub welcome: Welcome,
+    /// Whether "Save as" may replace an existing file.
+    pub save_overwrite: bool,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
 }
@@ -563,8 +571,9 @@ impl AppModel {
                     return None;
                 }
                 self.busy = Some(format!("saving {}", out.display()));
-                return Some(Request::Save { source, out, ends: self.ends.clone(), signal_names });
+                return Some(Request::Save { source, out, ends: self.ends.clone(), signal_names, overwrite: self.save_overwrite });
             }
+            Command::SetSaveOverwrite(on) => self.save_overwrite = on,
             Command::TogglePlay => self.playing = !self.playing && len > 0,
             Command::Tick => {
                 if self.playing {
@@ -741,6 +750,13 @@ impl AppModel {
                 }
             }
             Reply::Cancelling => self.status = "cancelling: finishing the attempts already decided".to_owned(),
+            Reply::Welcome(welcome) => self.welcome = *welcome,
+            Reply::Run(RunUpdate::Joined(config)) => {
+                self.run = Some(RunState::new(*config));
+                self.forget_attempts();
+                self.screen = Screen::Generate;
+                self.status = "watching the server's run".to_owned();
+            }
             Reply::Run(update) => self.on_run_update(update),
             Reply::MoreDemos { path, demos, .. } => {
                 let Some(file) = self.file.as_mut().filter(|f| f.path == path) else { return };
@@ -854,6 +870,7 @@ impl AppModel {
                 self.error = Some(format!("the run stopped: {error}"));
                 run.error = Some(error);
             }
+            RunUpdate::Joined(_) => {}
         }
     }
 }
@@ -877,6 +894,7 @@ mod tests {
         };
         let mut m = AppModel::default();
         m.on_reply(Reply::Opened(Box::new(LoadedFile {
+            variants: vec!["D0".into()],
             path: "f.hdf5".into(),
             prepared_from: None,
             total_demos: 1,
@@ -928,7 +946,7 @@ mod tests {
     #[test]
     fn previews_use_the_forms_spec_and_reruns_the_runs() {
         let mut m = model(50, vec![10]);
-        let noise = |v: f64| SpecOverrides { action_noise: vec![mimicgen_pipeline::Scoped::all(v)], ..SpecOverrides::default() };
+        let noise = |v: f64| SpecOverrides { action_noise: vec![mimicgen_run::Scoped::all(v)], ..SpecOverrides::default() };
         m.apply(Command::SetRunForm(RunForm { spec: noise(0.01), variant: Some("D1".into()), ..RunForm::default() }));
         let Some(Request::Preview(p)) = m.apply(Command::Show(Screen::Preview)) else { panic!("no preview asked") };
         assert_eq!((p.spec.clone(), p.variant.as_deref()), (noise(0.01), Some("D1")));

@@ -7,7 +7,7 @@ use std::str::FromStr;
 use mimicgen_engine::{SelectionStrategy, TaskSpec};
 use serde::{Deserialize, Serialize};
 
-use crate::PipelineError;
+use crate::RunError;
 
 /// A value for every subtask (`VALUE`) or for subtask `K` only (`K:VALUE`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -128,16 +128,16 @@ impl SpecOverrides {
     /// Applies the overrides to `spec`.
     ///
     /// # Errors
-    /// [`PipelineError::Input`] naming the flag: a subtask the spec does not have, an unknown
+    /// [`RunError::Flag`] naming the flag: a subtask the spec does not have, an unknown
     /// strategy, `--nn-k` on a subtask with random selection, a negative or non-finite noise, an
     /// empty offset range.
-    pub fn apply(&self, spec: &mut TaskSpec) -> Result<(), PipelineError> {
+    pub fn apply(&self, spec: &mut TaskSpec) -> Result<(), RunError> {
         let count = spec.subtasks.len();
-        let targets = |flag: &str, subtask: Option<usize>| -> Result<std::ops::Range<usize>, PipelineError> {
+        let targets = |flag: &str, subtask: Option<usize>| -> Result<std::ops::Range<usize>, RunError> {
             match subtask {
                 None => Ok(0..count),
                 Some(k) if k < count => Ok(k..k + 1),
-                Some(k) => Err(PipelineError::input("", flag, format!("names subtask {k}, but the task has {count} (0 to {})", count - 1))),
+                Some(k) => Err(RunError::flag(flag, format!("names subtask {k}, but the task has {count} (0 to {})", count - 1))),
             }
         };
         for s in &self.selection {
@@ -152,8 +152,7 @@ impl SpecOverrides {
                     "nearest_neighbor_object" => SelectionStrategy::NearestNeighborObject { nn_k, pos_weight, rot_weight },
                     "nearest_neighbor_robot_distance" => SelectionStrategy::NearestNeighborRobotDistance { nn_k, pos_weight, rot_weight },
                     other => {
-                        return Err(PipelineError::input(
-                            "",
+                        return Err(RunError::flag(
                             "--selection",
                             format!("unknown strategy {other:?}; use random, nearest_neighbor_object or nearest_neighbor_robot_distance"),
                         ));
@@ -163,15 +162,14 @@ impl SpecOverrides {
         }
         for s in &self.nn_k {
             if s.value == 0 {
-                return Err(PipelineError::input("", "--nn-k", "must be at least 1"));
+                return Err(RunError::flag("--nn-k", "must be at least 1"));
             }
             for k in targets("--nn-k", s.subtask)? {
                 match &mut spec.subtasks[k].selection {
                     SelectionStrategy::Random => {
                         // Applied to all subtasks, it is meant for those that use a neighbour strategy.
                         if s.subtask.is_some() {
-                            return Err(PipelineError::input(
-                                "",
+                            return Err(RunError::flag(
                                 "--nn-k",
                                 format!("subtask {k} selects its source at random; set --selection {k}:nearest_neighbor_object first"),
                             ));
@@ -186,8 +184,7 @@ impl SpecOverrides {
         }
         for s in &self.action_noise {
             if !s.value.is_finite() || s.value < 0.0 {
-                return Err(PipelineError::input(
-                    "",
+                return Err(RunError::flag(
                     "--action-noise",
                     format!("must be a finite standard deviation >= 0, got {}", s.value),
                 ));
@@ -199,7 +196,7 @@ impl SpecOverrides {
         for s in &self.offset_range {
             let OffsetRange(lo, hi) = s.value;
             if lo > hi {
-                return Err(PipelineError::input("", "--offset-range", format!("{lo},{hi} is empty (LO must not exceed HI)")));
+                return Err(RunError::flag("--offset-range", format!("{lo},{hi} is empty (LO must not exceed HI)")));
             }
             for k in targets("--offset-range", s.subtask)? {
                 spec.subtasks[k].term_offset_range = Some((lo, hi));
@@ -227,7 +224,7 @@ mod tests {
     use super::*;
 
     fn spec() -> TaskSpec {
-        TaskSpec::from_toml_str(mimicgen_sim::registry::default_spec_toml("stack").unwrap(), "stack").unwrap()
+        TaskSpec::from_toml_str(include_str!("../../sim/tasks/stack.toml"), "stack").unwrap()
     }
 
     #[test]

@@ -1,6 +1,10 @@
-//! The backend: a named worker thread that reads, detects, writes, plans and tries attempts, and
-//! replies over a channel.
-//! The UI never waits on it; it asks for a repaint when a reply is ready.
+//! The inspection app's backend: a [`Worker`] that reads, detects, writes, plans and tries
+//! attempts and runs generation, answering the UI's requests (`mimicgen_ui::protocol`).
+//! [`Backend`] runs it on a named thread of the app's own process (the desktop window); `mimicgen
+//! serve` runs one for the browsers that connect to it. The UI never waits on it.
+//!
+//! What it does not do: draw, or decide which paths a request may touch (the server confines
+//! them to its root before they get here).
 
 use std::cell::RefCell;
 use std::collections::BTreeMap;
@@ -19,9 +23,9 @@ use mimicgen_pipeline::{AttemptEvent, Event, Outcome, Pipeline, PipelineError, R
 use mimicgen_viz::rerun::RecordingStream;
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
-use crate::protocol::{
+use mimicgen_ui::protocol::{
     AttemptRow, CameraView, DemoView, ExecutedView, Listing, LoadedFile, ObjectView, OpenedRun, Point, PreviewRequest, PreviewView,
-    ProposalView, RankView, Reply, Request, RunUpdate, SubtaskDiagnostics, SubtaskPreview, ViewerSink,
+    ProposalView, RankView, Reply, Request, RunUpdate, SubtaskDiagnostics, SubtaskPreview, ViewerSink, Welcome,
 };
 
 /// Control rate of the recorded demos (robosuite's 20 Hz), for speeds.
@@ -69,6 +73,7 @@ fn stream(path: &Path, prepared_from: Option<&Path>, send: &dyn Fn(Reply)) -> Re
                 path: path.to_path_buf(),
                 prepared_from: prepared_from.map(Path::to_path_buf),
                 task: spec.name.clone(),
+                variants: mimicgen_sim::registry::tasks().find(|t| t.name == spec.name).map(|t| t.variants.clone()).unwrap_or_default(),
                 signal_names: spec.subtasks.iter().take(last).map(|s| s.term_signal.clone().unwrap_or_default()).collect(),
                 subtask_objects: spec.subtasks.iter().map(|s| s.object_ref.clone()).collect(),
                 total_demos: total,
@@ -482,6 +487,8 @@ pub struct Worker {
     viewer: Option<(ViewerSink, RunLogger)>,
     embedded: Option<StreamFactory>,
     notify: Notify,
+    /// Where a run's updates go (all its watchers), from the run's own thread.
+    run_notify: Notify,
     /// The running generation's cancel flag and thread.
     run: Option<(Arc<AtomicBool>, std::thread::JoinHandle<()>)>,
 }
@@ -501,18 +508,48 @@ impl Worker {
     /// [`ViewerSink::Embedded`] streams come from `embedded`.
     #[must_use]
     pub fn new(notify: Notify, embedded: Option<StreamFactory>) -> Self {
-        Self { loaded: None, loaded_path: None, previewer: None, viewer: None, embedded, notify, run: None }
+        let run_notify = Arc::clone(&notify);
+        Self { loaded: None, loaded_path: None, previewer: None, viewer: None, embedded, notify, run_notify, run: None }
+    }
+
+    /// Sends the updates of runs started from now on to `notify` instead (every tab watching).
+    #[must_use]
+    pub fn with_run_notify(self, notify: Notify) -> Self {
+        Self { run_notify: notify, ..self }
+    }
+
+    /// Whether a run is going.
+    #[must_use]
+    pub fn running(&self) -> bool {
+        self.run.as_ref().is_some_and(|(_, thread)| !thread.is_finished())
+    }
+
+    /// Answers one request; a panic while answering is caught and answered as a failure (the
+    /// worker and the app go on).
+    pub fn handle_guarded(&mut self, request: Request) -> Reply {
+        let what: String = format!("answering {request:?}").chars().take(100).collect();
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.handle(request))) {
+            Ok(reply) => reply,
+            Err(panic) => {
+                let message = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| (*s).to_owned())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic".to_owned());
+                Reply::Failed { what, error: format!("internal error (a bug; please report it): {message}") }
+            }
+        }
     }
 
     fn start_run(&mut self, config: RunConfig) -> Reply {
-        if self.run.as_ref().is_some_and(|(_, thread)| !thread.is_finished()) {
+        if self.running() {
             return Reply::Failed {
                 what: "starting a run".to_owned(),
                 error: "a run is going; cancel it or wait for it to end".to_owned(),
             };
         }
         let cancel = Arc::new(AtomicBool::new(false));
-        let (flag, notify) = (Arc::clone(&cancel), Arc::clone(&self.notify));
+        let (flag, notify) = (Arc::clone(&cancel), Arc::clone(&self.run_notify));
         // The run's own recording (its attempts on the `attempt` and `frame` timelines): a new
         // recording in the embedded viewer or the spawned one, `<file>_run.rrd` beside a saved one.
         let logger = match self.viewer.as_ref().map(|(sink, _)| sink.clone()) {
@@ -707,10 +744,24 @@ impl Worker {
                 }
                 Err(e) => Reply::Failed { what: format!("opening {}", path.display()), error: e.to_string() },
             },
-            Request::Save { source, out, ends, signal_names } => match annotate::write_signals(&source, &out, &signal_names, &ends) {
-                Ok(()) => Reply::Saved { out, demos: ends.len() },
-                Err(e) => Reply::Failed { what: format!("saving {}", out.display()), error: e.to_string() },
-            },
+            Request::Save { source, out, ends, signal_names, overwrite } => {
+                if out.canonicalize().is_ok_and(|o| source.canonicalize().is_ok_and(|s| s == o)) {
+                    return Reply::Failed {
+                        what: format!("saving {}", out.display()),
+                        error: format!("{} is the open file: saving over it is not allowed; choose a new file", out.display()),
+                    };
+                }
+                if out.exists() && !overwrite {
+                    return Reply::Failed {
+                        what: format!("saving {}", out.display()),
+                        error: format!("{} exists: choose a new file, or tick \"replace\" to save over it", out.display()),
+                    };
+                }
+                match annotate::write_signals(&source, &out, &signal_names, &ends) {
+                    Ok(()) => Reply::Saved { out, demos: ends.len() },
+                    Err(e) => Reply::Failed { what: format!("saving {}", out.display()), error: e.to_string() },
+                }
+            }
             Request::Open3d { sink, demo } => match self.open_3d(sink, demo) {
                 Ok(to) => Reply::Streaming { to },
                 Err(error) => Reply::Failed { what: "opening the 3D view".to_owned(), error },
@@ -784,9 +835,11 @@ impl Backend {
             })
         };
         let spawned = std::thread::Builder::new().name("mimicgen-gui-backend".to_owned()).spawn(move || {
+            let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+            notify(Reply::Welcome(Box::new(Welcome { cores, ..Welcome::default() })));
             let mut worker = Worker::new(notify, embedded);
             for request in inbox {
-                let reply = worker.handle(request);
+                let reply = worker.handle_guarded(request);
                 if outbox.send(reply).is_err() {
                     break;
                 }
@@ -799,13 +852,14 @@ impl Backend {
         Self { requests, replies }
     }
 
-    /// Queues a request.
-    pub fn send(&self, request: Request) {
+}
+
+impl mimicgen_ui::Transport for Backend {
+    fn send(&mut self, request: Request) {
         let _ = self.requests.send(request);
     }
 
-    /// Replies that have arrived (never blocks).
-    pub fn try_replies(&self) -> Vec<Reply> {
+    fn try_replies(&mut self) -> Vec<Reply> {
         self.replies.try_iter().collect()
     }
 }

@@ -1,0 +1,192 @@
+//! The folder a server's requests stay inside: every path a request names is resolved against it,
+//! and `..`, absolute paths outside it and symlinks that lead out of it are refused, naming the
+//! path.
+
+use std::path::{Component, Path, PathBuf};
+
+use mimicgen_ui::protocol::{Listing, PreviewRequest, Reply, Request, ViewerSink};
+
+use crate::ServerError;
+
+/// The root folder (canonical).
+#[derive(Debug, Clone)]
+pub struct Root {
+    dir: PathBuf,
+}
+
+impl Root {
+    /// `dir`, which must exist.
+    ///
+    /// # Errors
+    /// [`ServerError::Root`] when it does not exist or is not a folder.
+    pub fn new(dir: &Path) -> Result<Self, ServerError> {
+        let root_error = |reason: String| ServerError::Root { path: dir.to_path_buf(), reason };
+        let dir = dir.canonicalize().map_err(|e| root_error(e.to_string()))?;
+        if !dir.is_dir() {
+            return Err(root_error("not a folder".to_owned()));
+        }
+        Ok(Self { dir })
+    }
+
+    /// The folder.
+    #[must_use]
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// `path` (relative to the root, or absolute inside it) as a path inside the root, following
+    /// symlinks of the part that exists.
+    ///
+    /// # Errors
+    /// A message naming `path`: `..` in it, or it leads outside the root.
+    pub fn resolve(&self, path: &Path) -> Result<PathBuf, String> {
+        let outside = || format!("{}: outside the served folder {} (paths stay inside --root)", path.display(), self.dir.display());
+        if path.components().any(|c| c == Component::ParentDir) {
+            return Err(format!("{}: `..` is not allowed (paths stay inside --root {})", path.display(), self.dir.display()));
+        }
+        if path.as_os_str().is_empty() {
+            return Err("an empty path".to_owned());
+        }
+        let joined = if path.is_absolute() { path.to_path_buf() } else { self.dir.join(path) };
+        // The longest part that exists, with its symlinks followed, and the rest (which does not
+        // exist yet, so holds no symlink).
+        let mut existing = joined.as_path();
+        let mut rest = Vec::new();
+        let canonical = loop {
+            match existing.canonicalize() {
+                Ok(c) => break c,
+                Err(_) => {
+                    rest.push(existing.file_name().ok_or_else(outside)?.to_owned());
+                    existing = existing.parent().ok_or_else(outside)?;
+                }
+            }
+        };
+        if !canonical.starts_with(&self.dir) {
+            return Err(outside());
+        }
+        Ok(rest.into_iter().rev().fold(canonical, |p, name| p.join(name)))
+    }
+
+    /// `request` with each of its paths inside the root; the 3D view streams to `viewer` (the
+    /// server's own Rerun web viewer), never to a viewer the request names.
+    ///
+    /// # Errors
+    /// A message naming the path or field refused.
+    pub fn confine(&self, request: Request, viewer: Option<&str>) -> Result<Request, String> {
+        let preview = |r: PreviewRequest| -> Result<PreviewRequest, String> { Ok(PreviewRequest { source: self.resolve(&r.source)?, ..r }) };
+        Ok(match request {
+            Request::Open { path } => Request::Open { path: self.resolve(&path)? },
+            Request::ListDir { path } => Request::ListDir { path: self.resolve(&path)? },
+            Request::OpenCompare { path } => Request::OpenCompare { path: self.resolve(&path)? },
+            Request::OpenRun { path } => Request::OpenRun { path: self.resolve(&path)? },
+            Request::Save { source, out, ends, signal_names, overwrite } => {
+                Request::Save { source: self.resolve(&source)?, out: self.resolve(&out)?, ends, signal_names, overwrite }
+            }
+            Request::Preview(r) => Request::Preview(preview(r)?),
+            Request::SideBySide(pair) => {
+                let [a, b] = *pair;
+                Request::SideBySide(Box::new([preview(a)?, preview(b)?]))
+            }
+            Request::Run(mut config) => {
+                config.out = self.resolve(&config.out)?;
+                config.source = config.source.map(|p| self.resolve(&p)).transpose()?;
+                config.config = config.config.map(|p| self.resolve(&p)).transpose()?;
+                Request::Run(config)
+            }
+            Request::Open3d { sink, demo } => {
+                let sink = match sink {
+                    ViewerSink::Save(path) => ViewerSink::Save(self.resolve(&path)?),
+                    _ => ViewerSink::Connect(
+                        viewer.ok_or("this server has no 3D view (the Rerun viewer from the rerun-sdk wheel was not found)")?.to_owned(),
+                    ),
+                };
+                Request::Open3d { sink, demo }
+            }
+            other @ (Request::ShowDemo { .. } | Request::CancelRun) => other,
+        })
+    }
+
+    /// `reply` without what lies outside the root (a listing's parent above it).
+    #[must_use]
+    pub fn filter(&self, reply: Reply) -> Reply {
+        match reply {
+            Reply::Listing(listing) => {
+                let parent = listing.parent.filter(|p| p.starts_with(&self.dir));
+                Reply::Listing(Box::new(Listing { parent, ..*listing }))
+            }
+            other => other,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paths_inside_resolve_and_those_leading_out_are_refused() {
+        let outside = tempfile::tempdir().unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("data")).unwrap();
+        std::fs::write(dir.path().join("data/a.hdf5"), b"x").unwrap();
+        std::fs::write(outside.path().join("secret.hdf5"), b"x").unwrap();
+        #[cfg(unix)]
+        {
+            std::os::unix::fs::symlink(outside.path(), dir.path().join("escape")).unwrap();
+            std::os::unix::fs::symlink(dir.path().join("data"), dir.path().join("inside")).unwrap();
+        }
+        let root = Root::new(dir.path()).unwrap();
+        let canonical = dir.path().canonicalize().unwrap();
+        assert_eq!(root.resolve(Path::new("data/a.hdf5")).unwrap(), canonical.join("data/a.hdf5"));
+        assert_eq!(root.resolve(&canonical.join("data/a.hdf5")).unwrap(), canonical.join("data/a.hdf5"));
+        // Outputs that do not exist yet, in folders that do not either.
+        assert_eq!(root.resolve(Path::new("out/new/run.hdf5")).unwrap(), canonical.join("out/new/run.hdf5"));
+        assert_eq!(root.resolve(Path::new(".")).unwrap(), canonical);
+        for bad in ["../secret.hdf5", "data/../../x", "/etc/passwd", "/"] {
+            let err = root.resolve(Path::new(bad)).unwrap_err();
+            assert!(err.starts_with(bad), "{bad}: {err}");
+        }
+        let err = root.resolve(&outside.path().join("secret.hdf5")).unwrap_err();
+        assert!(err.contains("outside the served folder"), "{err}");
+        #[cfg(unix)]
+        {
+            for bad in ["escape/secret.hdf5", "escape", "escape/new.hdf5"] {
+                let err = root.resolve(Path::new(bad)).unwrap_err();
+                assert!(err.contains("outside the served folder"), "{bad}: {err}");
+            }
+            assert_eq!(root.resolve(Path::new("inside/a.hdf5")).unwrap(), canonical.join("data/a.hdf5"));
+        }
+    }
+
+    #[test]
+    fn every_path_of_a_request_is_confined_and_viewers_are_the_server_s() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = Root::new(dir.path()).unwrap();
+        let run = |out: &str, source: Option<&str>| {
+            let config = mimicgen_run::RunConfig { out: out.into(), source: source.map(Into::into), ..Default::default() };
+            root.confine(Request::Run(Box::new(config)), None)
+        };
+        assert!(run("out/a.hdf5", None).is_ok());
+        assert!(run("../a.hdf5", None).unwrap_err().contains(".."));
+        assert!(run("out/a.hdf5", Some("/etc/hosts")).unwrap_err().contains("/etc/hosts"));
+        let save = Request::Save {
+            source: "a.hdf5".into(),
+            out: "/tmp/../etc/x.hdf5".into(),
+            ends: Default::default(),
+            signal_names: Vec::new(),
+            overwrite: false,
+        };
+        assert!(root.confine(save, None).is_err());
+        let spawn = Request::Open3d { sink: ViewerSink::Spawn, demo: 0 };
+        assert!(root.confine(spawn.clone(), None).unwrap_err().contains("no 3D view"));
+        let Ok(Request::Open3d { sink: ViewerSink::Connect(url), .. }) = root.confine(spawn, Some("rerun+http://127.0.0.1:1/proxy")) else {
+            panic!("the server's viewer")
+        };
+        assert_eq!(url, "rerun+http://127.0.0.1:1/proxy");
+        let connect = Request::Open3d { sink: ViewerSink::Connect("rerun+http://10.0.0.1:9876/proxy".into()), demo: 0 };
+        let Ok(Request::Open3d { sink: ViewerSink::Connect(url), .. }) = root.confine(connect, Some("rerun+http://127.0.0.1:1/proxy")) else {
+            panic!("the server's viewer")
+        };
+        assert!(url.starts_with("rerun+http://127.0.0.1"), "a request never picks where the server connects");
+    }
+}

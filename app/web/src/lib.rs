@@ -1,0 +1,128 @@
+//! The inspection app in a browser: the UI of `mimicgen-ui` compiled to
+//! `wasm32-unknown-unknown`, run by eframe's web runner on the page `mimicgen serve` hosts, and
+//! talking to the server's backend over a WebSocket (JSON [`ClientMessage`]s and
+//! [`ServerMessage`]s). The Rerun web viewer sits beside the canvas in the page.
+//!
+//! What it does not do: read files or simulate (the server does, natively). On any other target
+//! than wasm32 this crate is empty, so `cargo build --workspace` does not need the wasm target.
+//!
+//! Built by `scripts/build_web.sh` (cargo for wasm32, then `wasm-bindgen --target web`); the page
+//! calls [`start`] once the module has loaded:
+//!
+//! ```js
+//! import init, { start } from "./mimicgen_web.js";
+//! await init();
+//! start("app");
+//! ```
+#![cfg(target_arch = "wasm32")]
+
+mod socket;
+mod test_hook;
+
+use mimicgen_ui::protocol::{ClientMessage, ServerMessage};
+use mimicgen_ui::{MimicgenApp, egui};
+use wasm_bindgen::JsCast as _;
+use wasm_bindgen::prelude::*;
+
+/// The app on the page: the UI, and the 3D view's frame beside it.
+struct WebApp {
+    app: MimicgenApp,
+    /// The viewer URL the page's frame shows, once the 3D view is open.
+    shown_viewer: Option<String>,
+    /// Whether a browser test reads the app's state.
+    test_hook: bool,
+}
+
+impl eframe::App for WebApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.app.show(ui);
+        // The 3D view is the Rerun web viewer in the page's own frame (egui cannot host it).
+        let wanted = self.app.model.viewer.as_ref().and(self.app.model.welcome.viewer_url.clone());
+        if wanted != self.shown_viewer {
+            self.shown_viewer = wanted;
+            show_viewer(self.shown_viewer.as_deref());
+        }
+        if self.test_hook {
+            test_hook::record(&self.app.model);
+        }
+    }
+}
+
+/// Shows the Rerun viewer at `url` in the page's `viewer` frame (hides it for `None`).
+fn show_viewer(url: Option<&str>) {
+    let Some(document) = web_sys::window().and_then(|w| w.document()) else { return };
+    let Some(frame) = document.get_element_by_id("viewer") else { return };
+    let Some(body) = document.body() else { return };
+    match url {
+        Some(url) => {
+            let _ = frame.set_attribute("src", url);
+            let _ = body.class_list().add_1("with-viewer");
+        }
+        None => {
+            let _ = body.class_list().remove_1("with-viewer");
+        }
+    }
+}
+
+/// The page's query parameter `name`, if it has one.
+fn query(name: &str) -> Option<String> {
+    let search = web_sys::window()?.location().search().ok()?;
+    web_sys::UrlSearchParams::new_with_str(&search).ok()?.get(name)
+}
+
+/// Starts the app on the canvas with id `canvas_id`, connected to the server that served the page
+/// (the page's `token` query parameter, if any, goes with every request). With `testhook` in the
+/// page's query, the UI's accessibility tree is kept for [`test_nodes`].
+#[wasm_bindgen]
+pub fn start(canvas_id: &str) -> Result<(), JsValue> {
+    let document = web_sys::window().and_then(|w| w.document()).ok_or("no document")?;
+    let canvas = document
+        .get_element_by_id(canvas_id)
+        .ok_or_else(|| format!("no element {canvas_id:?}"))?
+        .dyn_into::<web_sys::HtmlCanvasElement>()
+        .map_err(|_| format!("{canvas_id:?} is not a canvas"))?;
+    let test_hook = query("testhook").is_some();
+    let runner = eframe::WebRunner::new();
+    wasm_bindgen_futures::spawn_local(async move {
+        let started = runner
+            .start(
+                canvas,
+                eframe::WebOptions::default(),
+                Box::new(move |cc| {
+                    if test_hook {
+                        test_hook::install(&cc.egui_ctx);
+                    }
+                    let socket = socket::Socket::connect(query("token"), cc.egui_ctx.clone());
+                    Ok(Box::new(WebApp { app: MimicgenApp::new(Box::new(socket), None), shown_viewer: None, test_hook }))
+                }),
+            )
+            .await;
+        if let Err(e) = started {
+            web_sys::console::error_2(&"mimicgen: the app could not start:".into(), &e);
+        }
+    });
+    Ok(())
+}
+
+/// The UI's widgets as the last frame drew them, as JSON (`[{"role", "label", "value", "rect":
+/// [x0, y0, x1, y1], "toggled"}]`, in CSS pixels of the canvas): what a browser test clicks.
+/// Empty unless the page was opened with `testhook`.
+#[wasm_bindgen]
+pub fn test_nodes() -> String {
+    test_hook::nodes()
+}
+
+/// The app's state in a few fields, as JSON, for a browser test to wait on.
+#[wasm_bindgen]
+pub fn test_state() -> String {
+    test_hook::state()
+}
+
+/// The wire format, in one place (the server has the other end).
+fn encode(message: &ClientMessage) -> Option<String> {
+    serde_json::to_string(message).ok()
+}
+
+fn decode(text: &str) -> Result<ServerMessage, String> {
+    serde_json::from_str(text).map_err(|e| e.to_string())
+}

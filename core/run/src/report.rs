@@ -1,0 +1,124 @@
+//! What a run says of itself: how it started, where each attempt went, and its report.
+
+use std::path::PathBuf;
+
+use mimicgen_engine::Shard;
+use serde::{Deserialize, Serialize};
+
+use crate::SpecOverrides;
+
+/// Where an attempt went.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Outcome {
+    /// A success, written to the dataset as `demo`.
+    Written {
+        /// Its name in the dataset.
+        demo: String,
+    },
+    /// A failure kept in the failed-attempts file as `demo`.
+    KeptFailed {
+        /// Its name in the failed-attempts file.
+        demo: String,
+    },
+    /// A failure not kept.
+    Discarded,
+}
+
+/// The run as it starts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunInfo {
+    /// Task name.
+    pub task: String,
+    /// Variant.
+    pub variant: String,
+    /// Source demo file.
+    pub source: PathBuf,
+    /// Number of source demos.
+    pub num_sources: usize,
+    /// Worker threads.
+    pub workers: usize,
+    /// Run seed.
+    pub seed: u64,
+    /// Spec fields set over the spec's.
+    pub spec_overrides: SpecOverrides,
+    /// Attempts to make, or successes to reach with `guarantee`.
+    pub target: usize,
+    /// Whether `target` counts successes.
+    pub guarantee: bool,
+    /// First attempt index of this session (non-zero when resumed).
+    pub resumed_from: usize,
+}
+
+/// Attempts and successes of one source demo, as reported.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DemoReport {
+    /// Source demo index.
+    pub demo: usize,
+    /// Attempts that used it.
+    pub attempts: usize,
+    /// Of those, successes.
+    pub successes: usize,
+}
+
+/// Failures of one subtask for one reason, as reported.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FailureReport {
+    /// Subtask index.
+    pub subtask: usize,
+    /// Why (human-readable).
+    pub reason: String,
+    /// How many attempts.
+    pub count: usize,
+}
+
+/// The report of a run, written as `<out>.json` beside the dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    /// Task name.
+    pub task: String,
+    /// Variant.
+    pub variant: String,
+    /// Run seed.
+    pub seed: u64,
+    /// Worker threads.
+    pub workers: usize,
+    /// Source demo file.
+    pub source: String,
+    /// The dataset.
+    pub output: String,
+    /// The failed-attempts file, if kept.
+    pub failed_output: Option<String>,
+    /// Attempts decided (over every session of a resumed run).
+    pub attempts: usize,
+    /// Successful attempts.
+    pub successes: usize,
+    /// successes / attempts.
+    pub generation_rate: f64,
+    /// Wall time of this session.
+    pub wall_time_s: f64,
+    /// Attempts of this session per second.
+    pub attempts_per_s: f64,
+    /// Control steps simulated in this session (failed attempts included): the work done,
+    /// independent of the machine's load.
+    pub control_steps: usize,
+    /// Per source demo.
+    pub per_source_demo: Vec<DemoReport>,
+    /// Peak resident memory of the process, MiB.
+    pub peak_rss_mib: Option<f64>,
+    /// Failures by subtask and reason.
+    pub failures: Vec<FailureReport>,
+    /// Whether the run was cancelled before its stopping rule (the dataset is complete and valid,
+    /// with the attempts decided before the cancel).
+    pub cancelled: bool,
+    /// First attempt index of this session (non-zero when resumed).
+    pub resumed_from: usize,
+    /// Whether attempts ended at the first subtask that missed its signal.
+    pub early_abort: bool,
+    /// Spec fields the run set over the spec's (`--action-noise` ...), so it can be made again.
+    #[serde(default, skip_serializing_if = "SpecOverrides::is_empty")]
+    pub spec_overrides: SpecOverrides,
+    /// The share of the attempts this run made, if it was a shard.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<Shard>,
+}
