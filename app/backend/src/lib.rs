@@ -851,7 +851,6 @@ impl Backend {
         }
         Self { requests, replies }
     }
-
 }
 
 impl mimicgen_ui::Transport for Backend {

@@ -154,7 +154,8 @@ pub fn read_head(stream: &mut TcpStream) -> Result<Head, HeadError> {
 /// Headers every response carries: no sniffing, no referrer (the token is in the page's URL), and
 /// a content policy that lets the page run its own scripts and WebAssembly and talk only to this
 /// server.
-const SECURITY_HEADERS: &str = "X-Content-Type-Options: nosniff\r\nReferrer-Policy: no-referrer\r\nCross-Origin-Resource-Policy: same-origin\r\n";
+const SECURITY_HEADERS: &str =
+    "X-Content-Type-Options: nosniff\r\nReferrer-Policy: no-referrer\r\nCross-Origin-Resource-Policy: same-origin\r\n";
 
 /// The page's content policy.
 pub const PAGE_POLICY: &str = "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; connect-src 'self'; \

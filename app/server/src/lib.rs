@@ -195,7 +195,8 @@ impl std::fmt::Debug for SessionHandle {
 /// 128 random bits, hex.
 fn random_token() -> Result<String, ServerError> {
     let mut bytes = [0_u8; 16];
-    getrandom::fill(&mut bytes).map_err(|e| ServerError::Argument { flag: "--token".to_owned(), reason: format!("no random token: {e}") })?;
+    getrandom::fill(&mut bytes)
+        .map_err(|e| ServerError::Argument { flag: "--token".to_owned(), reason: format!("no random token: {e}") })?;
     Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
@@ -251,7 +252,8 @@ impl Server {
             viewer_url: viewer.as_ref().map(|_| viewer::PAGE_PREFIX.to_owned()),
         };
         let grpc = viewer.as_ref().map(|v| v.grpc_url());
-        let session = Session::start(root, grpc, welcome).map_err(|e| ServerError::Bind { addr: addr.to_string(), reason: e.to_string() })?;
+        let session =
+            Session::start(root, grpc, welcome).map_err(|e| ServerError::Bind { addr: addr.to_string(), reason: e.to_string() })?;
         Ok(Self { listener, addr, token, loopback, bundle, session: Arc::new(SessionHandle(session)), viewer })
     }
 
@@ -347,7 +349,8 @@ impl Server {
         let no_store = "Cache-Control: no-store\r\n";
         let _ = match head.path.as_str() {
             "/" | "/index.html" => {
-                let headers = format!("{cookie}{no_store}Content-Security-Policy: {}\r\nX-Frame-Options: SAMEORIGIN\r\n", http::PAGE_POLICY);
+                let headers =
+                    format!("{cookie}{no_store}Content-Security-Policy: {}\r\nX-Frame-Options: SAMEORIGIN\r\n", http::PAGE_POLICY);
                 respond(stream, 200, "text/html; charset=utf-8", &headers, INDEX_HTML.as_bytes())
             }
             "/main.js" => respond(stream, 200, "text/javascript; charset=utf-8", no_store, MAIN_JS.as_bytes()),
@@ -359,7 +362,9 @@ impl Server {
                 let kind = if name.ends_with(".wasm") { "application/wasm" } else { "text/javascript; charset=utf-8" };
                 let accepts_gzip = head.header("accept-encoding").is_some_and(|e| e.contains("gzip"));
                 match gzipped.as_ref().filter(|_| accepts_gzip) {
-                    Some(body) => respond(stream, 200, kind, &format!("{no_store}Content-Encoding: gzip\r\nVary: Accept-Encoding\r\n"), body),
+                    Some(body) => {
+                        respond(stream, 200, kind, &format!("{no_store}Content-Encoding: gzip\r\nVary: Accept-Encoding\r\n"), body)
+                    }
                     None => respond(stream, 200, kind, no_store, plain),
                 }
             }
@@ -370,8 +375,9 @@ impl Server {
     fn socket(&self, mut stream: TcpStream, head: &Head, peer: &str) {
         let Some(key) = head.header("sec-websocket-key") else { return refuse(&mut stream, 400, "no Sec-WebSocket-Key") };
         let accept = tungstenite::handshake::derive_accept_key(key.as_bytes());
-        let response =
-            format!("HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n");
+        let response = format!(
+            "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
+        );
         if std::io::Write::write_all(&mut stream, response.as_bytes()).is_err() {
             return;
         }

@@ -73,7 +73,8 @@ impl Root {
     /// # Errors
     /// A message naming the path or field refused.
     pub fn confine(&self, request: Request, viewer: Option<&str>) -> Result<Request, String> {
-        let preview = |r: PreviewRequest| -> Result<PreviewRequest, String> { Ok(PreviewRequest { source: self.resolve(&r.source)?, ..r }) };
+        let preview =
+            |r: PreviewRequest| -> Result<PreviewRequest, String> { Ok(PreviewRequest { source: self.resolve(&r.source)?, ..r }) };
         Ok(match request {
             Request::Open { path } => Request::Open { path: self.resolve(&path)? },
             Request::ListDir { path } => Request::ListDir { path: self.resolve(&path)? },
@@ -184,7 +185,8 @@ mod tests {
         };
         assert_eq!(url, "rerun+http://127.0.0.1:1/proxy");
         let connect = Request::Open3d { sink: ViewerSink::Connect("rerun+http://10.0.0.1:9876/proxy".into()), demo: 0 };
-        let Ok(Request::Open3d { sink: ViewerSink::Connect(url), .. }) = root.confine(connect, Some("rerun+http://127.0.0.1:1/proxy")) else {
+        let Ok(Request::Open3d { sink: ViewerSink::Connect(url), .. }) = root.confine(connect, Some("rerun+http://127.0.0.1:1/proxy"))
+        else {
             panic!("the server's viewer")
         };
         assert!(url.starts_with("rerun+http://127.0.0.1"), "a request never picks where the server connects");

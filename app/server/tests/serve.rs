@@ -18,13 +18,8 @@ fn fixture() -> PathBuf {
 
 /// A server on a free loopback port (or `host`), serving `root`, running on its own thread.
 fn serve(root: &Path, host: [u8; 4], token: Option<&str>) -> (SocketAddr, String) {
-    let options = ServeOptions {
-        host: host.into(),
-        port: 0,
-        root: root.to_path_buf(),
-        token: token.map(str::to_owned),
-        ..ServeOptions::default()
-    };
+    let options =
+        ServeOptions { host: host.into(), port: 0, root: root.to_path_buf(), token: token.map(str::to_owned), ..ServeOptions::default() };
     let server = Server::bind_with(options, Bundle::default()).unwrap();
     let (addr, url) = (server.local_addr(), server.url());
     std::thread::spawn(move || server.run());

@@ -178,4 +178,3 @@ fn main_area(ui: &mut egui::Ui, viewer: Option<impl FnOnce(&mut egui::Ui)>, besi
         }
     }
 }
-

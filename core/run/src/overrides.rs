@@ -184,10 +184,7 @@ impl SpecOverrides {
         }
         for s in &self.action_noise {
             if !s.value.is_finite() || s.value < 0.0 {
-                return Err(RunError::flag(
-                    "--action-noise",
-                    format!("must be a finite standard deviation >= 0, got {}", s.value),
-                ));
+                return Err(RunError::flag("--action-noise", format!("must be a finite standard deviation >= 0, got {}", s.value)));
             }
             for k in targets("--action-noise", s.subtask)? {
                 spec.subtasks[k].action_noise = s.value;
