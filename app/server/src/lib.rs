@@ -130,7 +130,14 @@ impl Default for ServeOptions {
 /// The browser app's files, read once at start.
 #[derive(Debug, Default, Clone)]
 pub struct Bundle {
-    files: BTreeMap<&'static str, (Arc<Vec<u8>>, Option<Arc<Vec<u8>>>)>,
+    files: BTreeMap<&'static str, BundleFile>,
+}
+
+/// One file of the bundle, as read and (when built) gzip-compressed.
+#[derive(Debug, Clone)]
+struct BundleFile {
+    plain: Arc<Vec<u8>>,
+    gzipped: Option<Arc<Vec<u8>>>,
 }
 
 /// The page and its start-up script, from `app/web` (part of this binary).
@@ -165,7 +172,7 @@ impl Bundle {
             let read = |p: PathBuf| std::fs::read(p).map(Arc::new);
             let plain = read(dir.join(name)).map_err(|_| ServerError::Bundle { dir: dir.to_path_buf(), file: name.to_owned() })?;
             let gzipped = read(dir.join(format!("{name}.gz"))).ok();
-            files.insert(name, (plain, gzipped));
+            files.insert(name, BundleFile { plain, gzipped });
         }
         Ok(Self { files })
     }
@@ -356,7 +363,7 @@ impl Server {
             "/main.js" => respond(stream, 200, "text/javascript; charset=utf-8", no_store, MAIN_JS.as_bytes()),
             path => {
                 let name = path.trim_start_matches('/');
-                let Some((plain, gzipped)) = self.bundle.files.get(name) else {
+                let Some(BundleFile { plain, gzipped }) = self.bundle.files.get(name) else {
                     return refuse(stream, 404, "not found");
                 };
                 let kind = if name.ends_with(".wasm") { "application/wasm" } else { "text/javascript; charset=utf-8" };

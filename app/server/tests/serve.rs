@@ -1,5 +1,6 @@
 //! `mimicgen serve` as a browser and an attacker meet it: real sockets on loopback, a real
 //! backend. Each refusal is tested, and that the server (and other tabs) go on after it.
+#![allow(clippy::unwrap_used)] // tests fail loudly by design
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};

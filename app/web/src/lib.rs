@@ -1,13 +1,13 @@
 //! The inspection app in a browser: the UI of `mimicgen-ui` compiled to
 //! `wasm32-unknown-unknown`, run by eframe's web runner on the page `mimicgen serve` hosts, and
-//! talking to the server's backend over a WebSocket (JSON [`ClientMessage`]s and
-//! [`ServerMessage`]s). The Rerun web viewer sits beside the canvas in the page.
+//! talking to the server's backend over a WebSocket (JSON `ClientMessage`s and
+//! `ServerMessage`s, from `mimicgen_ui::protocol`). The Rerun web viewer sits beside the canvas in the page.
 //!
 //! What it does not do: read files or simulate (the server does, natively). On any other target
 //! than wasm32 this crate is empty, so `cargo build --workspace` does not need the wasm target.
 //!
 //! Built by `scripts/build_web.sh` (cargo for wasm32, then `wasm-bindgen --target web`); the page
-//! calls [`start`] once the module has loaded:
+//! calls `start` once the module has loaded:
 //!
 //! ```js
 //! import init, { start } from "./mimicgen_web.js";
@@ -92,7 +92,7 @@ pub fn start(canvas_id: &str) -> Result<(), JsValue> {
                     if test_hook {
                         test_hook::install(&cc.egui_ctx);
                     }
-                    let socket = socket::Socket::connect(query("token"), cc.egui_ctx.clone());
+                    let socket = socket::Socket::connect(query("token").as_deref(), cc.egui_ctx.clone());
                     Ok(Box::new(WebApp { app: MimicgenApp::new(Box::new(socket), None), shown_viewer: None, test_hook }))
                 }),
             )

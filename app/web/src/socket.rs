@@ -14,6 +14,9 @@ use web_sys::{CloseEvent, MessageEvent, WebSocket};
 /// Seconds between reconnection attempts.
 const RETRY_S: f64 = 2.0;
 
+/// The socket's event handlers, kept alive as long as the socket.
+type Callbacks = Vec<Closure<dyn FnMut(JsValue)>>;
+
 /// What the socket's callbacks share with the app.
 #[derive(Default)]
 struct Shared {
@@ -31,8 +34,7 @@ pub struct Socket {
     shared: Rc<RefCell<Shared>>,
     ctx: egui::Context,
     next_id: u64,
-    /// The callbacks, kept alive as long as the socket.
-    _callbacks: Vec<Closure<dyn FnMut(JsValue)>>,
+    _callbacks: Callbacks,
 }
 
 fn now_ms() -> f64 {
@@ -53,8 +55,8 @@ fn socket_url(token: Option<&str>) -> String {
 
 impl Socket {
     /// Connects to the page's server; `ctx` repaints whenever something arrives.
-    pub fn connect(token: Option<String>, ctx: egui::Context) -> Self {
-        let url = socket_url(token.as_deref());
+    pub fn connect(token: Option<&str>, ctx: egui::Context) -> Self {
+        let url = socket_url(token);
         let shared = Rc::new(RefCell::new(Shared::default()));
         let (ws, callbacks) = open(&url, &shared, &ctx);
         Self { url, ws, shared, ctx, next_id: 1, _callbacks: callbacks }
@@ -72,7 +74,7 @@ impl Socket {
 }
 
 /// Opens a socket whose callbacks fill `shared`.
-fn open(url: &str, shared: &Rc<RefCell<Shared>>, ctx: &egui::Context) -> (Option<WebSocket>, Vec<Closure<dyn FnMut(JsValue)>>) {
+fn open(url: &str, shared: &Rc<RefCell<Shared>>, ctx: &egui::Context) -> (Option<WebSocket>, Callbacks) {
     let ws = match WebSocket::new(url) {
         Ok(ws) => ws,
         Err(e) => {
