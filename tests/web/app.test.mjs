@@ -20,7 +20,7 @@ const shots = process.env.MIMICGEN_WEB_SHOTS; // a folder: save the docs' screen
 const FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-background-networking",
   "--disable-component-update", "--disable-sync", "--no-first-run"];
 
-let server, root, url, browser, userData;
+let server, root, url, browser;
 
 /** Starts `mimicgen serve` and resolves with the URL it prints. */
 function startServer(args) {
@@ -45,8 +45,7 @@ before(async () => {
   copyFileSync(path.join(repo, "core/io/tests/data/source_D0_prepared.hdf5"), path.join(root, "demos.hdf5"));
   server = startServer(["demos.hdf5", "--root", root, "--port", "0"]);
   url = await server.ready;
-  userData = mkdtempSync(path.join(tmpdir(), "mimicgen-chromium-"));
-  browser = await chromium.launch({ executablePath: process.env.CHROMIUM || "/usr/bin/chromium", args: [...FLAGS, `--user-data-dir=${userData}`] });
+  browser = await chromium.launch({ executablePath: process.env.CHROMIUM || "/usr/bin/chromium", args: FLAGS });
 });
 
 after(async () => {
@@ -54,7 +53,7 @@ after(async () => {
   if (server) {
     try { process.kill(-server.child.pid, "SIGTERM"); } catch { /* gone already */ }
   }
-  for (const dir of [root, userData]) if (dir) rmSync(dir, { recursive: true, force: true });
+  if (root) rmSync(root, { recursive: true, force: true });
 });
 
 /** A page on the app, with the test hook on. */
@@ -69,6 +68,18 @@ async function openApp() {
 
 const state = (page) => page.evaluate(() => window.mimicgen.state());
 
+/** Waits until `read()` resolves to `want`. */
+async function untilValue(read, want, what, timeoutMs = 30_000) {
+  const deadline = Date.now() + timeoutMs;
+  let got;
+  while (Date.now() < deadline) {
+    got = await read();
+    if (got === want) return got;
+    await new Promise((r) => setTimeout(r, 100));
+  }
+  throw new Error(`timed out waiting for ${what}: ${JSON.stringify(got)}, not ${JSON.stringify(want)}`);
+}
+
 /** Waits until `pred(state)` holds (the app's own state, not time). */
 async function until(page, what, pred, timeoutMs = 120_000) {
   const deadline = Date.now() + timeoutMs;
@@ -78,19 +89,26 @@ async function until(page, what, pred, timeoutMs = 120_000) {
     if (s && pred(s)) return s;
     await page.waitForTimeout(100);
   }
+  await shot(page, "timed_out.png");
   throw new Error(`timed out waiting for ${what}; state: ${JSON.stringify(s)}`);
 }
 
-/** The widget with this role whose label matches, as the last frame drew it. */
+/** The widget with this role whose text matches, as the last frame drew it. */
 async function find(page, role, label) {
   const deadline = Date.now() + 30_000;
+  let nodes = [];
   while (Date.now() < deadline) {
-    const nodes = await page.evaluate(() => window.mimicgen.nodes());
-    const hit = nodes.find((n) => (!role || n.role === role) && (typeof label === "string" ? n.label === label : label.test(n.label)));
+    nodes = await page.evaluate(() => window.mimicgen.nodes());
+    // A button's text is its label; a label's text is its value.
+    const text = (n) => n.label || n.value;
+    const matches = (n) => (typeof label === "string" ? text(n) === label : typeof label === "function" ? label(n) : label.test(text(n)));
+    const hit = nodes.find((n) => (!role || n.role === role) && matches(n));
     if (hit) return hit;
     await page.waitForTimeout(100);
   }
-  throw new Error(`no ${role} ${label} on the page`);
+  await shot(page, "not_found.png");
+  const seen = nodes.filter((n) => n.label || n.value).map((n) => `${n.role} ${JSON.stringify(n.label || n.value)}`);
+  throw new Error(`no ${role} ${label} on the page; it has: ${seen.join(", ")}`);
 }
 
 /** Clicks a widget with the real pointer. */
@@ -100,6 +118,17 @@ async function click(page, role, label) {
   const [x0, y0, x1, y1] = node.rect;
   await page.mouse.click(box.x + (x0 + x1) / 2, box.y + (y0 + y1) / 2);
   return node;
+}
+
+/** Types `value` into the number field showing `current` (egui's DragValue: click, then type). */
+async function setNumber(page, current, value) {
+  const field = await find(page, "SpinButton", (n) => n.value === current);
+  const box = await page.locator("#app").boundingBox();
+  await page.mouse.click(box.x + (field.rect[0] + field.rect[2]) / 2, box.y + (field.rect[1] + field.rect[3]) / 2);
+  await page.keyboard.press("Control+A");
+  await page.keyboard.type(String(value));
+  await page.keyboard.press("Enter");
+  await find(page, "SpinButton", (n) => n.value === String(value));
 }
 
 async function shot(page, name) {
@@ -133,40 +162,45 @@ test("annotate, save, reopen, run, inspect a failure, 3D, and a run that survive
   await click(page, "Button", "Save as");
   s = await until(page, "the refusal", (s) => s.error && s.error.includes("exists"));
   await click(page, "Button", "Browse…");
-  await click(page, null, /^annotated\.hdf5/);
+  await click(page, "Button", /^annotated\.hdf5/);
   s = await until(page, "reopened", (s) => s.file && s.file.endsWith("annotated.hdf5") && s.in_flight === 0 && s.demos > 0);
   assert.equal(s.ends[0], cursor + 1, "the saved end reads back");
-  // Outside the root: refused, naming the path.
-  await click(page, "Button", "Browse…");
-  await until(page, "the listing", () => true, 1000).catch(() => {});
-
-  // The 3D view: the Rerun web viewer beside the canvas, fed by the server's stream.
+  // The 3D view: the Rerun web viewer beside the canvas, fed by the server's stream through the
+  // page's own origin, with one time cursor.
   const grpc = [];
   page.on("request", (r) => { if (r.url().includes("/rerun.")) grpc.push(r.url()); });
   await page.keyboard.press("Escape");
   await click(page, "Button", "3D view");
   s = await until(page, "the 3D view", (s) => s.viewer);
   await page.waitForFunction(() => document.body.classList.contains("with-viewer"));
-  const frame = page.frameLocator("#viewer");
-  await frame.locator("canvas").first().waitFor({ timeout: 120_000 });
-  const deadline = Date.now() + 60_000;
-  while (grpc.length === 0 && Date.now() < deadline) await page.waitForTimeout(200);
-  assert.ok(grpc.length > 0, "the viewer asked the server's gRPC proxy for the recording");
+  const viewer = page.frames().find((f) => f.url().includes("/rerun/"));
+  assert.ok(viewer, "the viewer's frame");
+  const stepInViewer = () => viewer.evaluate(() => {
+    const h = window._handle, rec = h && h.get_active_recording_id();
+    return rec ? h.get_time_for_timeline(rec, "step") ?? null : null;
+  });
+  await viewer.waitForFunction(() => window._handle && window._handle.get_active_recording_id(), null, { timeout: 180_000, polling: 250 });
+  assert.ok(grpc.length > 0, "the viewer read the recording through the server's gRPC proxy");
+  // The app's cursor moves the viewer's time...
+  s = await state(page);
+  await untilValue(stepInViewer, s.cursor, "the viewer at the app's cursor");
+  await click(page, null, /^step \d+ of/);
+  for (let i = 0; i < 3; i++) await page.keyboard.press("ArrowLeft");
+  s = await state(page);
+  await untilValue(stepInViewer, s.cursor, "the viewer following the app's keys");
+  // ...and scrubbing the viewer's time moves the app's cursor.
+  const scrubbed = s.cursor + 7;
+  await viewer.evaluate((t) => window._handle.set_time_for_timeline(window._handle.get_active_recording_id(), "step", t), scrubbed);
+  s = await until(page, "the app's cursor at the viewer's time", (s) => s.cursor === scrubbed, 30_000);
+  await shot(page, "web_3d.png");
 
   // A 6-attempt run (seed 1 has a failure), watched live.
   await click(page, "Button", "Generate");
   await until(page, "the generate screen", (s) => s.screen === "Generate");
-  const attempts = await find(page, null, /^Attempts|^50$/).catch(() => null);
-  const spin = await page.evaluate(() => window.mimicgen.nodes().find((n) => n.role === "SpinButton" && n.value === "50"));
-  assert.ok(spin, `the attempts field: ${JSON.stringify(attempts)}`);
-  const box = await page.locator("#app").boundingBox();
-  await page.mouse.click(box.x + (spin.rect[0] + spin.rect[2]) / 2, box.y + (spin.rect[1] + spin.rect[3]) / 2);
-  await page.keyboard.press("Control+A");
-  await page.keyboard.type("6");
-  await page.keyboard.press("Enter");
-  await until(page, "6 attempts in the form", async () => true, 500).catch(() => {});
+  await setNumber(page, "50", 6);
   await click(page, "Button", "Start");
   s = await until(page, "the run to finish", (s) => s.run && s.run.finished, 300_000);
+  assert.equal(s.run.planned, 6);
   assert.equal(s.run.attempts, 6);
   assert.ok(s.run.failed.length > 0, "seed 1 has a failed attempt");
   assert.ok(existsSync(path.join(root, "out/app_run.hdf5")));
@@ -180,17 +214,22 @@ test("annotate, save, reopen, run, inspect a failure, 3D, and a run that survive
   s = await until(page, "side by side", (s) => s.side_by_side === true, 240_000);
   await shot(page, "web_failure.png");
 
-  // A run started, then the tab closed and reopened: the server's run is there, with its attempts.
+  // A long run started, then its tab closed and the URL opened again: the server's run is there,
+  // still going, with the attempts decided meanwhile; the new tab cancels it.
   await click(page, "Button", "Back to the charts").catch(() => {});
-  await click(page, null, "replace existing outputs");
+  await setNumber(page, "6", 2000);
+  await click(page, "CheckBox", "replace existing outputs");
   await click(page, "Button", "Start");
-  await until(page, "the second run to start", (s) => s.run && s.run.running && s.run.attempts >= 1, 120_000);
+  s = await until(page, "the second run to start", (s) => s.run && s.run.planned === 2000 && s.run.running && s.run.attempts >= 1, 120_000);
   await shot(page, "web_run.png");
+  const seen = s.run.attempts;
   await page.close();
   const again = await openApp();
-  s = await until(again.page, "the run in the new tab", (s) => s.screen === "Generate" && s.run && s.run.attempts >= 1, 60_000);
-  s = await until(again.page, "the run to finish in the new tab", (s) => s.run.finished, 300_000);
-  assert.equal(s.run.attempts, 6);
+  s = await until(again.page, "the run in the new tab", (s) => s.screen === "Generate" && s.run && s.run.planned === 2000 && s.run.attempts > seen, 120_000);
+  assert.ok(s.run.running, "the run went on without its tab");
+  await click(again.page, "Button", "Cancel");
+  s = await until(again.page, "the run to stop", (s) => !s.run.running, 120_000);
+  assert.ok(s.run.attempts < 2000, "cancelled before its end");
   assert.deepEqual(errors, [], "no page errors");
   assert.deepEqual(again.errors, [], "no page errors");
   await again.page.close();

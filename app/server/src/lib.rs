@@ -361,6 +361,11 @@ impl Server {
                 respond(stream, 200, "text/html; charset=utf-8", &headers, INDEX_HTML.as_bytes())
             }
             "/main.js" => respond(stream, 200, "text/javascript; charset=utf-8", no_store, MAIN_JS.as_bytes()),
+            path if self.viewer.is_some() && viewer::page(path).is_some() => {
+                let (kind, body) = viewer::page(path).unwrap_or_default();
+                let headers = format!("{no_store}Content-Security-Policy: {}\r\nX-Frame-Options: SAMEORIGIN\r\n", viewer::PAGE_POLICY);
+                respond(stream, 200, kind, &headers, body.as_bytes())
+            }
             path => {
                 let name = path.trim_start_matches('/');
                 let Some(BundleFile { plain, gzipped }) = self.bundle.files.get(name) else {

@@ -107,7 +107,8 @@ impl Root {
         })
     }
 
-    /// `reply` without what lies outside the root (a listing's parent above it).
+    /// `reply` without what lies outside the root (a listing's parent above it) or means nothing
+    /// to a browser (the 3D stream's loopback address).
     #[must_use]
     pub fn filter(&self, reply: Reply) -> Reply {
         match reply {
@@ -115,6 +116,8 @@ impl Root {
                 let parent = listing.parent.filter(|p| p.starts_with(&self.dir));
                 Reply::Listing(Box::new(Listing { parent, ..*listing }))
             }
+            // The stream's loopback address means nothing in the browser: the view is beside it.
+            Reply::Streaming { .. } => Reply::Streaming { to: "the viewer beside the app".to_owned() },
             other => other,
         }
     }

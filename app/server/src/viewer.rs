@@ -16,6 +16,29 @@ pub const PAGE_PREFIX: &str = "/rerun/";
 /// The path prefix of the viewer's gRPC-web calls (`/rerun.sdk_comms.v1alpha1.MessageProxyService/...`).
 pub const GRPC_PREFIX: &str = "/rerun.";
 
+/// The viewer's page, this server's own (from `app/web`): it starts the viewer of the wheel with
+/// the recording named in its query and keeps its handle for the app's time cursor (the wheel's
+/// own page does not expose it, and reaches for web fonts and telemetry).
+pub const PAGE: &str = include_str!("../../web/viewer.html");
+/// The page's script.
+pub const PAGE_JS: &str = include_str!("../../web/viewer.js");
+
+/// The content policy of the viewer's page: its scripts, WebAssembly and workers from this
+/// server, nothing reached elsewhere (no fonts, no telemetry).
+pub const PAGE_POLICY: &str = "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; worker-src 'self' blob:; \
+    connect-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; media-src 'self' blob:; \
+    frame-ancestors 'self'; object-src 'none'; base-uri 'none'";
+
+/// Which of the viewer page's two files `path` is (content type and body), if it is one.
+#[must_use]
+pub fn page(path: &str) -> Option<(&'static str, &'static str)> {
+    match path.strip_prefix(PAGE_PREFIX)? {
+        "" | "index.html" => Some(("text/html; charset=utf-8", PAGE)),
+        "viewer.js" => Some(("text/javascript; charset=utf-8", PAGE_JS)),
+        _ => None,
+    }
+}
+
 /// The viewer process and its two loopback ports.
 #[derive(Debug)]
 pub struct Viewer {
@@ -70,10 +93,13 @@ impl Viewer {
         format!("rerun+http://127.0.0.1:{}/proxy", self.grpc_port)
     }
 
-    /// The loopback port that answers `path`, if it is the viewer's.
+    /// The loopback port that answers `path`, if it is the viewer's (its page, [`PAGE`], is this
+    /// server's own).
     #[must_use]
     pub fn port_for(&self, path: &str) -> Option<u16> {
-        if path.starts_with(PAGE_PREFIX) {
+        if page(path).is_some() {
+            None
+        } else if path.starts_with(PAGE_PREFIX) {
             Some(self.page_port)
         } else if path.starts_with(GRPC_PREFIX) {
             Some(self.grpc_port)
@@ -90,6 +116,13 @@ impl Drop for Viewer {
     }
 }
 
+/// The request target upstream: `/rerun/x` is the viewer's `/x`; a gRPC path
+/// (`/rerun.sdk_comms...`) goes as it is.
+fn upstream_target(path: &str, query: &str) -> String {
+    let path = path.strip_prefix(PAGE_PREFIX).map_or_else(|| path.to_owned(), |p| format!("/{p}"));
+    if query.is_empty() { path } else { format!("{path}?{query}") }
+}
+
 /// Forwards the request `head` (its path under [`PAGE_PREFIX`] made the viewer's own, the
 /// connection closed after one response) to `port`, and pipes both ways until either side
 /// closes.
@@ -98,9 +131,7 @@ impl Drop for Viewer {
 /// The socket's.
 pub fn proxy(mut client: TcpStream, head: &Head, port: u16) -> std::io::Result<()> {
     let mut upstream = TcpStream::connect((Ipv4Addr::LOCALHOST, port))?;
-    let path = head.path.strip_prefix(PAGE_PREFIX.trim_end_matches('/')).unwrap_or(&head.path);
-    let target = if head.query.is_empty() { path.to_owned() } else { format!("{path}?{}", head.query) };
-    let mut request = format!("{} {target} HTTP/1.1\r\n", head.method);
+    let mut request = format!("{} {} HTTP/1.1\r\n", head.method, upstream_target(&head.path, &head.query));
     for (name, value) in &head.headers {
         // One request per upstream connection; no credentials of ours go further.
         if matches!(name.as_str(), "connection" | "keep-alive" | "cookie" | "upgrade") {
@@ -128,4 +159,21 @@ pub fn proxy(mut client: TcpStream, head: &Head, port: u16) -> std::io::Result<(
     let _ = client.shutdown(std::net::Shutdown::Both);
     let _ = uploads.join();
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn page_files_are_ours_and_the_rest_goes_upstream_unchanged() {
+        assert_eq!(upstream_target("/rerun/re_viewer_bg.wasm", ""), "/re_viewer_bg.wasm");
+        assert_eq!(upstream_target("/rerun/x", "a=1"), "/x?a=1");
+        let grpc = "/rerun.sdk_comms.v1alpha1.MessageProxyService/ReadMessages";
+        assert_eq!(upstream_target(grpc, ""), grpc);
+        assert!(page("/rerun/").is_some_and(|(kind, body)| kind.starts_with("text/html") && body.contains("viewer.js")));
+        assert!(page("/rerun/viewer.js").is_some());
+        assert_eq!(page("/rerun/re_viewer.js"), None);
+        assert_eq!(page(grpc), None);
+    }
 }

@@ -421,30 +421,53 @@ fn coverage_block(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow], dimension
         100.0 * c_bad.support_coverage(),
     ));
     let (Ok(h_good), Ok(h_bad)) = (coverage(&good, dimensions, HISTOGRAM_BINS), coverage(&bad, dimensions, HISTOGRAM_BINS)) else { return };
-    ui.horizontal_wrapped(|ui| {
-        source_demo_plot(ui, title, rows);
-        for (k, dim) in h_good.dimensions.iter().enumerate() {
-            #[allow(clippy::cast_precision_loss)]
-            let width = (dim.high - dim.low) / HISTOGRAM_BINS as f64;
-            #[allow(clippy::cast_precision_loss)]
-            let bars = |h: &[usize]| -> Vec<Bar> {
-                h.iter().enumerate().map(|(b, &n)| Bar::new(dim.low + (b as f64 + 0.5) * width, n as f64).width(width * 0.9)).collect()
-            };
-            let succeeded = BarChart::new("successes", bars(&h_good.histograms[k])).color(SUCCESS);
-            let failed = BarChart::new("failures", bars(&h_bad.histograms[k])).color(FAILURE).stack_on(&[&succeeded]);
-            let coordinate = match dim.coordinate {
-                Coordinate::X => "x (m)",
-                Coordinate::Y => "y (m)",
-                Coordinate::Yaw => "yaw (rad)",
-            };
-            small_bars(ui, Plot::new(("coverage", title, k)), format!("{} {coordinate}", dim.object), succeeded, failed);
-        }
-    });
+    let mut charts = vec![source_demo_chart(title, rows)];
+    for (k, dim) in h_good.dimensions.iter().enumerate() {
+        #[allow(clippy::cast_precision_loss)]
+        let width = (dim.high - dim.low) / HISTOGRAM_BINS as f64;
+        #[allow(clippy::cast_precision_loss)]
+        let bars = |h: &[usize]| -> Vec<Bar> {
+            h.iter().enumerate().map(|(b, &n)| Bar::new(dim.low + (b as f64 + 0.5) * width, n as f64).width(width * 0.9)).collect()
+        };
+        let succeeded = BarChart::new("successes", bars(&h_good.histograms[k])).color(SUCCESS);
+        let failed = BarChart::new("failures", bars(&h_bad.histograms[k])).color(FAILURE).stack_on(&[&succeeded]);
+        let coordinate = match dim.coordinate {
+            Coordinate::X => "x (m)",
+            Coordinate::Y => "y (m)",
+            Coordinate::Yaw => "yaw (rad)",
+        };
+        charts.push(SmallBars {
+            id: Plot::new(("coverage", title, k)),
+            x_label: format!("{} {coordinate}", dim.object),
+            succeeded,
+            failed,
+        });
+    }
+    // Rows of as many charts as fit the width (a browser beside the 3D view is narrow): a chart
+    // reaching past the edge would widen everything drawn after it.
+    let spacing = ui.spacing().item_spacing.x;
+    let available = ui.available_width();
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, clippy::cast_precision_loss)]
+    let per_row = (((available + spacing) / (SMALL_BARS_MIN_WIDTH + spacing)).floor().max(1.0) as usize).min(charts.len());
+    #[allow(clippy::cast_precision_loss)]
+    let width = ((available + spacing) / per_row as f32 - spacing).clamp(SMALL_BARS_MIN_WIDTH.min(available), SMALL_BARS_MAX_WIDTH);
+    let mut charts = charts.into_iter().peekable();
+    while charts.peek().is_some() {
+        ui.horizontal(|ui| {
+            for chart in charts.by_ref().take(per_row) {
+                chart.show(ui, width);
+            }
+        });
+    }
 }
+
+/// The narrowest and widest a coverage chart is drawn.
+const SMALL_BARS_MIN_WIDTH: f32 = 150.0;
+const SMALL_BARS_MAX_WIDTH: f32 = 240.0;
 
 /// Which source demos the kept attempts used (any subtask), successes and failures stacked: the
 /// paper notes successes can come very unevenly from the sources.
-fn source_demo_plot(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow]) {
+fn source_demo_chart(title: &str, rows: &[AttemptRow]) -> SmallBars<'static> {
     let demos = rows.iter().flat_map(|r| r.sources.iter().copied()).max().map_or(0, |d| d + 1);
     let (mut good, mut bad) = (vec![0usize; demos], vec![0usize; demos]);
     for r in rows {
@@ -464,15 +487,28 @@ fn source_demo_plot(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow]) {
         |counts: &[usize]| -> Vec<Bar> { counts.iter().enumerate().map(|(d, &n)| Bar::new(d as f64, n as f64).width(0.7)).collect() };
     let succeeded = BarChart::new("successes", bars(&good)).color(SUCCESS);
     let failed = BarChart::new("failures", bars(&bad)).color(FAILURE).stack_on(&[&succeeded]);
-    small_bars(ui, Plot::new(("sources", title)), "source demo".to_owned(), succeeded, failed);
+    SmallBars { id: Plot::new(("sources", title)), x_label: "source demo".to_owned(), succeeded, failed }
 }
 
 /// One of the coverage row's small charts: successes and failures stacked, fixed in place.
-fn small_bars(ui: &mut egui::Ui, plot: Plot<'_>, x_label: String, succeeded: BarChart, failed: BarChart) {
-    plot.width(200.0).height(110.0).x_axis_label(x_label).show_axes([true, false]).allow_drag(false).allow_scroll(false).show(ui, |plot| {
-        plot.bar_chart(succeeded);
-        plot.bar_chart(failed);
-    });
+struct SmallBars<'a> {
+    id: Plot<'a>,
+    x_label: String,
+    succeeded: BarChart,
+    failed: BarChart,
+}
+
+impl SmallBars<'_> {
+    fn show(self, ui: &mut egui::Ui, width: f32) {
+        let Self { id, x_label, succeeded, failed } = self;
+        id.width(width).height(110.0).x_axis_label(x_label).show_axes([true, false]).allow_drag(false).allow_scroll(false).show(
+            ui,
+            |plot| {
+                plot.bar_chart(succeeded);
+                plot.bar_chart(failed);
+            },
+        );
+    }
 }
 
 fn rate_plot(ui: &mut egui::Ui, run: &RunState, size: egui::Vec2) {
@@ -577,7 +613,8 @@ fn attempt_table(ui: &mut egui::Ui, model: &AppModel, run: &RunState, state: &mu
         rows.sort_by(|a, b| b.steps.cmp(&a.steps).then(a.index.cmp(&b.index)));
     }
     if let Some(row) = model.selected_attempt.and_then(|i| run.rows.iter().find(|r| r.index == i)) {
-        ui.horizontal(|ui| {
+        // Wrapped: in a narrow window (a browser beside the 3D view) the buttons stay in sight.
+        ui.horizontal_wrapped(|ui| {
             let what = match (&row.reason, row.failed_subtask) {
                 (Some(reason), Some(k)) => format!("attempt {}: failed in subtask {k}: {reason}", row.index),
                 _ => format!("attempt {}: success, written as {}", row.index, row.outcome),
@@ -590,7 +627,7 @@ fn attempt_table(ui: &mut egui::Ui, model: &AppModel, run: &RunState, state: &mu
         if !row.success
             && let Some((near, cm)) = crate::model::nearest_success(&run.rows, row)
         {
-            ui.horizontal(|ui| {
+            ui.horizontal_wrapped(|ui| {
                 let same = row
                     .failed_subtask
                     .and_then(|k| row.sources.get(k))

@@ -18,7 +18,9 @@
 
 mod socket;
 mod test_hook;
+mod viewer;
 
+use mimicgen_ui::model::Command;
 use mimicgen_ui::protocol::{ClientMessage, ServerMessage};
 use mimicgen_ui::{MimicgenApp, egui};
 use wasm_bindgen::JsCast as _;
@@ -27,8 +29,8 @@ use wasm_bindgen::prelude::*;
 /// The app on the page: the UI, and the 3D view's frame beside it.
 struct WebApp {
     app: MimicgenApp,
-    /// The viewer URL the page's frame shows, once the 3D view is open.
-    shown_viewer: Option<String>,
+    /// The 3D view beside the canvas.
+    viewer: viewer::ViewerFrame,
     /// Whether a browser test reads the app's state.
     test_hook: bool,
 }
@@ -37,29 +39,11 @@ impl eframe::App for WebApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         self.app.show(ui);
         // The 3D view is the Rerun web viewer in the page's own frame (egui cannot host it).
-        let wanted = self.app.model.viewer.as_ref().and(self.app.model.welcome.viewer_url.clone());
-        if wanted != self.shown_viewer {
-            self.shown_viewer = wanted;
-            show_viewer(self.shown_viewer.as_deref());
+        if let Some(step) = self.viewer.update(&self.app.model, ui.ctx()) {
+            self.app.command(Command::SetCursor(step));
         }
         if self.test_hook {
             test_hook::record(&self.app.model);
-        }
-    }
-}
-
-/// Shows the Rerun viewer at `url` in the page's `viewer` frame (hides it for `None`).
-fn show_viewer(url: Option<&str>) {
-    let Some(document) = web_sys::window().and_then(|w| w.document()) else { return };
-    let Some(frame) = document.get_element_by_id("viewer") else { return };
-    let Some(body) = document.body() else { return };
-    match url {
-        Some(url) => {
-            let _ = frame.set_attribute("src", url);
-            let _ = body.class_list().add_1("with-viewer");
-        }
-        None => {
-            let _ = body.class_list().remove_1("with-viewer");
         }
     }
 }
@@ -93,7 +77,11 @@ pub fn start(canvas_id: &str) -> Result<(), JsValue> {
                         test_hook::install(&cc.egui_ctx);
                     }
                     let socket = socket::Socket::connect(query("token").as_deref(), cc.egui_ctx.clone());
-                    Ok(Box::new(WebApp { app: MimicgenApp::new(Box::new(socket), None), shown_viewer: None, test_hook }))
+                    Ok(Box::new(WebApp {
+                        app: MimicgenApp::new(Box::new(socket), None),
+                        viewer: viewer::ViewerFrame::default(),
+                        test_hook,
+                    }))
                 }),
             )
             .await;

@@ -23,14 +23,18 @@ impl egui::Plugin for Recorder {
 
     fn output_hook(&mut self, _ctx: &egui::Context, output: &mut egui::FullOutput) {
         let Some(update) = &output.platform_output.accesskit_update else { return };
+        // A widget labelled by another (a text field after its label) takes that label's text.
+        let labels: std::collections::HashMap<accesskit::NodeId, &str> =
+            update.nodes.iter().filter_map(|(id, node)| Some((*id, node.label().or_else(|| node.value())?))).collect();
         let nodes: Vec<serde_json::Value> = update
             .nodes
             .iter()
             .filter_map(|(_, node)| {
                 let rect = node.bounds()?;
+                let label = node.label().or_else(|| node.labelled_by().iter().find_map(|id| labels.get(id).copied()));
                 Some(serde_json::json!({
                     "role": format!("{:?}", node.role()),
-                    "label": node.label().unwrap_or_default(),
+                    "label": label.unwrap_or_default(),
                     "value": node.value().unwrap_or_default(),
                     "toggled": node.toggled().map(|t| t == accesskit::Toggled::True),
                     "disabled": node.is_disabled(),
@@ -67,6 +71,7 @@ pub fn record(model: &mimicgen_ui::AppModel) {
         serde_json::json!({
             "running": r.running(),
             "out": r.config.out,
+            "planned": r.config.num_demos,
             "attempts": r.rows.len(),
             "successes": r.rows.iter().filter(|a| a.success).count(),
             "failed": r.rows.iter().filter(|a| !a.success).map(|a| a.index).collect::<Vec<_>>(),
