@@ -11,9 +11,13 @@ export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$MIMICGEN_CACHE/target}"
 export HDF5_USE_FILE_LOCKING=FALSE
 echo "== cargo fmt --check"; cargo fmt --all --check
 echo "== cargo clippy";      cargo clippy --workspace --all-targets --quiet -- -D warnings
+echo "== cargo clippy (wasm)"
+rustup target list --installed | grep -qx wasm32-unknown-unknown || rustup target add wasm32-unknown-unknown >/dev/null
+cargo clippy -p mimicgen-web --target wasm32-unknown-unknown --quiet -- -D warnings
 echo "== cargo doc";         RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 echo "== cargo test";        cargo test --workspace
 echo "== python wheel";      bash scripts/test_python.sh
+echo "== browser app";       bash scripts/test_web.sh
 # robosuite itself must load and replay what we write: 20 generated Stack D0 demos, replayed open
 # loop in robosuite 1.4.1's own Stack env (MuJoCo 2.3.2) from their model_file and first state.
 echo "== robosuite replay"
