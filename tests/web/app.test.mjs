@@ -61,6 +61,8 @@ async function openApp() {
   const page = await browser.newPage({ viewport: { width: 1500, height: 900 } });
   const errors = [];
   page.on("pageerror", (e) => errors.push(String(e)));
+  // Where an error came from (this page or the viewer's frame), for the failure message.
+  page.on("console", (m) => { if (m.type() === "error") console.error(`console error (${m.location().url}): ${m.text().slice(0, 500)}`); });
   await page.goto(url + (url.includes("?") ? "&" : "?") + "testhook");
   await page.waitForFunction(() => window.mimicgen && window.mimicgen.state(), null, { timeout: 60_000 });
   return { page, errors };
@@ -132,7 +134,8 @@ async function setNumber(page, current, value) {
 }
 
 async function shot(page, name) {
-  if (shots) await page.screenshot({ path: path.join(shots, name) });
+  // Generous: with the 3D view and a run going, two cores draw slowly.
+  if (shots) await page.screenshot({ path: path.join(shots, name), timeout: 180_000 });
 }
 
 test("annotate, save, reopen, run, inspect a failure, 3D, and a run that survives its tab", async () => {
@@ -204,6 +207,11 @@ test("annotate, save, reopen, run, inspect a failure, 3D, and a run that survive
   assert.equal(s.run.attempts, 6);
   assert.ok(s.run.failed.length > 0, "seed 1 has a failed attempt");
   assert.ok(existsSync(path.join(root, "out/app_run.hdf5")));
+  if (shots) {
+    // The viewer shades itself while the run's last messages arrive: a picture once it settled.
+    await page.waitForTimeout(5000);
+    await shot(page, "web_run.png");
+  }
 
   // A failed attempt's details.
   const failed = s.run.failed[0];
@@ -221,7 +229,6 @@ test("annotate, save, reopen, run, inspect a failure, 3D, and a run that survive
   await click(page, "CheckBox", "replace existing outputs");
   await click(page, "Button", "Start");
   s = await until(page, "the second run to start", (s) => s.run && s.run.planned === 2000 && s.run.running && s.run.attempts >= 1, 120_000);
-  await shot(page, "web_run.png");
   const seen = s.run.attempts;
   await page.close();
   const again = await openApp();

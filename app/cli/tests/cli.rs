@@ -154,3 +154,33 @@ fn a_task_file_of_ones_own_is_listed_recorded_and_generated() {
     assert!(!out.status.success() && err.contains("broken.task.toml") && err.contains("cubeZ"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `mimicgen serve` refuses what it cannot serve before it listens, with exit code 2 and a
+/// message naming the flag or file.
+#[test]
+fn serve_refuses_bad_setups_with_exit_code_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let bundle = dir.path().join("web");
+    std::fs::create_dir(&bundle).unwrap();
+    let serve = |args: &[&str]| {
+        let out = mimicgen().arg("serve").args(args).args(["--port", "0", "--no-viewer"]).output().unwrap();
+        (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    // No bundle built: names the missing file and the script that builds it.
+    let (code, err) = serve(&["--web-dir", bundle.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("mimicgen_web.js") && err.contains("build_web.sh"), "{err}");
+    // A bundle there (its content is not checked here), a file outside the root.
+    for name in ["mimicgen_web.js", "mimicgen_web_bg.wasm"] {
+        std::fs::write(bundle.join(name), b"x").unwrap();
+    }
+    let root = dir.path().join("root");
+    std::fs::create_dir(&root).unwrap();
+    let (code, err) = serve(&["../outside.hdf5", "--root", root.to_str().unwrap(), "--web-dir", bundle.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("FILE") && err.contains("outside.hdf5"), "{err}");
+    // A token too short to guard anything.
+    let (code, err) = serve(&["--host", "0.0.0.0", "--token", "short", "--web-dir", bundle.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--token"), "{err}");
+}

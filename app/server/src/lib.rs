@@ -28,11 +28,14 @@ pub mod viewer;
 use std::collections::BTreeMap;
 use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::time::Duration;
+use std::io::Write as _;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Receiver;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use mimicgen_ui::protocol::{ClientMessage, Welcome};
-use tungstenite::protocol::frame::coding::CloseCode;
+use tungstenite::protocol::frame::Frame;
+use tungstenite::protocol::frame::coding::{CloseCode, Data, OpCode};
 use tungstenite::protocol::{CloseFrame, Role, WebSocketConfig};
 use tungstenite::{Message, WebSocket};
 
@@ -43,8 +46,6 @@ use crate::viewer::Viewer;
 
 /// The largest message a tab may send (requests are small; a bigger one is a bug or an attack).
 pub const MAX_MESSAGE_BYTES: usize = 1 << 20;
-/// How long a socket's read waits before the replies queued for it are written.
-const POLL: Duration = Duration::from_millis(5);
 /// The cookie that carries the token after the page was opened with it.
 const TOKEN_COOKIE: &str = "mimicgen_token";
 
@@ -90,7 +91,7 @@ impl ServerError {
     /// True when the user's input is at fault (exit code 2).
     #[must_use]
     pub fn is_user_error(&self) -> bool {
-        matches!(self, Self::Root { .. } | Self::Argument { .. } | Self::Bind { .. })
+        matches!(self, Self::Root { .. } | Self::Argument { .. } | Self::Bind { .. } | Self::Bundle { .. })
     }
 }
 
@@ -361,6 +362,8 @@ impl Server {
                 respond(stream, 200, "text/html; charset=utf-8", &headers, INDEX_HTML.as_bytes())
             }
             "/main.js" => respond(stream, 200, "text/javascript; charset=utf-8", no_store, MAIN_JS.as_bytes()),
+            // No icon (and no 404 in the browser's console for it).
+            "/favicon.ico" => respond(stream, 204, "image/x-icon", "", &[]),
             path if self.viewer.is_some() && viewer::page(path).is_some() => {
                 let (kind, body) = viewer::page(path).unwrap_or_default();
                 let headers = format!("{no_store}Content-Security-Policy: {}\r\nX-Frame-Options: SAMEORIGIN\r\n", viewer::PAGE_POLICY);
@@ -383,7 +386,8 @@ impl Server {
         };
     }
 
-    /// A tab's WebSocket: requests in, replies (and the run's updates) out.
+    /// A tab's WebSocket: requests in (this thread, blocking on the socket), replies and the run's
+    /// updates out (a writer thread, blocking on the tab's queue), so neither waits on a timer.
     fn socket(&self, mut stream: TcpStream, head: &Head, peer: &str) {
         let Some(key) = head.header("sec-websocket-key") else { return refuse(&mut stream, 400, "no Sec-WebSocket-Key") };
         let accept = tungstenite::handshake::derive_accept_key(key.as_bytes());
@@ -393,65 +397,111 @@ impl Server {
         if std::io::Write::write_all(&mut stream, response.as_bytes()).is_err() {
             return;
         }
-        let _ = stream.set_read_timeout(Some(POLL));
+        let _ = stream.set_read_timeout(None);
         let _ = stream.set_nodelay(true);
-        let config = WebSocketConfig::default().max_message_size(Some(MAX_MESSAGE_BYTES)).max_frame_size(Some(MAX_MESSAGE_BYTES));
-        let mut ws = WebSocket::from_raw_socket(stream, Role::Server, Some(config));
+        let Ok(read) = stream.try_clone() else { return };
+        let writes = Arc::new(Mutex::new(stream));
+        let reading = Arc::new(AtomicBool::new(true));
         let session = &self.session.0;
         let (client, queue) = session.join();
         eprintln!("mimicgen serve: tab {client} connected from {peer} ({} open)", session.tabs());
-        let close = |ws: &mut WebSocket<TcpStream>, code: CloseCode, reason: &str| {
+        let writer = {
+            let (writes, reading) = (Arc::clone(&writes), Arc::clone(&reading));
+            std::thread::Builder::new().name("mimicgen-serve-write".to_owned()).spawn(move || write_replies(&queue, &writes, &reading))
+        };
+        let config = WebSocketConfig::default().max_message_size(Some(MAX_MESSAGE_BYTES)).max_frame_size(Some(MAX_MESSAGE_BYTES));
+        let mut ws = WebSocket::from_raw_socket(ReadHalf { read, writes: Arc::clone(&writes) }, Role::Server, Some(config));
+        let close = |ws: &mut WebSocket<ReadHalf>, code: CloseCode, reason: &str| {
             let _ = ws.close(Some(CloseFrame { code, reason: reason.to_owned().into() }));
             let _ = ws.flush();
         };
-        'serve: loop {
+        if writer.is_ok() {
             loop {
-                match queue.try_recv() {
-                    Ok(text) => {
-                        if ws.write(Message::text(text)).is_err() {
-                            break 'serve;
+                match ws.read() {
+                    Ok(Message::Text(text)) => match serde_json::from_str::<ClientMessage>(&text) {
+                        Ok(message) => session.request(client, message),
+                        Err(e) => {
+                            eprintln!("mimicgen serve: tab {client}: malformed message ({e}); closing its connection");
+                            close(&mut ws, CloseCode::Invalid, "malformed message");
+                            break;
                         }
-                    }
-                    Err(std::sync::mpsc::TryRecvError::Empty) => break,
-                    Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                        close(&mut ws, CloseCode::Policy, "too slow to read the replies");
-                        break 'serve;
-                    }
-                }
-            }
-            if ws.flush().is_err() {
-                break;
-            }
-            match ws.read() {
-                Ok(Message::Text(text)) => match serde_json::from_str::<ClientMessage>(&text) {
-                    Ok(message) => session.request(client, message),
-                    Err(e) => {
-                        eprintln!("mimicgen serve: tab {client}: malformed message ({e}); closing its connection");
-                        close(&mut ws, CloseCode::Invalid, "malformed message");
+                    },
+                    Ok(Message::Binary(_)) => {
+                        eprintln!("mimicgen serve: tab {client}: binary message; closing its connection");
+                        close(&mut ws, CloseCode::Unsupported, "text messages only");
                         break;
                     }
-                },
-                Ok(Message::Binary(_)) => {
-                    eprintln!("mimicgen serve: tab {client}: binary message; closing its connection");
-                    close(&mut ws, CloseCode::Unsupported, "text messages only");
-                    break;
-                }
-                Ok(Message::Close(_)) => break,
-                Ok(_) => {}
-                Err(tungstenite::Error::Io(e)) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
-                Err(tungstenite::Error::Capacity(e)) => {
-                    eprintln!("mimicgen serve: tab {client}: {e}; closing its connection");
-                    close(&mut ws, CloseCode::Size, "message too large");
-                    break;
-                }
-                Err(tungstenite::Error::ConnectionClosed | tungstenite::Error::AlreadyClosed) => break,
-                Err(e) => {
-                    eprintln!("mimicgen serve: tab {client}: {e}; closing its connection");
-                    break;
+                    Ok(Message::Close(_)) => break,
+                    Ok(_) => {}
+                    Err(tungstenite::Error::Capacity(e)) => {
+                        eprintln!("mimicgen serve: tab {client}: {e}; closing its connection");
+                        close(&mut ws, CloseCode::Size, "message too large");
+                        break;
+                    }
+                    Err(tungstenite::Error::ConnectionClosed | tungstenite::Error::AlreadyClosed) => break,
+                    Err(e) => {
+                        if reading.load(Ordering::Relaxed) {
+                            eprintln!("mimicgen serve: tab {client}: {e}; closing its connection");
+                        }
+                        break;
+                    }
                 }
             }
         }
+        reading.store(false, Ordering::Relaxed);
+        // The writer ends when the session drops the tab's queue.
         session.leave(client);
+        if let Ok(writer) = writer {
+            let _ = writer.join();
+        }
+        let _ = ws.get_ref().read.shutdown(std::net::Shutdown::Both);
         eprintln!("mimicgen serve: tab {client} left ({} open)", session.tabs());
     }
+}
+
+/// A tab's socket as its WebSocket reader sees it: reads from the socket, writes (pongs, close
+/// frames) through the lock the writer thread writes under, so frames never interleave.
+struct ReadHalf {
+    read: TcpStream,
+    writes: Arc<Mutex<TcpStream>>,
+}
+
+impl std::io::Read for ReadHalf {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        self.read.read(buf)
+    }
+}
+
+impl std::io::Write for ReadHalf {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.writes.lock().unwrap_or_else(PoisonError::into_inner).write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.writes.lock().unwrap_or_else(PoisonError::into_inner).flush()
+    }
+}
+
+/// Writes each text the session queues for `client` as one WebSocket frame, as it comes. When the
+/// session drops the queue while the tab is still reading, the tab was too slow to take its
+/// replies: it is told so and disconnected.
+fn write_replies(queue: &Receiver<String>, writes: &Mutex<TcpStream>, reading: &AtomicBool) {
+    let frame = |frame: Frame| -> std::io::Result<()> {
+        let mut bytes = Vec::new();
+        frame.format(&mut bytes).map_err(std::io::Error::other)?;
+        writes.lock().unwrap_or_else(PoisonError::into_inner).write_all(&bytes)
+    };
+    let mut failed = false;
+    for text in queue {
+        if frame(Frame::message(text.into_bytes(), OpCode::Data(Data::Text), true)).is_err() {
+            failed = true;
+            break;
+        }
+    }
+    if !failed && reading.swap(false, Ordering::Relaxed) {
+        // (The session has said so in the log.)
+        let _ = frame(Frame::close(Some(CloseFrame { code: CloseCode::Policy, reason: "too slow to read the replies".into() })));
+    }
+    // Wakes the reader, if it still waits.
+    let _ = writes.lock().unwrap_or_else(PoisonError::into_inner).shutdown(std::net::Shutdown::Both);
 }

@@ -157,7 +157,17 @@ fn answer(requests: &Receiver<(ClientId, ClientMessage)>, clients: &Arc<Mutex<Cl
                     }
                     _ => false,
                 };
+                let opening = matches!(request, Request::Open { .. });
                 let reply = root.filter(worker.handle_guarded(request));
+                if opening && let Reply::Opened(file) = &reply {
+                    // The open file is the server's, not the tab's: the other tabs' previews and
+                    // 3D views now work on this one, which they are told.
+                    let notice = Reply::Notice(format!(
+                        "another tab opened {}: this server has one open file, so previews and the 3D view now use it; open yours again to go on",
+                        file.path.display()
+                    ));
+                    lock(clients).broadcast(&encode(None, notice), Some(client));
+                }
                 if starts_run && let Reply::Failed { error, .. } = &reply {
                     let failed = encode(None, Reply::Run(RunUpdate::Failed(error.clone())));
                     let mut clients = lock(clients);

@@ -216,7 +216,7 @@ fn every_path_stays_inside_the_root() {
 }
 
 #[test]
-fn a_run_belongs_to_the_server_and_every_tab_sees_it_also_after_reconnecting() {
+fn a_run_and_the_open_file_belong_to_the_server_and_every_tab_sees_them_also_after_reconnecting() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::copy(fixture(), dir.path().join("demos.hdf5")).unwrap();
     let (addr, _) = serve(dir.path(), [127, 0, 0, 1], None);
@@ -224,6 +224,11 @@ fn a_run_belongs_to_the_server_and_every_tab_sees_it_also_after_reconnecting() {
     next(&mut starter);
     let mut other = connect(addr, "", None).unwrap();
     next(&mut other);
+    // The open file is the server's too: the other tab is told when it changes.
+    send(&mut starter, 1, Request::Open { path: "demos.hdf5".into() });
+    assert!(until_answered(&mut starter, 1).iter().any(|m| matches!(m.reply, Reply::Opened(_))));
+    let ServerMessage { id: None, reply: Reply::Notice(notice) } = next(&mut other) else { panic!("a notice to the other tab") };
+    assert!(notice.contains("another tab opened") && notice.contains("demos.hdf5"), "{notice}");
     let config = mimicgen_run::RunConfig {
         source: Some("demos.hdf5".into()),
         out: "out/run.hdf5".into(),
@@ -232,8 +237,8 @@ fn a_run_belongs_to_the_server_and_every_tab_sees_it_also_after_reconnecting() {
         keep_failed: true,
         ..Default::default()
     };
-    send(&mut starter, 1, Request::Run(Box::new(config)));
-    assert!(until_answered(&mut starter, 1).iter().any(|m| m.reply == Reply::RunAccepted));
+    send(&mut starter, 2, Request::Run(Box::new(config)));
+    assert!(until_answered(&mut starter, 2).iter().any(|m| m.reply == Reply::RunAccepted));
     // The other tab watches it: joined first, then the updates.
     let ServerMessage { id: None, reply: Reply::Run(RunUpdate::Joined(joined)) } = next(&mut other) else { panic!("joined first") };
     assert_eq!(joined.out, dir.path().canonicalize().unwrap().join("out/run.hdf5"), "paths resolved inside the root");

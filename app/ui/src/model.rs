@@ -751,6 +751,7 @@ impl AppModel {
             }
             Reply::Cancelling => self.status = "cancelling: finishing the attempts already decided".to_owned(),
             Reply::Welcome(welcome) => self.welcome = *welcome,
+            Reply::Notice(notice) => self.error = Some(notice),
             Reply::Run(RunUpdate::Joined(config)) => {
                 self.run = Some(RunState::new(*config));
                 self.forget_attempts();

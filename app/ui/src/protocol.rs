@@ -224,6 +224,8 @@ pub enum Reply {
     },
     /// The backend greets the app when it connects (not a reply to a request).
     Welcome(Box<Welcome>),
+    /// Something another tab did that changes this one's backend (not a reply to a request).
+    Notice(String),
     /// A request failed; `error` names the file and field.
     Failed {
         /// What was being done.
@@ -428,7 +430,7 @@ impl Reply {
     #[must_use]
     pub fn ends_request(&self) -> bool {
         match self {
-            Self::Progress { .. } | Self::Run(_) | Self::Images { .. } | Self::Welcome(_) => false,
+            Self::Progress { .. } | Self::Run(_) | Self::Images { .. } | Self::Welcome(_) | Self::Notice(_) => false,
             Self::Opened(file) => file.demos.len() >= file.total_demos,
             Self::MoreDemos { last, .. } => *last,
             Self::Saved { .. }

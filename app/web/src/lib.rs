@@ -37,7 +37,11 @@ struct WebApp {
 
 impl eframe::App for WebApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let started = self.test_hook.then(now_ms);
         self.app.show(ui);
+        if let (Some(started), Some(ended)) = (started, self.test_hook.then(now_ms)) {
+            test_hook::frame_time(ended - started);
+        }
         // The 3D view is the Rerun web viewer in the page's own frame (egui cannot host it).
         if let Some(step) = self.viewer.update(&self.app.model, ui.ctx()) {
             self.app.command(Command::SetCursor(step));
@@ -46,6 +50,25 @@ impl eframe::App for WebApp {
             test_hook::record(&self.app.model);
         }
     }
+}
+
+/// A panic stops the app: say so on the page and in the console, with where it happened.
+fn on_panic(info: &std::panic::PanicHookInfo<'_>) {
+    let message = format!("mimicgen crashed: {info}. Reload the page; the server and its run go on.");
+    web_sys::console::error_1(&message.as_str().into());
+    let Some(document) = web_sys::window().and_then(|w| w.document()) else { return };
+    let Some(body) = document.body() else { return };
+    if let Ok(note) = document.create_element("div") {
+        note.set_id("crashed");
+        note.set_text_content(Some(&message));
+        let _ = note.set_attribute("role", "alert");
+        let _ = body.append_child(&note);
+    }
+}
+
+/// The page's clock, in milliseconds (sub-millisecond where the browser allows).
+fn now_ms() -> f64 {
+    web_sys::window().and_then(|w| w.performance()).map_or_else(js_sys::Date::now, |p| p.now())
 }
 
 /// The page's query parameter `name`, if it has one.
@@ -66,6 +89,7 @@ pub fn start(canvas_id: &str) -> Result<(), JsValue> {
         .dyn_into::<web_sys::HtmlCanvasElement>()
         .map_err(|_| format!("{canvas_id:?} is not a canvas"))?;
     let test_hook = query("testhook").is_some();
+    std::panic::set_hook(Box::new(on_panic));
     let runner = eframe::WebRunner::new();
     wasm_bindgen_futures::spawn_local(async move {
         let started = runner
@@ -104,6 +128,14 @@ pub fn test_nodes() -> String {
 #[wasm_bindgen]
 pub fn test_state() -> String {
     test_hook::state()
+}
+
+/// The milliseconds the app's own drawing took (`show`: layout and plots, not the GPU) in each
+/// frame since the last call, as JSON (`[ms, ...]`), for `tests/web/bench.mjs`. Empty unless
+/// the page was opened with `testhook`.
+#[wasm_bindgen]
+pub fn test_frames() -> String {
+    test_hook::take_frame_times()
 }
 
 /// The wire format, in one place (the server has the other end).

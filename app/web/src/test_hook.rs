@@ -12,6 +12,9 @@ use mimicgen_ui::egui::accesskit;
 static NODES: Mutex<String> = Mutex::new(String::new());
 /// The app's state after the last frame, as JSON.
 static STATE: Mutex<String> = Mutex::new(String::new());
+/// The app's drawing time per frame (ms) since they were last taken; at most [`MAX_FRAMES`].
+static FRAMES: Mutex<Vec<f64>> = Mutex::new(Vec::new());
+const MAX_FRAMES: usize = 100_000;
 
 /// Keeps every frame's AccessKit tree.
 struct Recorder;
@@ -62,6 +65,21 @@ pub fn nodes() -> String {
 /// The app's state (empty without the hook).
 pub fn state() -> String {
     STATE.lock().map(|s| s.clone()).unwrap_or_default()
+}
+
+/// Keeps one frame's drawing time.
+pub fn frame_time(ms: f64) {
+    if let Ok(mut frames) = FRAMES.lock()
+        && frames.len() < MAX_FRAMES
+    {
+        frames.push(ms);
+    }
+}
+
+/// The frame times kept since the last call, as a JSON array.
+pub fn take_frame_times() -> String {
+    let frames = FRAMES.lock().map(|mut f| std::mem::take(&mut *f)).unwrap_or_default();
+    serde_json::Value::from(frames).to_string()
 }
 
 /// Records the model's state after a frame (only when the hook is on).
