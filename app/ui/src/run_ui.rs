@@ -462,7 +462,7 @@ fn coverage_block(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow], dimension
 }
 
 /// The narrowest and widest a coverage chart is drawn.
-const SMALL_BARS_MIN_WIDTH: f32 = 150.0;
+const SMALL_BARS_MIN_WIDTH: f32 = 110.0;
 const SMALL_BARS_MAX_WIDTH: f32 = 240.0;
 
 /// Which source demos the kept attempts used (any subtask), successes and failures stacked: the
