@@ -355,6 +355,9 @@ pub struct DemosArgs {
     /// Output file.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing output.
+    #[arg(long)]
+    overwrite: bool,
 }
 
 /// Runs `mimicgen demos`.
@@ -362,6 +365,7 @@ pub struct DemosArgs {
 /// # Errors
 /// Unknown task, simulator failure, or a failure to write.
 pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
+    crate::check_output(&args.out, None, args.overwrite)?;
     let task = registry::task(&args.task, &args.variant).map_err(anyhow::Error::msg)?;
     let mut scripts = task.scripts();
     for script in &mut scripts {

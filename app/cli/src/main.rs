@@ -188,7 +188,7 @@ observation.images.<camera> (H.264, encoded by the ffmpeg scripts/setup.sh insta
         /// one scripts/setup.sh unpacked into the cache, else `ffmpeg` on the PATH.
         #[arg(long)]
         ffmpeg: Option<PathBuf>,
-        /// LeRobot: replace an existing output directory.
+        /// Replace an existing output (the MCAP file, the LeRobot directory).
         #[arg(long)]
         overwrite: bool,
     },
@@ -218,6 +218,24 @@ enum SpecCommand {
         /// A `.toml` spec or a MimicGen experiment `.json`.
         file: PathBuf,
     },
+}
+
+/// Refuses to write `out` onto the command's own `input` (ever) or over an existing file (unless
+/// `overwrite`): an existing output is never replaced without asking.
+///
+/// # Errors
+/// Naming the output and what to do.
+pub(crate) fn check_output(out: &std::path::Path, input: Option<&std::path::Path>, overwrite: bool) -> anyhow::Result<()> {
+    let same = |a: &std::path::Path, b: &std::path::Path| a.canonicalize().is_ok_and(|a| b.canonicalize().is_ok_and(|b| a == b));
+    if let Some(input) = input
+        && same(out, input)
+    {
+        anyhow::bail!("{}: is the input; choose another output", out.display());
+    }
+    if out.exists() && !overwrite {
+        anyhow::bail!("{}: exists; pass --overwrite to replace it, or choose another output", out.display());
+    }
+    Ok(())
 }
 
 fn main() -> ExitCode {
@@ -277,6 +295,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Export { file, mcap, lerobot, state_keys, instruction, ffmpeg, overwrite } => {
             let ds = DemoReader::open_with(&file, ReadOptions::default())?;
             if let Some(mcap) = mcap {
+                check_output(&mcap, Some(&file), overwrite)?;
                 let summary = mimicgen_io::mcap_export::export(&ds, &mcap)?;
                 println!("{}: {} demos, {} steps at 20 Hz", mcap.display(), summary.demos, summary.steps);
                 for (topic, n) in &summary.messages {

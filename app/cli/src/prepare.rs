@@ -21,6 +21,9 @@ pub struct PrepareArgs {
     /// Task, when `env_args` does not name one of ours (see `mimicgen tasks`).
     #[arg(long)]
     task: Option<String>,
+    /// Replace an existing output (never the input itself).
+    #[arg(long)]
+    overwrite: bool,
 }
 
 /// Runs `mimicgen prepare`.
@@ -28,6 +31,7 @@ pub struct PrepareArgs {
 /// # Errors
 /// Unreadable input, unknown task, a scene that does not compile, or a failure to write.
 pub fn prepare(args: &PrepareArgs) -> anyhow::Result<()> {
+    crate::check_output(&args.out, Some(&args.file), args.overwrite)?;
     let bar = indicatif::ProgressBar::new(0).with_style(
         indicatif::ProgressStyle::with_template("replaying {bar:30} {pos}/{len} demos, {elapsed} ({eta} left) {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),

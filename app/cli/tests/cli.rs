@@ -184,3 +184,35 @@ fn serve_refuses_bad_setups_with_exit_code_2() {
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("--token"), "{err}");
 }
+
+/// `demos`, `prepare` and `export --mcap` never replace a file that is there without
+/// `--overwrite`, and `prepare` never writes onto its own input: the file keeps its bytes.
+#[test]
+fn commands_refuse_to_replace_an_existing_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let existing = dir.path().join("existing.bin");
+    let bytes = b"a file the user cares about".to_vec();
+    std::fs::write(&existing, &bytes).unwrap();
+    let input = dir.path().join("input.hdf5");
+    std::fs::copy(repo_path("core/io/tests/data/robosuite_lift_demo.hdf5"), &input).unwrap();
+    let input_bytes = std::fs::read(&input).unwrap();
+    let out = existing.to_str().unwrap();
+    let refused = |args: &[&str], names: &str| {
+        let run = mimicgen().args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(!run.status.success(), "{args:?} replaced it");
+        assert!(err.contains(names), "{args:?}: {err}");
+    };
+    refused(&["demos", "--task", "stack", "--num-demos", "1", "--out", out], "--overwrite");
+    refused(&["prepare", input.to_str().unwrap(), "--out", out], "--overwrite");
+    refused(&["export", input.to_str().unwrap(), "--mcap", out], "--overwrite");
+    assert_eq!(std::fs::read(&existing).unwrap(), bytes);
+    // Onto the input itself: refused even when asked to replace.
+    refused(&["prepare", input.to_str().unwrap(), "--out", input.to_str().unwrap(), "--overwrite"], "is the input");
+    refused(&["export", input.to_str().unwrap(), "--mcap", input.to_str().unwrap(), "--overwrite"], "is the input");
+    assert_eq!(std::fs::read(&input).unwrap(), input_bytes);
+    // Asked to, the MCAP export replaces the file.
+    let run = mimicgen().args(["export", input.to_str().unwrap(), "--mcap", out, "--overwrite"]).output().unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert_ne!(std::fs::read(&existing).unwrap(), bytes);
+}
