@@ -19,7 +19,7 @@ use mimicgen_engine::{Attempt, Overrides, Plan, Pose, RunStats, SourceDataset, S
 use mimicgen_io::{ATTEMPT_ATTR, DemoReader, DemoSource as _, FAILURE_ATTR, IoError, ReadOptions, source_demo_from_group};
 use mimicgen_pipeline::annotate::{Annotations, DemoAnnotation};
 use mimicgen_pipeline::preview::Previewer;
-use mimicgen_pipeline::{AttemptEvent, Event, Outcome, Pipeline, PipelineError, Report, RunConfig, RunInfo, annotate, prepare};
+use mimicgen_pipeline::{AttemptEvent, Event, FrontEnd, Outcome, Pipeline, PipelineError, Report, RunConfig, RunInfo, annotate, prepare};
 use mimicgen_viz::rerun::RecordingStream;
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
@@ -281,6 +281,29 @@ fn attempt_row(event: &AttemptEvent) -> AttemptRow {
     }
 }
 
+/// `answer()`, or when it panics, a [`Reply::Failed`] saying so under `what` (the request as the
+/// user made it): a bug in one request is reported where it was made, and the backend goes on.
+pub fn guarded(what: String, answer: impl FnOnce() -> Reply) -> Reply {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(answer)) {
+        Ok(reply) => reply,
+        Err(panic) => {
+            let message = panic
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_owned())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "a panic".to_owned());
+            eprintln!("mimicgen backend: {what}: {message}");
+            Reply::Failed { what, error: format!("internal error (a bug; please report it): {message}") }
+        }
+    }
+}
+
+/// The arms a run can use, as `--robot` names them.
+#[must_use]
+pub fn robots() -> Vec<String> {
+    mimicgen_sim::robot::ROBOTS.iter().map(|r| r.name.to_owned()).collect()
+}
+
 /// Runs `config` through the pipeline, reporting every event to `notify`; stops when `cancel` is set.
 /// With the 3D view open, every attempt is also logged to `logger` as it is decided (a failure
 /// to log ends the logging, not the run).
@@ -288,7 +311,7 @@ fn run_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify, mut 
     let update = |u: RunUpdate| notify(Reply::Run(u));
     let pipeline = match Pipeline::prepare(config) {
         Ok(p) => p,
-        Err(e) => return update(RunUpdate::Failed(e.to_string())),
+        Err(e) => return update(RunUpdate::Failed(e.worded(FrontEnd::App))),
     };
     let result = pipeline.run(cancel, |event| match event {
         Event::Started(info) => update(RunUpdate::Started { info: info.clone(), dimensions: pipeline.task().coverage_dimensions() }),
@@ -307,7 +330,7 @@ fn run_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify, mut 
     }
     match result {
         Ok(report) => update(RunUpdate::Finished(Box::new(report))),
-        Err(e) => update(RunUpdate::Failed(e.to_string())),
+        Err(e) => update(RunUpdate::Failed(e.worded(FrontEnd::App))),
     }
 }
 
@@ -528,17 +551,7 @@ impl Worker {
     /// worker and the app go on).
     pub fn handle_guarded(&mut self, request: Request) -> Reply {
         let what: String = format!("answering {request:?}").chars().take(100).collect();
-        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.handle(request))) {
-            Ok(reply) => reply,
-            Err(panic) => {
-                let message = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| (*s).to_owned())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "a panic".to_owned());
-                Reply::Failed { what, error: format!("internal error (a bug; please report it): {message}") }
-            }
-        }
+        guarded(what, || self.handle(request))
     }
 
     fn start_run(&mut self, config: RunConfig) -> Reply {
@@ -836,7 +849,7 @@ impl Backend {
         };
         let spawned = std::thread::Builder::new().name("mimicgen-gui-backend".to_owned()).spawn(move || {
             let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-            notify(Reply::Welcome(Box::new(Welcome { cores, ..Welcome::default() })));
+            notify(Reply::Welcome(Box::new(Welcome { cores, robots: robots(), ..Welcome::default() })));
             let mut worker = Worker::new(notify, embedded);
             for request in inbox {
                 let reply = worker.handle_guarded(request);

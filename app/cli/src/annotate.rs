@@ -4,7 +4,6 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use anyhow::{Context as _, bail};
 use mimicgen_pipeline::annotate;
 
 /// Arguments of `mimicgen annotate`.
@@ -52,11 +51,13 @@ pub struct AnnotateArgs {
 fn parse_ends(specs: &[String]) -> anyhow::Result<BTreeMap<String, Vec<usize>>> {
     let mut out = BTreeMap::new();
     for spec in specs {
-        let (demo, steps) = spec.split_once('=').with_context(|| format!("--ends {spec:?}: expected DEMO=S1,S2,..."))?;
+        let Some((demo, steps)) = spec.split_once('=') else {
+            crate::exit::usage!("--ends {spec:?}: expected DEMO=S1,S2,...");
+        };
         let steps: Vec<usize> = steps
             .split(',')
-            .map(|s| s.trim().parse::<usize>().with_context(|| format!("--ends {spec:?}: {s:?} is not a step")))
-            .collect::<anyhow::Result<_>>()?;
+            .map(|s| s.trim().parse::<usize>().map_err(|_| crate::exit::Usage(format!("--ends {spec:?}: {s:?} is not a step"))))
+            .collect::<Result<_, _>>()?;
         // MimicGen marks the last step of a subtask; the engine's ends are exclusive.
         out.insert(demo.trim().to_owned(), steps.into_iter().map(|s| s + 1).collect());
     }
@@ -69,15 +70,10 @@ fn parse_ends(specs: &[String]) -> anyhow::Result<BTreeMap<String, Vec<usize>>> 
 /// Unreadable input, bad --ends, or a failure to write.
 pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
     if !args.auto && args.ends.is_empty() {
-        bail!("nothing to do: pass --auto, or --ends DEMO=S1,S2,... (see --help)");
+        crate::exit::usage!("nothing to do: pass --auto, or --ends DEMO=S1,S2,... (see --help)");
     }
     if let Some(out) = &args.out {
-        if out.exists() && !args.overwrite {
-            bail!("{}: exists; pass --overwrite or choose another --out", out.display());
-        }
-        if out.canonicalize().ok() == args.file.canonicalize().ok() && out.exists() {
-            bail!("{}: --out is the input file; write a new file", out.display());
-        }
+        crate::check_output(out, Some(&args.file), args.overwrite)?;
     }
     let mut ends = parse_ends(&args.ends)?;
     let found = annotate::propose(&args.file, args.task.as_deref(), args.config.as_deref())?;

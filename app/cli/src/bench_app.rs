@@ -130,7 +130,7 @@ fn run_in_app(frames: &mut Frames, args: &BenchAppArgs, file: &std::path::Path) 
     };
     let before = alone("cli_run_before.hdf5")?;
     frames.app.command(Command::Show(Screen::Generate));
-    frames.app.command(Command::SetRunForm(form.clone()));
+    frames.app.command(Command::SetRunForm(Box::new(form.clone())));
     frames.app.command(Command::StartRun);
     let mut during = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(3600);

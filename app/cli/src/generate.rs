@@ -35,7 +35,8 @@ observations); with --keep-failed, failed ones go to <out>_failed.hdf5. A JSON r
 source demo, failures by subtask and reason) is printed and written next to the dataset as
 <out>.json. An existing output is never replaced without --overwrite. While running, the dataset
 is <out>.partial; after a crash or kill, the same command with --resume continues it, and the
-finished dataset equals an uninterrupted run's.")]
+finished dataset equals an uninterrupted run's. On a terminal, progress is a bar; in a log (a
+batch job, stderr redirected) it is a `progress N/TOTAL: ...` line per percent of the run.")]
 pub struct GenerateArgs {
     /// Task to generate (see `mimicgen tasks`). Default: what the inputs name, else stack.
     #[arg(long)]
@@ -44,10 +45,10 @@ pub struct GenerateArgs {
     /// name, else D0.
     #[arg(long)]
     variant: Option<String>,
-    /// The arm to generate with (see `mimicgen tasks`): panda, sawyer or iiwa. Default: the source
-    /// demos' arm. Another arm than theirs runs in the task's scene composed with it, from the
-    /// same end-effector poses (the paper's robot transfer); `env_args` names it for robosuite.
-    #[arg(long)]
+    /// The arm to generate with (see `mimicgen tasks`). Default: the source demos' arm. Another
+    /// arm than theirs runs in the task's scene composed with it, from the same end-effector
+    /// poses (the paper's robot transfer); `env_args` names it for robosuite.
+    #[arg(long, ignore_case = true, value_parser = robot_names())]
     robot: Option<String>,
     /// Attempts to make (successes to reach with --guarantee). Default: the spec's num_trials.
     #[arg(long)]
@@ -216,6 +217,11 @@ impl SpecArgs {
     }
 }
 
+/// `--robot`'s values: every arm the simulator has (so `--help` lists them all).
+fn robot_names() -> clap::builder::PossibleValuesParser {
+    clap::builder::PossibleValuesParser::new(mimicgen_sim::robot::ROBOTS.iter().map(|r| r.name))
+}
+
 fn default_workers() -> usize {
     std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
 }
@@ -266,9 +272,13 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
     let cancel = AtomicBool::new(false);
     let mut viz_error: Option<anyhow::Error> = None;
     let mut guarantee = false;
+    let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let (mut target, mut log_every) = (0, 1);
     let report = pipeline.run(&cancel, |event| match event {
         Event::Started(info) => {
             guarantee = info.guarantee;
+            target = info.target;
+            log_every = (info.target / 100).max(1);
             bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
             bar.set_length(info.target as u64);
             eprintln!(
@@ -293,15 +303,21 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
                 cancel.store(true, Ordering::Relaxed);
             }
             let stats = &a.stats;
-            bar.set_position(if guarantee { stats.successes } else { stats.attempts } as u64);
+            let done = if guarantee { stats.successes } else { stats.attempts };
+            bar.set_position(done as u64);
             #[allow(clippy::cast_precision_loss)]
-            bar.set_message(format!(
+            let message = format!(
                 "{} ok / {} tried, rate {:.1}%, {:.2} demos/s",
                 stats.successes,
                 stats.attempts,
                 100.0 * stats.rate(),
                 stats.successes as f64 / a.elapsed_s.max(1e-9)
-            ));
+            );
+            // In a log (a batch job, a pipe) a bar draws nothing: a line per percent of the run.
+            if !terminal && (stats.attempts % log_every == 0 || done >= target) {
+                eprintln!("progress {done}/{target}: {message}");
+            }
+            bar.set_message(message);
         }
         Event::Finished(_) => bar.finish_and_clear(),
     })?;
@@ -366,13 +382,16 @@ pub struct DemosArgs {
 /// Unknown task, simulator failure, or a failure to write.
 pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     crate::check_output(&args.out, None, args.overwrite)?;
-    let task = registry::task(&args.task, &args.variant).map_err(anyhow::Error::msg)?;
+    let task = match registry::task(&args.task, &args.variant) {
+        Ok(task) => task,
+        Err(e) => crate::exit::usage!("{e}"),
+    };
     let mut scripts = task.scripts();
     for script in &mut scripts {
         script.wait_for_arm = !args.hasty;
     }
     if scripts.is_empty() {
-        bail!(
+        crate::exit::usage!(
             "no scripted demonstrator for {} (its bundled source demos are recorded ones: `mimicgen generate --task {}` uses them; `mimicgen prepare` turns your own recordings into source demos)",
             task.name(),
             task.name()
@@ -443,4 +462,85 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     let path = writer.finish()?;
     eprintln!("wrote {} demos ({} tries) to {}", args.num_demos, tries, path.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::{CommandFactory as _, Parser as _};
+    use mimicgen_pipeline::CameraConfig;
+
+    use super::*;
+
+    #[derive(clap::Parser)]
+    struct Generate {
+        #[command(flatten)]
+        args: GenerateArgs,
+    }
+
+    #[derive(clap::Parser)]
+    struct Rerun {
+        #[command(flatten)]
+        args: crate::view::RerunArgs,
+    }
+
+    /// A run with every field away from its default.
+    fn every_field() -> RunConfig {
+        RunConfig {
+            task: Some("square".into()),
+            variant: Some("D1".into()),
+            config: Some("my spec.toml".into()),
+            source: Some("sources.hdf5".into()),
+            out: "runs/out.hdf5".into(),
+            workers: 3,
+            num_demos: Some(7),
+            seed: Some(9),
+            keep_failed: true,
+            guarantee: true,
+            max_attempts: Some(70),
+            valid_fraction: Some(0.25),
+            early_abort: true,
+            overwrite: true,
+            resume: false,
+            spec: SpecOverrides {
+                action_noise: vec![Scoped::all(0.02)],
+                nn_k: vec![Scoped { subtask: Some(1), value: 4 }],
+                ..SpecOverrides::default()
+            },
+            shard: Some(mimicgen_engine::Shard { part: 1, count: 4 }),
+            cameras: Some(CameraConfig { names: vec!["agentview".into()], height: 120, width: 160, depth: true, fast: true }),
+            robot: Some("ur5e".into()),
+        }
+    }
+
+    #[test]
+    fn the_cli_and_the_run_description_have_the_same_fields() {
+        // Written as flags and parsed back, a run is the same run (`--resume` conflicts with
+        // `--overwrite`, so it is checked on its own).
+        for config in [every_field(), RunConfig { resume: true, overwrite: false, ..every_field() }] {
+            let args = config.to_args();
+            let parsed = Generate::try_parse_from(std::iter::once("generate".to_owned()).chain(args.clone()))
+                .unwrap_or_else(|e| panic!("{args:?}: {e}"));
+            assert_eq!(parsed.args.run_config(), config, "{args:?}");
+        }
+        // Every flag of `generate` but Rerun's is a field of the run description.
+        let rerun: Vec<String> = Rerun::command().get_arguments().filter_map(|a| a.get_long().map(str::to_owned)).collect();
+        let written = [every_field().to_args(), RunConfig { resume: true, ..RunConfig::default() }.to_args()].concat();
+        for arg in Generate::command().get_arguments() {
+            let Some(long) = arg.get_long() else { continue };
+            if rerun.iter().any(|r| r == long) {
+                continue;
+            }
+            let flag = format!("--{long}");
+            let covered = written.contains(&flag) || SpecOverrides::FIELDS.iter().any(|f| f.replace('_', "-") == long);
+            assert!(covered, "{flag} is not a field of RunConfig (or RunConfig::to_args does not write it)");
+        }
+    }
+
+    #[test]
+    fn robot_help_lists_every_arm() {
+        let help = Generate::command().render_long_help().to_string();
+        for robot in mimicgen_sim::robot::ROBOTS {
+            assert!(help.contains(robot.name), "--robot's help lacks {}", robot.name);
+        }
+    }
 }

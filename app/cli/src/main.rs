@@ -14,6 +14,7 @@ mod bench_app;
 mod bench_io;
 mod bench_sim;
 mod coverage;
+mod exit;
 mod generate;
 mod prepare;
 mod serve;
@@ -24,7 +25,7 @@ mod view;
 /// MimicGen splits each source demo into object-centric subtask segments, re-targets them to new
 /// scenes, executes them with noise and keeps only the attempts that succeed.
 #[derive(Parser)]
-#[command(name = "mimicgen", version, propagate_version = true, after_help = EXAMPLES)]
+#[command(name = "mimicgen", version, propagate_version = true, after_help = format!("{EXAMPLES}\n\n{}", exit::TABLE))]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -65,6 +66,7 @@ Examples:
   mimicgen app --screen preview --try-it         # open on the preview screen and try attempt 0
   mimicgen app --run 100                         # start a 100-attempt run on the generate screen
   mimicgen app --run 20 --attempt 1              # then attempt 1, beside the nearest success if it failed
+  mimicgen app core/sim/data/square_D0_source.hdf5 --run 3 --robot ur5e --cameras   # another arm, images
   mimicgen app --demo 3 --screenshot annotate.png  # the docs' screenshots (under Xvfb too)")]
     App {
         /// Source demos to open (default: the bundled Stack D0 demos).
@@ -84,6 +86,12 @@ Examples:
         /// Start a run of this many attempts on the generate screen (to out/app_run.hdf5, replaced).
         #[arg(long, value_name = "ATTEMPTS")]
         run: Option<usize>,
+        /// With --run: the arm (see `mimicgen tasks`; default the source demos').
+        #[arg(long, requires = "run")]
+        robot: Option<String>,
+        /// With --run: render robomimic's two cameras (agentview, the wrist) into the dataset.
+        #[arg(long, requires = "run")]
+        cameras: bool,
         /// After --run: select this attempt (the 3D view stays on it) and, if it failed, show it
         /// beside the nearest successful attempt.
         #[arg(long, requires = "run")]
@@ -230,10 +238,10 @@ pub(crate) fn check_output(out: &std::path::Path, input: Option<&std::path::Path
     if let Some(input) = input
         && same(out, input)
     {
-        anyhow::bail!("{}: is the input; choose another output", out.display());
+        exit::usage!("{}: is the input; choose another output", out.display());
     }
     if out.exists() && !overwrite {
-        anyhow::bail!("{}: exists; pass --overwrite to replace it, or choose another output", out.display());
+        exit::usage!("{}: exists; {}", out.display(), mimicgen_pipeline::FrontEnd::Cli.output_exists_advice(false));
     }
     Ok(())
 }
@@ -243,8 +251,8 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            eprintln!("error: {}", exit::message(&e));
+            ExitCode::from(exit::code(&e))
         }
     }
 }
@@ -360,7 +368,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             generate::demos(&args)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::App { file, screen, demo, step, try_it, run, attempt, screenshot } => {
+        Command::App { file, screen, demo, step, try_it, run, robot, cameras, attempt, screenshot } => {
             let file = match file {
                 Some(f) => f,
                 None => mimicgen_pipeline::bundled::source_demos("stack")?,
@@ -370,19 +378,17 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 ScreenArg::Preview => mimicgen_gui::Screen::Preview,
                 ScreenArg::Generate => mimicgen_gui::Screen::Generate,
             };
-            let options = mimicgen_gui::RunOptions { file: Some(file), screen, demo, step, try_it, run, attempt, screenshot };
+            let options =
+                mimicgen_gui::RunOptions { file: Some(file), screen, demo, step, try_it, run, robot, cameras, attempt, screenshot };
             mimicgen_gui::run(options).map_err(|e| {
                 anyhow::anyhow!("cannot open the app's window ({e}); without a display, use the batch commands (`mimicgen generate`, `mimicgen annotate`)")
             })?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Serve(args) => match serve::run(args) {
-            Ok(()) => Ok(ExitCode::SUCCESS),
-            Err(e) => {
-                eprintln!("error: {e}");
-                Ok(ExitCode::from(if e.is_user_error() { 2 } else { 1 }))
-            }
-        },
+        Command::Serve(args) => {
+            serve::run(args)?;
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Annotate(args) => {
             annotate::run(&args)?;
             Ok(ExitCode::SUCCESS)
@@ -412,9 +418,11 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Tasks => {
-            mimicgen_sim::registry::check().map_err(anyhow::Error::msg)?;
             for t in mimicgen_sim::registry::tasks() {
                 println!("{:<21} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
+            }
+            for b in mimicgen_sim::registry::broken() {
+                println!("{:<21} BROKEN: {}", b.name, b.error);
             }
             println!();
             for r in mimicgen_sim::robot::ROBOTS {

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context as _, bail};
+use anyhow::Context as _;
 use mimicgen_engine::spec::SourceSelection;
 use mimicgen_io::RobomimicDataset;
 use mimicgen_sim::{Scene, registry};
@@ -112,16 +112,19 @@ pub struct ViewArgs {
 /// # Errors
 /// Unreadable dataset, unknown task, no viewer, or a failure to log.
 pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
-    let dataset = RobomimicDataset::open(&args.file).with_context(|| format!("opening {}", args.file.display()))?;
-    let sources = dataset.to_source_dataset(&SourceSelection::default()).with_context(|| format!("reading {}", args.file.display()))?;
-    let (task, _) = registry::task_from_env_args(sources.env_args.as_deref()).map_err(anyhow::Error::msg)?;
+    let dataset = RobomimicDataset::open(&args.file)?;
+    let sources = dataset.to_source_dataset(&SourceSelection::default())?;
+    let (task, _) = match registry::task_from_env_args(sources.env_args.as_deref()) {
+        Ok(found) => found,
+        Err(e) => crate::exit::usage!("{}: {e}", args.file.display()),
+    };
     let origin = format!("{} (model_file)", args.file.display());
     let scene = match sources.demos.first().and_then(|d| d.sim.model_xml.as_deref()) {
         Some(xml) => Scene::from_model_file(xml, &origin, task.as_ref())?,
         None => Scene::for_task(task.as_ref())?,
     };
     if let Some(i) = args.demo.filter(|&i| i >= sources.demos.len()) {
-        bail!("--demo {i}: {} has {} demos", args.file.display(), sources.demos.len());
+        crate::exit::usage!("--demo {i}: {} has {} demos", args.file.display(), sources.demos.len());
     }
     let sink = match (&args.out, &args.connect) {
         (Some(path), _) => Sink::Save(path.clone()),

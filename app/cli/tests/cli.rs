@@ -140,7 +140,8 @@ fn a_task_file_of_ones_own_is_listed_recorded_and_generated() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let info = String::from_utf8_lossy(&mimicgen().args(["info"]).arg(&generated).output().unwrap().stdout).into_owned();
     assert!(info.contains("Tower_D1"), "{info}");
-    // A file naming an object it does not have is refused, naming the file and the field.
+    // A file naming an object it does not have is refused where its task is used, naming the
+    // file and the field; every other task still works, and `tasks` marks it.
     std::fs::write(
         dir.join("broken.task.toml"),
         std::fs::read_to_string(dir.join("tower.task.toml"))
@@ -149,9 +150,29 @@ fn a_task_file_of_ones_own_is_listed_recorded_and_generated() {
             .replace("grasped = \"cubeA\"", "grasped = \"cubeZ\""),
     )
     .unwrap();
-    let out = run(&["generate", "--task", "tower", "--num-demos", "1", "--out", dir.join("x.hdf5").to_str().unwrap()]);
+    let out = run(&["generate", "--task", "broken", "--num-demos", "1", "--out", dir.join("x.hdf5").to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("broken.task.toml") && err.contains("cubeZ"), "{err}");
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("broken.task.toml") && err.contains("signals.grasp") && err.contains("cubeZ"), "{err}");
+    let out = run(&[
+        "generate",
+        "--task",
+        "tower",
+        "--source",
+        sources.to_str().unwrap(),
+        "--num-demos",
+        "1",
+        "--out",
+        dir.join("y.hdf5").to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let listed = String::from_utf8_lossy(&run(&["tasks"]).stdout).into_owned();
+    assert!(
+        listed.contains("tower")
+            && listed.contains("stack ")
+            && listed.lines().any(|l| l.starts_with("broken") && l.contains("BROKEN") && l.contains("cubeZ")),
+        "{listed}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -200,12 +221,18 @@ fn commands_refuse_to_replace_an_existing_output() {
     let refused = |args: &[&str], names: &str| {
         let run = mimicgen().args(args).output().unwrap();
         let err = String::from_utf8_lossy(&run.stderr);
-        assert!(!run.status.success(), "{args:?} replaced it");
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains(names), "{args:?}: {err}");
     };
-    refused(&["demos", "--task", "stack", "--num-demos", "1", "--out", out], "--overwrite");
-    refused(&["prepare", input.to_str().unwrap(), "--out", out], "--overwrite");
-    refused(&["export", input.to_str().unwrap(), "--mcap", out], "--overwrite");
+    let source = repo_path("core/io/tests/data/source_D0_prepared.hdf5");
+    let source = source.to_str().unwrap();
+    let advice = "exists; pass --overwrite to replace it, or choose another output";
+    refused(&["demos", "--task", "stack", "--num-demos", "1", "--out", out], advice);
+    refused(&["prepare", input.to_str().unwrap(), "--out", out], advice);
+    refused(&["export", input.to_str().unwrap(), "--mcap", out], advice);
+    refused(&["generate", "--source", source, "--num-demos", "1", "--out", out], advice);
+    refused(&["render", source, "--out", out], advice);
+    refused(&["annotate", source, "--auto", "--out", out], advice);
     assert_eq!(std::fs::read(&existing).unwrap(), bytes);
     // Onto the input itself: refused even when asked to replace.
     refused(&["prepare", input.to_str().unwrap(), "--out", input.to_str().unwrap(), "--overwrite"], "is the input");
@@ -215,4 +242,35 @@ fn commands_refuse_to_replace_an_existing_output() {
     let run = mimicgen().args(["export", input.to_str().unwrap(), "--mcap", out, "--overwrite"]).output().unwrap();
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     assert_ne!(std::fs::read(&existing).unwrap(), bytes);
+}
+
+#[test]
+fn exit_status_tells_a_users_mistake_from_a_failure() {
+    let dir = tempfile::tempdir().unwrap();
+    let said = |args: &[&str]| {
+        let run = mimicgen().args(args).output().unwrap();
+        (run.status.code(), String::from_utf8_lossy(&run.stderr).into_owned())
+    };
+    // A missing input is named in a user's words, not HDF5's.
+    let nope = dir.path().join("nope.hdf5");
+    let (code, err) = said(&["info", nope.to_str().unwrap()]);
+    assert_eq!((code, err.trim()), (Some(2), format!("error: {}: no such file", nope.display()).as_str()));
+    let (code, err) = said(&["info", dir.path().to_str().unwrap()]);
+    assert!(code == Some(2) && err.contains("is a directory"), "{err}");
+    let text = dir.path().join("notes.hdf5");
+    std::fs::write(&text, "hello").unwrap();
+    let (code, err) = said(&["info", text.to_str().unwrap()]);
+    assert!(code == Some(2) && err.contains("notes.hdf5: not an HDF5 file"), "{err}");
+    // An unknown task, a bad argument value.
+    let (code, err) = said(&["demos", "--task", "nope", "--out", dir.path().join("d.hdf5").to_str().unwrap()]);
+    assert!(code == Some(2) && err.contains("nope"), "{err}");
+    let (code, _) = said(&["generate", "--num-demos", "many"]);
+    assert_eq!(code, Some(2));
+    // The machine failing (a full disk: /dev/full refuses every write) is 1: worth a retry.
+    let input = repo_path("core/io/tests/data/robosuite_lift_demo.hdf5");
+    let (code, err) = said(&["export", input.to_str().unwrap(), "--mcap", "/dev/full", "--overwrite"]);
+    assert!(code == Some(1) && err.contains("/dev/full"), "{err}");
+    // The table is in --help.
+    let help = mimicgen().arg("--help").output().unwrap();
+    assert!(String::from_utf8_lossy(&help.stdout).contains("130  interrupted"));
 }

@@ -4,7 +4,6 @@
 
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use mimicgen_io::RobomimicDataset;
 
@@ -19,8 +18,9 @@ fn generate(out: &Path, extra: &[&str]) -> Command {
     c
 }
 
-/// A fixed pseudo-random sequence of kill delays (splitmix64), so the test is repeatable.
-fn delays_ms(count: usize, seed: u64) -> Vec<u64> {
+/// A fixed pseudo-random sequence of how many attempts each session makes before it is killed
+/// (1 to 4; splitmix64), so the test is repeatable.
+fn attempts_before_kill(count: usize, seed: u64) -> Vec<usize> {
     let mut state = seed;
     (0..count)
         .map(|_| {
@@ -28,9 +28,30 @@ fn delays_ms(count: usize, seed: u64) -> Vec<u64> {
             let mut z = state;
             z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
             z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            150 + (z ^ (z >> 31)) % 500
+            1 + usize::try_from((z ^ (z >> 31)) % 4).unwrap()
         })
         .collect()
+}
+
+/// Reads the child's progress lines (`progress N/TOTAL: ...`, what `generate` logs when stderr is
+/// not a terminal) until `n` attempts beyond the first one it reported have been decided: waits
+/// on the run's own events, not on time. False if the child ended first.
+fn wait_for_attempts(stderr: &mut impl std::io::BufRead, n: usize) -> bool {
+    let mut first: Option<usize> = None;
+    let mut line = String::new();
+    loop {
+        line.clear();
+        if stderr.read_line(&mut line).unwrap_or(0) == 0 {
+            return false;
+        }
+        let Some(done) = line.strip_prefix("progress ").and_then(|l| l.split('/').next()).and_then(|d| d.parse::<usize>().ok()) else {
+            continue;
+        };
+        let first = *first.get_or_insert(done);
+        if done >= first + n {
+            return true;
+        }
+    }
 }
 
 #[test]
@@ -44,32 +65,25 @@ fn a_run_killed_five_times_and_resumed_equals_an_uninterrupted_run() {
     let partial = mimicgen_io::DatasetWriter::partial_path(&pieces);
     let mut kills = 0;
     let mut started_fresh = false;
-    // Each session gets its start-up (reading inputs, compiling the scene: ~0.4 s in a test build)
-    // plus a few attempts' time before it is killed.
-    for delay in delays_ms(20, 7) {
+    // Each session is killed (SIGKILL: no chance to clean up) once it has logged a few attempts
+    // beyond its first, so every session leaves a partial file with attempts in it.
+    for attempts in attempts_before_kill(30, 7) {
         if pieces.exists() {
             break;
         }
         let resume: &[&str] = if started_fresh && partial.exists() { &["--resume"] } else { &[] };
         let mut child = generate(&pieces, resume).spawn().unwrap();
         started_fresh = true;
-        // The kill lands `delay` after the session has started writing (start-up takes longer on
-        // a loaded machine), so every session leaves a partial file with its attempts in it.
-        let started = Instant::now();
-        while !partial.exists() && started.elapsed() < Duration::from_secs(60) && child.try_wait().unwrap().is_none() {
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        let deadline = Instant::now() + Duration::from_millis(delay);
-        while Instant::now() < deadline && child.try_wait().unwrap().is_none() {
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        if child.try_wait().unwrap().is_none() {
-            child.kill().unwrap(); // SIGKILL: no chance to clean up
+        let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+        if wait_for_attempts(&mut stderr, attempts) && child.try_wait().unwrap().is_none() {
+            child.kill().unwrap();
             child.wait().unwrap();
             kills += 1;
         } else {
-            let status = child.wait_with_output().unwrap();
-            assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+            let status = child.wait().unwrap();
+            let mut rest = String::new();
+            std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
+            assert!(status.success(), "{rest}");
         }
     }
     if !pieces.exists() {
@@ -92,11 +106,8 @@ fn resuming_with_other_arguments_is_refused() {
     let out = dir.path().join("r.hdf5");
     let mut child = generate(&out, &[]).spawn().unwrap();
     let partial = mimicgen_io::DatasetWriter::partial_path(&out);
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while !partial.exists() && Instant::now() < deadline {
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    std::thread::sleep(Duration::from_millis(300));
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    assert!(wait_for_attempts(&mut stderr, 2), "the run ended before it was killed");
     child.kill().unwrap();
     child.wait().unwrap();
     assert!(partial.exists());
@@ -108,8 +119,10 @@ fn resuming_with_other_arguments_is_refused() {
         .unwrap();
     assert!(!other.status.success());
     let err = String::from_utf8_lossy(&other.stderr);
-    assert!(err.contains("spec") && err.contains("--overwrite"), "{err}");
+    assert!(err.contains("spec") && err.contains("start over"), "{err}");
     // Without --resume or --overwrite the interrupted run is not clobbered either.
     let fresh = generate(&out, &[]).output().unwrap();
-    assert!(!fresh.status.success() && String::from_utf8_lossy(&fresh.stderr).contains("--resume"));
+    let said = String::from_utf8_lossy(&fresh.stderr);
+    assert_eq!(fresh.status.code(), Some(2), "{said}");
+    assert!(said.contains("pass --resume to continue that run, or pass --overwrite to start over"), "{said}");
 }

@@ -39,6 +39,10 @@ pub struct RunOptions {
     /// Start a run of this many attempts (to `out/app_run.hdf5`, replacing it) on the generate
     /// screen.
     pub run: Option<usize>,
+    /// The run's arm (`ur5e`; the source demos' when `None`).
+    pub robot: Option<String>,
+    /// Render robomimic's two cameras into the run's dataset.
+    pub cameras: bool,
     /// Once the run has ended, select this attempt (the 3D view stays on it) and, for a failed
     /// one, show it beside the nearest success.
     pub attempt: Option<u64>,
@@ -72,7 +76,13 @@ impl Window {
         }
         if let Some(attempts) = options.run {
             steps.push(Command::Show(Screen::Generate));
-            steps.push(Command::SetRunForm(model::RunForm { attempts, overwrite: true, ..model::RunForm::default() }));
+            steps.push(Command::SetRunForm(Box::new(model::RunForm {
+                attempts,
+                overwrite: true,
+                robot: options.robot.clone(),
+                cameras: options.cameras.then(model::CameraConfig::default),
+                ..model::RunForm::default()
+            })));
             steps.push(Command::StartRun);
         }
         if let Some(k) = options.attempt {

@@ -1,9 +1,9 @@
 //! `mimicgen_rs._native`: the Rust side of the Python package. Thin: each function calls the
 //! pipeline crate (the one behind the CLI and the app) and converts at the edge: arrays become
 //! numpy arrays (moved, not copied), specs, reports and events cross as JSON the Python side
-//! turns into dicts, and every error is a `MimicgenError` with the CLI's message. Long calls
-//! release the GIL; the Python layer (`python/mimicgen_rs`) adds keyword arguments, docstrings
-//! and the Ray helpers.
+//! turns into dicts, and every error is a `MimicgenError` whose message names file and field
+//! and, where the caller has a choice, the keyword to pass. Long calls release the GIL; the
+//! Python layer (`python/mimicgen_rs`) adds keyword arguments, docstrings and the Ray helpers.
 // PyO3 hands functions their arguments by value (extracted from Python objects).
 #![allow(clippy::needless_pass_by_value)]
 
@@ -17,7 +17,7 @@ use std::time::Duration;
 use mimicgen_engine::TaskSpec;
 use mimicgen_io::tree::{Array, Group, Node, Values};
 use mimicgen_io::{DemoReader, DemoSource as _, ReadOptions};
-use mimicgen_pipeline::{Event, Outcome, Pipeline, Report, RunConfig};
+use mimicgen_pipeline::{Event, FrontEnd, Outcome, Pipeline, PipelineError, Report, RunConfig};
 use numpy::{PyArray1, PyArrayMethods as _};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
@@ -27,9 +27,20 @@ mod pyenv;
 
 pyo3::create_exception!(_native, MimicgenError, PyException, "An error of mimicgen_rs: the message names the file and field at fault.");
 
-/// Any error, as a `MimicgenError` with its whole message (the CLI's wording).
+/// Any error, as a `MimicgenError` with its whole message.
 fn error(e: impl std::fmt::Display) -> PyErr {
     MimicgenError::new_err(e.to_string())
+}
+
+/// A pipeline error as a `MimicgenError`, worded for Python: a run's fields by their keywords,
+/// and what to pass where the caller has a choice (`pass overwrite=True`).
+fn pipeline_error(e: PipelineError) -> PyErr {
+    MimicgenError::new_err(worded(&e))
+}
+
+/// `e`'s message as Python words it.
+pub(crate) fn worded(e: &PipelineError) -> String {
+    e.worded(FrontEnd::Python)
 }
 
 /// `text` (JSON) as Python objects.
@@ -188,7 +199,7 @@ impl Spec {
     /// The spec bundled for a task (`stack`, `stack_three`, `square`).
     #[staticmethod]
     fn bundled(task: &str) -> PyResult<Self> {
-        mimicgen_pipeline::bundled::spec(task).map(|inner| Self { inner }).map_err(error)
+        mimicgen_pipeline::bundled::spec(task).map(|inner| Self { inner }).map_err(pipeline_error)
     }
 
     /// A spec from the dict `to_dict` gives (checked as a TOML file would be).
@@ -224,7 +235,7 @@ impl Spec {
 #[pyfunction]
 #[pyo3(signature = (path, task = None, config = None))]
 fn propose_subtask_ends(py: Python<'_>, path: PathBuf, task: Option<String>, config: Option<PathBuf>) -> PyResult<String> {
-    let found = py.detach(|| mimicgen_pipeline::annotate::propose(&path, task.as_deref(), config.as_deref())).map_err(error)?;
+    let found = py.detach(|| mimicgen_pipeline::annotate::propose(&path, task.as_deref(), config.as_deref())).map_err(pipeline_error)?;
     let ends: BTreeMap<&str, serde_json::Value> = found
         .demos
         .iter()
@@ -254,7 +265,7 @@ fn write_subtask_ends(
         let found = mimicgen_pipeline::annotate::propose(&source, task.as_deref(), config.as_deref())?;
         mimicgen_pipeline::annotate::write_annotations(&source, &out, &found.spec, &ends)
     })
-    .map_err(error)
+    .map_err(pipeline_error)
 }
 
 /// The paper's support coverage of a dataset's initial scenes (what `mimicgen coverage --json`
@@ -262,19 +273,20 @@ fn write_subtask_ends(
 #[pyfunction]
 #[pyo3(signature = (path, task = None, variant = None, bins = 3))]
 fn coverage(py: Python<'_>, path: PathBuf, task: Option<String>, variant: Option<String>, bins: usize) -> PyResult<String> {
-    let found =
-        py.detach(|| mimicgen_pipeline::coverage::dataset_coverage(&path, task.as_deref(), variant.as_deref(), bins)).map_err(error)?;
+    let found = py
+        .detach(|| mimicgen_pipeline::coverage::dataset_coverage(&path, task.as_deref(), variant.as_deref(), bins))
+        .map_err(pipeline_error)?;
     let mut value = serde_json::to_value(&found).map_err(error)?;
     value["support_coverage"] = serde_json::json!(found.coverage.support_coverage());
     json_of(&value)
 }
 
-/// Every task (its name, robosuite environment, variants, description, instruction and objects)
-/// and every arm, as JSON.
+/// Every task (its name, robosuite environment, variants, description, instruction and objects),
+/// the task files that cannot be used (with their errors) and every arm, as JSON.
 #[pyfunction]
 fn tasks() -> PyResult<String> {
-    // A task file that does not parse (the user's, under MIMICGEN_TASK_DIR) is an error here.
-    mimicgen_sim::registry::check().map_err(error)?;
+    let broken: Vec<serde_json::Value> =
+        mimicgen_sim::registry::broken().iter().map(|b| serde_json::json!({"name": b.name, "error": b.error})).collect();
     let tasks: Vec<serde_json::Value> = mimicgen_sim::registry::tasks()
         .map(|t| {
             serde_json::json!({
@@ -292,14 +304,14 @@ fn tasks() -> PyResult<String> {
         .iter()
         .map(|r| serde_json::json!({"name": r.name, "robosuite_name": r.robosuite_name, "status": r.status}))
         .collect();
-    json_of(&serde_json::json!({"tasks": tasks, "robots": robots}))
+    json_of(&serde_json::json!({"tasks": tasks, "broken": broken, "robots": robots}))
 }
 
 /// Joins the shards of a run into the whole run's dataset; returns the report.
 #[pyfunction]
 #[pyo3(signature = (shards, out, overwrite = false))]
 fn merge(py: Python<'_>, shards: Vec<PathBuf>, out: PathBuf, overwrite: bool) -> PyResult<String> {
-    let report = py.detach(|| mimicgen_pipeline::merge::merge(&shards, &out, overwrite, |_, _| {})).map_err(error)?;
+    let report = py.detach(|| mimicgen_pipeline::merge::merge(&shards, &out, overwrite, |_, _| {})).map_err(pipeline_error)?;
     json_of(&report)
 }
 
@@ -317,7 +329,7 @@ fn export_lerobot(
     overwrite: bool,
 ) -> PyResult<String> {
     let request = mimicgen_pipeline::lerobot::ExportRequest { state_keys, instruction, ffmpeg, overwrite };
-    let summary = py.detach(|| mimicgen_pipeline::lerobot::export(&path, &out, &request, |_, _| {})).map_err(error)?;
+    let summary = py.detach(|| mimicgen_pipeline::lerobot::export(&path, &out, &request, |_, _| {})).map_err(pipeline_error)?;
     json_of(&summary)
 }
 
@@ -376,7 +388,7 @@ impl Run {
                     }
                 };
                 let result = match env {
-                    None => Pipeline::prepare(&config).and_then(|p| p.run(&flag, on_event)).map_err(|e| e.to_string()),
+                    None => Pipeline::prepare(&config).and_then(|p| p.run(&flag, on_event)).map_err(|e| worded(&e)),
                     Some(factory) => pyenv::run(&config, &factory, &flag, on_event),
                 };
                 let _ = tx.send(Message::Done(Box::new(result)));
@@ -482,7 +494,19 @@ impl Run {
 #[pyfunction]
 #[pyo3(signature = (config_json, env_factory = None))]
 fn generate(config_json: &str, env_factory: Option<Py<PyAny>>) -> PyResult<Run> {
-    let config: RunConfig = serde_json::from_str(config_json).map_err(|e| error(format!("run config: {e}")))?;
+    // The Python layer fills in every field of the run description, neither more nor fewer: a
+    // field the pipeline gains fails here (and in the tests) until `generate` takes it.
+    let value: serde_json::Value = serde_json::from_str(config_json).map_err(|e| error(format!("run config: {e}")))?;
+    let fields = serde_json::to_value(RunConfig::default()).map_err(error)?;
+    let keys = |v: &serde_json::Value| {
+        let mut keys = v.as_object().map(|o| o.keys().cloned().collect::<Vec<_>>()).unwrap_or_default();
+        keys.sort();
+        keys
+    };
+    if keys(&value) != keys(&fields) {
+        return Err(error(format!("run config: fields {:?}, the pipeline's are {:?}", keys(&value), keys(&fields))));
+    }
+    let config: RunConfig = serde_json::from_value(value).map_err(|e| error(format!("run config: {e}")))?;
     Run::start(config, env_factory.map(pyenv::Factory))
 }
 

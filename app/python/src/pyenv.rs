@@ -186,10 +186,10 @@ fn observations(env: &mut PyEnv, attempt: &Attempt) -> Result<Observed, EngineEr
 
 /// Runs `config` through the pipeline on environments made by `factory` (one per worker).
 pub fn run(config: &RunConfig, factory: &Factory, cancel: &AtomicBool, on_event: impl FnMut(&Event)) -> Result<Report, String> {
-    let pipeline = Pipeline::prepare(config).map_err(|e| e.to_string())?;
+    let pipeline = Pipeline::prepare(config).map_err(|e| crate::worded(&e))?;
     let mut envs = (0..config.workers.max(1))
         .map(|_| Python::attach(|py| factory.0.call0(py)).and_then(PyEnv::new))
         .collect::<PyResult<Vec<_>>>()
         .map_err(|e| format!("making the Python environment: {e}"))?;
-    pipeline.run_on(&mut envs, observations, cancel, on_event).map_err(|e| e.to_string())
+    pipeline.run_on(&mut envs, observations, cancel, on_event).map_err(|e| crate::worded(&e))
 }

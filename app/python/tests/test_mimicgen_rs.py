@@ -68,12 +68,29 @@ def test_the_same_seed_gives_the_same_dataset(small_run, tmp_path):
 def test_errors_are_mimicgen_errors_naming_the_file_and_field(tmp_path):
     with pytest.raises(mg.MimicgenError, match="missing.hdf5"):
         mg.Dataset(tmp_path / "missing.hdf5")
-    with pytest.raises(mg.MimicgenError, match="--source.*no such file|no such file.*--source|missing_source"):
+    with pytest.raises(mg.MimicgenError, match="missing_source.hdf5: no such file"):
         mg.generate(tmp_path / "o.hdf5", source=tmp_path / "missing_source.hdf5").wait()
-    with pytest.raises(mg.MimicgenError, match="--action-noise"):
+    # A run's fields are named as Python names them, never by the CLI's flags.
+    with pytest.raises(mg.MimicgenError, match=r'spec\["action_noise"\]: names subtask 7') as err:
         mg.generate(tmp_path / "o.hdf5", num_demos=1, spec={"action_noise": {7: 0.1}}).wait()
+    assert "--" not in str(err.value)
     with pytest.raises(mg.MimicgenError, match="unknown field"):
         mg.generate(tmp_path / "o.hdf5", spec={"noise": 0.1})
+
+
+def test_an_existing_output_is_refused_in_pythons_words_and_keeps_its_bytes(small_run, tmp_path):
+    out, _, _ = small_run
+    before = out.read_bytes()
+    with pytest.raises(mg.MimicgenError, match="exists; pass overwrite=True to replace it") as err:
+        mg.generate(out, num_demos=1).wait()
+    assert "--overwrite" not in str(err.value)
+    assert out.read_bytes() == before
+    lerobot = tmp_path / "lerobot"
+    lerobot.mkdir()
+    (lerobot / "mine.txt").write_text("mine")
+    with pytest.raises(mg.MimicgenError, match="lerobot: exists; pass overwrite=True"):
+        mg.export_lerobot(out, lerobot)
+    assert (lerobot / "mine.txt").read_text() == "mine"
 
 
 def test_specs_load_edit_and_check(tmp_path):
@@ -128,30 +145,29 @@ def test_shards_merged_equal_the_single_run(small_run, tmp_path):
 def test_ctrl_c_cancels_and_leaves_a_valid_dataset(tmp_path):
     out = tmp_path / "long.hdf5"
     run = mg.generate(out, num_demos=500, seed=2, workers=1)
-    timer = threading.Timer(1.5, lambda: os.kill(os.getpid(), signal.SIGINT))
-    timer.start()
+    # Ctrl-C from another thread once two attempts are in, so that it lands while the main
+    # thread waits in the run's Rust code for the next event.
     seen = 0
     with pytest.raises(KeyboardInterrupt):
         for event in run:
             seen += event["kind"] == "attempt"
-    timer.cancel()
+            if seen == 2:
+                threading.Thread(target=os.kill, args=(os.getpid(), signal.SIGINT)).start()
     report = run.report
-    assert report["cancelled"] and 0 < report["attempts"] < 500
+    assert report["cancelled"] and 2 <= report["attempts"] < 500
     assert len(mg.Dataset(out)) == report["successes"]
 
 
 def test_ctrl_c_in_the_loop_body_cancels_the_run_too(tmp_path):
-    import time
-
     out = tmp_path / "body.hdf5"
     run = mg.generate(out, num_demos=500, seed=2, workers=1)
-    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
-    timer.start()
+    seen = 0
     with pytest.raises(KeyboardInterrupt):
-        for _ in run:
-            time.sleep(0.05)  # the signal lands here, in Python, not in the run's Rust code
-    timer.cancel()
-    assert run.report["cancelled"] and run.report["attempts"] < 500
+        for event in run:
+            seen += event["kind"] == "attempt"
+            if seen == 2:
+                os.kill(os.getpid(), signal.SIGINT)  # lands here, in Python, not in the run's Rust code
+    assert run.report["cancelled"] and 2 <= run.report["attempts"] < 500
     assert len(mg.Dataset(out)) == run.report["successes"]
 
 

@@ -15,11 +15,14 @@ import mimicgen_rs.ray as mgray
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory):
     crash_dir = tmp_path_factory.mktemp("crash")
-    os.environ[mgray.CRASH_ONCE_ENV] = str(crash_dir)  # inherited by the workers ray.init starts
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    # The workers run this test's hook (crash_once.py, beside this file) before any task: the
+    # product's code has no test switch.
+    tests = str(Path(__file__).resolve().parent)
+    path = os.pathsep.join(p for p in [tests, os.environ.get("PYTHONPATH", "")] if p)
+    runtime_env = {"env_vars": {"CRASH_ONCE_DIR": str(crash_dir), "PYTHONPATH": path}, "worker_process_setup_hook": "crash_once.install"}
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, runtime_env=runtime_env)
     yield crash_dir
     ray.shutdown()
-    del os.environ[mgray.CRASH_ONCE_ENV]
 
 
 def test_ray_shards_give_the_single_process_dataset_even_after_a_retry(cluster, tmp_path):

@@ -258,6 +258,7 @@ impl Server {
             root: Some(root.dir().to_path_buf()),
             file,
             viewer_url: viewer.as_ref().map(|_| viewer::PAGE_PREFIX.to_owned()),
+            robots: mimicgen_backend::robots(),
         };
         let grpc = viewer.as_ref().map(|v| v.grpc_url());
         let session =

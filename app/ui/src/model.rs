@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use mimicgen_engine::RunStats;
 use mimicgen_engine::coverage::Dimension;
+pub use mimicgen_run::CameraConfig;
 use mimicgen_run::{Report, RunConfig, RunInfo, SpecOverrides};
 
 use crate::protocol::{
@@ -47,6 +48,10 @@ pub struct RunForm {
     pub overwrite: bool,
     /// Task variant (`None`: what the source file names).
     pub variant: Option<String>,
+    /// The arm (`None`: the source demos').
+    pub robot: Option<String>,
+    /// Camera observations rendered into the dataset (`None`: none).
+    pub cameras: Option<CameraConfig>,
     /// Spec fields set for this run over the task spec's.
     pub spec: SpecOverrides,
 }
@@ -63,13 +68,16 @@ impl Default for RunForm {
             out: "out/app_run.hdf5".to_owned(),
             overwrite: false,
             variant: None,
+            robot: None,
+            cameras: None,
             spec: SpecOverrides::default(),
         }
     }
 }
 
 impl RunForm {
-    /// The pipeline's config for a run over `source`.
+    /// The pipeline's config for a run over `source`. Every field of [`RunConfig`] is named, so
+    /// a field the pipeline gains does not compile here until the form has it (or says why not).
     #[must_use]
     pub fn config(&self, source: &Path) -> RunConfig {
         RunConfig {
@@ -83,8 +91,17 @@ impl RunForm {
             early_abort: self.early_abort,
             overwrite: self.overwrite,
             variant: self.variant.clone(),
+            robot: self.robot.clone(),
+            cameras: self.cameras.clone(),
             spec: self.spec.clone(),
-            ..RunConfig::default()
+            // The task and its spec are the open file's; the app makes whole runs (no shards,
+            // no attempt cap, no validation split) and starts over rather than resuming.
+            task: None,
+            config: None,
+            max_attempts: None,
+            valid_fraction: None,
+            resume: false,
+            shard: None,
         }
     }
 
@@ -98,31 +115,8 @@ impl RunForm {
                 format!("'{}'", s.replace('\'', "'\\''"))
             }
         };
-        let mut line = format!(
-            "mimicgen generate --source {} --num-demos {} --seed {} --workers {} --out {}",
-            quote(&source.display().to_string()),
-            self.attempts,
-            self.seed,
-            self.workers.max(1),
-            quote(&self.out)
-        );
-        for (on, flag) in [
-            (self.guarantee, "--guarantee"),
-            (self.keep_failed, "--keep-failed"),
-            (self.early_abort, "--early-abort"),
-            (self.overwrite, "--overwrite"),
-        ] {
-            if on {
-                line.push(' ');
-                line.push_str(flag);
-            }
-        }
-        let variant = self.variant.iter().flat_map(|v| ["--variant".to_owned(), v.clone()]);
-        for arg in variant.chain(self.spec.to_args()) {
-            line.push(' ');
-            line.push_str(&quote(&arg));
-        }
-        line
+        let args: Vec<String> = self.config(source).to_args().iter().map(|a| quote(a)).collect();
+        format!("mimicgen generate {}", args.join(" "))
     }
 }
 
@@ -288,7 +282,7 @@ pub enum Command {
     /// Put every moved object back where the scene had it.
     ResetObjects,
     /// Change the run form.
-    SetRunForm(RunForm),
+    SetRunForm(Box<RunForm>),
     /// Start a run as the form says, over the open file.
     StartRun,
     /// Stop the run (after the attempts already decided).
@@ -629,7 +623,7 @@ impl AppModel {
                 }
             }
             Command::TryIt => return self.preview_request(true),
-            Command::SetRunForm(form) => self.run_form = form,
+            Command::SetRunForm(form) => self.run_form = *form,
             Command::StartRun => {
                 let file = self.file.as_ref()?;
                 if self.run.as_ref().is_some_and(RunState::running) {
@@ -948,13 +942,13 @@ mod tests {
     fn previews_use_the_forms_spec_and_reruns_the_runs() {
         let mut m = model(50, vec![10]);
         let noise = |v: f64| SpecOverrides { action_noise: vec![mimicgen_run::Scoped::all(v)], ..SpecOverrides::default() };
-        m.apply(Command::SetRunForm(RunForm { spec: noise(0.01), variant: Some("D1".into()), ..RunForm::default() }));
+        m.apply(Command::SetRunForm(Box::new(RunForm { spec: noise(0.01), variant: Some("D1".into()), ..RunForm::default() })));
         let Some(Request::Preview(p)) = m.apply(Command::Show(Screen::Preview)) else { panic!("no preview asked") };
         assert_eq!((p.spec.clone(), p.variant.as_deref()), (noise(0.01), Some("D1")));
         let Some(Request::Run(config)) = m.apply(Command::StartRun) else { panic!("no run started") };
         assert_eq!(config.spec, noise(0.01));
         // The form changes after the run: a re-run still makes the run's attempt.
-        m.apply(Command::SetRunForm(RunForm { spec: noise(0.2), ..RunForm::default() }));
+        m.apply(Command::SetRunForm(Box::new(RunForm { spec: noise(0.2), ..RunForm::default() })));
         m.apply(Command::SelectAttempt(3));
         assert!(m.stay_on_selected);
         let Some(Request::Preview(p)) = m.apply(Command::ReRun(3)) else { panic!("no re-run asked") };
@@ -996,8 +990,11 @@ mod tests {
         let line = form.command_line(Path::new("/data/src.hdf5"));
         assert_eq!(
             line,
-            "mimicgen generate --source /data/src.hdf5 --num-demos 30 --seed 7 --workers 2 --out 'my runs/out.hdf5' --guarantee --keep-failed"
+            "mimicgen generate --source /data/src.hdf5 --num-demos 30 --seed 7 --workers 2 --out 'my runs/out.hdf5' --keep-failed --guarantee"
         );
+        let arm = RunForm { robot: Some("ur5e".into()), cameras: Some(CameraConfig::default()), ..form.clone() };
+        assert!(arm.command_line(Path::new("s.hdf5")).contains("--robot ur5e --source s.hdf5"));
+        assert_eq!(arm.config(Path::new("s.hdf5")).cameras, Some(CameraConfig::default()));
         let config = form.config(Path::new("/data/src.hdf5"));
         assert_eq!(
             (config.num_demos, config.seed, config.workers, config.guarantee, config.keep_failed),

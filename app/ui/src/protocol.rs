@@ -487,6 +487,8 @@ pub struct Welcome {
     pub file: Option<PathBuf>,
     /// Where the 3D view is, for a browser: the Rerun web viewer's page, when the server has one.
     pub viewer_url: Option<String>,
+    /// The arms a run can use (`panda`, `sawyer`, ...).
+    pub robots: Vec<String>,
 }
 
 /// A request as a browser sends it: with an id its replies carry back.

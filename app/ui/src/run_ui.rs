@@ -10,10 +10,10 @@ use std::collections::BTreeMap;
 use egui::{Color32, RichText};
 use egui_plot::{Bar, BarChart, Corner, Legend, Line, MarkerShape, Plot, PlotPoints, Points};
 use mimicgen_engine::Pose;
-use mimicgen_engine::coverage::{Coordinate, Dimension, coverage, uniform_support_coverage};
+use mimicgen_engine::coverage::{Coordinate, Coverage, Dimension, coverage, uniform_support_coverage};
 use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
 
-use mimicgen_run::{OffsetRange, Scoped, SpecOverrides};
+use mimicgen_run::{CameraConfig, OffsetRange, Scoped, SpecOverrides};
 
 use crate::model::{AppModel, Command, RunState, SideBySide};
 use crate::protocol::{AttemptRow, OpenedRun};
@@ -34,6 +34,31 @@ pub enum AttemptFilter {
     Successes,
     /// Failures only.
     Failures,
+}
+
+/// The camera rows of the run form: on or off, which cameras, their size and depth.
+fn cameras(ui: &mut egui::Ui, cameras: &mut Option<CameraConfig>) {
+    ui.label("");
+    let mut on = cameras.is_some();
+    if ui.checkbox(&mut on, "render cameras").on_hover_text("--cameras: images into every kept demo (obs/<camera>_image)").changed() {
+        *cameras = on.then(CameraConfig::default);
+    }
+    ui.end_row();
+    let Some(c) = cameras else { return };
+    let label = ui.label("Cameras:");
+    let mut names = c.names.join(",");
+    if ui.add(egui::TextEdit::singleline(&mut names).desired_width(180.0)).labelled_by(label.id).changed() {
+        c.names = names.split(',').map(str::trim).filter(|n| !n.is_empty()).map(str::to_owned).collect();
+    }
+    ui.end_row();
+    ui.label("Image size");
+    ui.horizontal(|ui| {
+        ui.add(egui::DragValue::new(&mut c.height).range(8..=1024)).on_hover_text("--camera-size: height");
+        ui.label("x");
+        ui.add(egui::DragValue::new(&mut c.width).range(8..=1024)).on_hover_text("--camera-size: width");
+        ui.checkbox(&mut c.depth, "depth").on_hover_text("--camera-depth");
+    });
+    ui.end_row();
 }
 
 /// The run form, "Copy as command", Start and Cancel; and opening a finished run's outputs.
@@ -84,13 +109,28 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
                 },
             );
             ui.end_row();
+            let label = ui.label("Robot");
+            let robots = &model.welcome.robots;
+            egui::ComboBox::from_id_salt("robot")
+                .selected_text(f.robot.clone().unwrap_or_else(|| "the sources'".to_owned()))
+                .show_ui(ui, |ui| {
+                    ui.selectable_value(&mut f.robot, None, "the sources'");
+                    for r in robots {
+                        ui.selectable_value(&mut f.robot, Some(r.clone()), r.as_str());
+                    }
+                })
+                .response
+                .labelled_by(label.id)
+                .on_hover_text("--robot: generate with this arm from the same source demos (robot transfer)");
+            ui.end_row();
+            cameras(ui, &mut f.cameras);
         });
         egui::CollapsingHeader::new("Spec fields")
             .default_open(!f.spec.is_empty())
             .show(ui, |ui| spec_fields(ui, &mut f.spec, file.subtask_objects.len()));
     });
     if f != model.run_form {
-        commands.push(Command::SetRunForm(f.clone()));
+        commands.push(Command::SetRunForm(Box::new(f.clone())));
     }
     ui.label(RichText::new(format!("task {} (the source's); source: {}", file.task, file.path.display())).small());
     ui.horizontal(|ui| {
@@ -308,7 +348,7 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
         ))
         .italics());
     }
-    coverage_view(ui, run, model.compare.as_ref());
+    coverage_view(ui, run, model.compare.as_ref(), &mut state.coverage);
     ui.separator();
     attempt_table(ui, model, run, state, commands);
 }
@@ -388,39 +428,83 @@ fn scenes<'a>(rows: impl Iterator<Item = &'a AttemptRow>) -> Vec<BTreeMap<String
 /// spread scenes, and per-coordinate histograms over the reset region, successes and failures
 /// stacked: the numbers `mimicgen coverage` prints, from the same function. With a run to compare
 /// with, its numbers and histograms follow on a second row.
-fn coverage_view(ui: &mut egui::Ui, run: &RunState, compare: Option<&OpenedRun>) {
+fn coverage_view(ui: &mut egui::Ui, run: &RunState, compare: Option<&OpenedRun>, cache: &mut Vec<CoverageFigures>) {
     if run.dimensions.is_empty() || run.rows.is_empty() {
         return;
     }
+    let mut blocks = vec![("this run".to_owned(), run.rows.as_slice(), run.dimensions.as_slice())];
+    if let Some(other) = compare {
+        let name = other.path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        blocks.push((format!("{name} ({} {})", other.info.task, other.info.variant), &other.rows, &other.dimensions));
+    }
+    // The figures are computed when a block's rows change (a run's attempt arrives), not every
+    // frame: with thousands of attempts the binning costs more than drawing.
+    cache.retain(|c| blocks.iter().any(|(title, rows, _)| c.title == *title && c.key == CoverageFigures::key_of(rows)));
+    for (title, rows, dimensions) in &blocks {
+        if !cache.iter().any(|c| c.title == *title) {
+            cache.push(CoverageFigures::compute(title, rows, dimensions));
+        }
+    }
     egui::CollapsingHeader::new("Coverage of the initial scenes").default_open(true).show(ui, |ui| {
-        coverage_block(ui, "this run", &run.rows, &run.dimensions);
-        if let Some(other) = compare {
-            let name = other.path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-            coverage_block(ui, &format!("{name} ({} {})", other.info.task, other.info.variant), &other.rows, &other.dimensions);
+        for (title, rows, _) in &blocks {
+            if let Some(figures) = cache.iter().find(|c| c.title == *title) {
+                coverage_block(ui, figures, rows);
+            }
         }
     });
 }
 
-fn coverage_block(ui: &mut egui::Ui, title: &str, rows: &[AttemptRow], dimensions: &[Dimension]) {
-    let all = scenes(rows.iter());
-    let good = scenes(rows.iter().filter(|r| r.success));
-    let bad = scenes(rows.iter().filter(|r| !r.success));
-    let support = |s: &[BTreeMap<String, Pose>]| coverage(s, dimensions, SUPPORT_BINS).ok();
-    let (Some(c_all), Some(c_good), Some(c_bad)) = (support(&all), support(&good), support(&bad)) else { return };
-    let uniform = uniform_support_coverage(c_all.joint_bins_total, all.len());
-    #[allow(clippy::cast_precision_loss)]
-    let rate = 100.0 * good.len() as f64 / all.len().max(1) as f64;
-    ui.label(format!(
-        "{title}: {} scenes, {} successes ({rate:.1} % of the attempts kept); support coverage ({SUPPORT_BINS} bins per coordinate, {} joint bins): all {:.1} % (uniformly spread scenes: {:.1} %), successes {:.1} %, failures {:.1} %",
-        all.len(),
-        good.len(),
-        c_all.joint_bins_total,
-        100.0 * c_all.support_coverage(),
-        100.0 * uniform,
-        100.0 * c_good.support_coverage(),
-        100.0 * c_bad.support_coverage(),
-    ));
-    let (Ok(h_good), Ok(h_bad)) = (coverage(&good, dimensions, HISTOGRAM_BINS), coverage(&bad, dimensions, HISTOGRAM_BINS)) else { return };
+/// A coverage block's numbers and histograms, kept until its rows change.
+#[derive(Debug, Clone)]
+pub struct CoverageFigures {
+    title: String,
+    /// What the rows were: how many, how many succeeded, the last attempt's index, the first
+    /// scene's first coordinate (another run with as many rows differs there).
+    key: (usize, usize, Option<u64>, Option<u64>),
+    /// The line of support coverages (`None`: too few scenes to bin).
+    summary: Option<String>,
+    /// Per-coordinate histograms of the successes and of the failures.
+    histograms: Option<(Coverage, Coverage)>,
+}
+
+impl CoverageFigures {
+    fn key_of(rows: &[AttemptRow]) -> (usize, usize, Option<u64>, Option<u64>) {
+        let first = rows.first().and_then(|r| r.objects.first()).map(|o| o.position[0].to_bits());
+        (rows.len(), rows.iter().filter(|r| r.success).count(), rows.last().map(|r| r.index), first)
+    }
+
+    fn compute(title: &str, rows: &[AttemptRow], dimensions: &[Dimension]) -> Self {
+        let all = scenes(rows.iter());
+        let good = scenes(rows.iter().filter(|r| r.success));
+        let bad = scenes(rows.iter().filter(|r| !r.success));
+        let support = |s: &[BTreeMap<String, Pose>]| coverage(s, dimensions, SUPPORT_BINS).ok();
+        let summary = match (support(&all), support(&good), support(&bad)) {
+            (Some(c_all), Some(c_good), Some(c_bad)) => {
+                let uniform = uniform_support_coverage(c_all.joint_bins_total, all.len());
+                #[allow(clippy::cast_precision_loss)]
+                let rate = 100.0 * good.len() as f64 / all.len().max(1) as f64;
+                Some(format!(
+                    "{title}: {} scenes, {} successes ({rate:.1} % of the attempts kept); support coverage ({SUPPORT_BINS} bins per coordinate, {} joint bins): all {:.1} % (uniformly spread scenes: {:.1} %), successes {:.1} %, failures {:.1} %",
+                    all.len(),
+                    good.len(),
+                    c_all.joint_bins_total,
+                    100.0 * c_all.support_coverage(),
+                    100.0 * uniform,
+                    100.0 * c_good.support_coverage(),
+                    100.0 * c_bad.support_coverage(),
+                ))
+            }
+            _ => None,
+        };
+        let histograms = coverage(&good, dimensions, HISTOGRAM_BINS).ok().zip(coverage(&bad, dimensions, HISTOGRAM_BINS).ok());
+        Self { title: title.to_owned(), key: Self::key_of(rows), summary, histograms }
+    }
+}
+
+fn coverage_block(ui: &mut egui::Ui, figures: &CoverageFigures, rows: &[AttemptRow]) {
+    let (Some(summary), Some((h_good, h_bad))) = (&figures.summary, &figures.histograms) else { return };
+    let title = figures.title.as_str();
+    ui.label(summary);
     let mut charts = vec![source_demo_chart(title, rows)];
     for (k, dim) in h_good.dimensions.iter().enumerate() {
         #[allow(clippy::cast_precision_loss)]

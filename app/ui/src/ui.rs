@@ -43,6 +43,8 @@ pub struct UiState {
     pub last_tick_s: f64,
     /// The camera images drawn: `(camera, demo, step)` and its texture, one per camera.
     pub camera_textures: Vec<((String, usize, usize), egui::TextureHandle)>,
+    /// The coverage figures drawn, until their attempts change.
+    pub coverage: Vec<crate::run_ui::CoverageFigures>,
 }
 
 impl std::fmt::Debug for UiState {

@@ -8,7 +8,7 @@
 use std::collections::BTreeMap;
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc;
+use std::sync::{Condvar, Mutex, mpsc};
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -737,6 +737,39 @@ pub struct RunControl<'a> {
     pub shard: Shard,
 }
 
+/// How many attempts per worker may be finished and waiting for an earlier one.
+pub const REORDER_WINDOW_PER_WORKER: usize = 4;
+
+/// The oldest attempt index not yet handed on, which workers wait on.
+struct Frontier {
+    oldest: Mutex<usize>,
+    moved: Condvar,
+}
+
+impl Frontier {
+    /// Blocks until `index` is less than `window` past the oldest attempt not handed on; false
+    /// when the run stops meanwhile.
+    fn wait_until_within(&self, index: usize, window: usize, stop: &AtomicBool) -> bool {
+        // A poisoned lock means the receiving side panicked: stop.
+        let Ok(mut oldest) = self.oldest.lock() else { return false };
+        while index >= oldest.saturating_add(window) && !stop.load(Ordering::Relaxed) {
+            oldest = match self.moved.wait(oldest) {
+                Ok(guard) => guard,
+                Err(_) => return false,
+            };
+        }
+        !stop.load(Ordering::Relaxed)
+    }
+
+    /// Records that every attempt before `index` has been handed on, waking the workers.
+    fn advance_to(&self, index: usize) {
+        if let Ok(mut oldest) = self.oldest.lock() {
+            *oldest = index;
+        }
+        self.moved.notify_all();
+    }
+}
+
 /// Runs attempts on every environment in `envs` in parallel (one worker thread each) and passes
 /// them to `on_attempt` in index order, until the spec's stopping rule is met or `on_attempt`
 /// breaks. The attempts seen, and so the dataset, do not depend on `envs.len()`.
@@ -791,16 +824,21 @@ where
     // Workers take this share's indices in order: `first`, `first + count`, ...
     let next = AtomicUsize::new(first);
     let stop = AtomicBool::new(false);
+    // Attempts are handed on in index order, so a finished attempt waits for those before it. A
+    // worker starts no attempt more than `window` shares past the oldest one not yet handed on:
+    // one slow attempt cannot pile up the others' results (each with its images) without bound.
+    let window = REORDER_WINDOW_PER_WORKER * envs.len() * shard.count;
+    let frontier = Frontier { oldest: Mutex::new(first), moved: Condvar::new() };
     type Outcome<P> = Result<(Attempt, P), EngineError>;
     let (sender, receiver) = mpsc::sync_channel::<(usize, Outcome<P>)>(envs.len() * 2);
     std::thread::scope(|scope| {
         for (worker, env) in envs.iter_mut().enumerate() {
             let sender = sender.clone();
-            let (next, stop, finish) = (&next, &stop, &finish);
+            let (next, stop, finish, frontier) = (&next, &stop, &finish, &frontier);
             let spawned = std::thread::Builder::new().name(format!("mimicgen-worker-{worker}")).spawn_scoped(scope, move || {
                 loop {
                     let index = next.fetch_add(shard.count, Ordering::Relaxed);
-                    if index >= cap || stop.load(Ordering::Relaxed) {
+                    if index >= cap || !frontier.wait_until_within(index, window, stop) {
                         break;
                     }
                     let result = generator.attempt(env, index as u64).and_then(|a| finish(env, &a).map(|p| (a, p)));
@@ -811,6 +849,7 @@ where
             });
             if let Err(e) = spawned {
                 stop.store(true, Ordering::Relaxed);
+                frontier.advance_to(usize::MAX);
                 return Err(EngineError::Io { path: "worker thread".to_owned(), reason: e.to_string() });
             }
         }
@@ -837,12 +876,14 @@ where
                 if let ControlFlow::Break(result) = on_attempt(attempt, payload, &stats) {
                     break 'receive result;
                 }
+                frontier.advance_to(expected);
                 if done(&stats) || cancelled() {
                     break 'receive Ok(());
                 }
             }
         };
         stop.store(true, Ordering::Relaxed);
+        frontier.advance_to(usize::MAX);
         // Drain so blocked workers can see `stop` and exit.
         while receiver.recv().is_ok() {}
         outcome

@@ -364,3 +364,81 @@ fn shards_joined_in_index_order_are_the_whole_run() {
     assert!("2/2".parse::<Shard>().is_err() && "1/0".parse::<Shard>().is_err() && "a/2".parse::<Shard>().is_err());
     assert_eq!("1/3".parse::<Shard>().unwrap().first_at_or_after(5), 7);
 }
+
+#[test]
+fn a_slow_attempt_holds_back_the_others_only_a_bounded_window() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    /// Counts attempts started; the first one started waits until the other worker has run as
+    /// far ahead as the pool lets it (a slow attempt), then goes on.
+    struct Tally {
+        started: AtomicUsize,
+        handed_on: AtomicUsize,
+        most_ahead: AtomicUsize,
+    }
+    struct Slow {
+        inner: PickPlace,
+        tally: Arc<Tally>,
+    }
+    let window = mimicgen_engine::generate::REORDER_WINDOW_PER_WORKER * 2;
+    impl Environment for Slow {
+        fn reset(&mut self, rng: &mut dyn rand::RngCore) -> Result<(), mimicgen_engine::EnvError> {
+            let t = &self.tally;
+            let started = t.started.fetch_add(1, Ordering::SeqCst) + 1;
+            let ahead = started - t.handed_on.load(Ordering::SeqCst);
+            t.most_ahead.fetch_max(ahead, Ordering::SeqCst);
+            if started == 1 {
+                let window = mimicgen_engine::generate::REORDER_WINDOW_PER_WORKER * 2;
+                while t.started.load(Ordering::SeqCst) - t.handed_on.load(Ordering::SeqCst) < window {
+                    std::thread::yield_now();
+                }
+            }
+            self.inner.reset(rng)
+        }
+        fn eef_pose(&self) -> mimicgen_engine::Pose {
+            self.inner.eef_pose()
+        }
+        fn object_poses(&self) -> std::collections::BTreeMap<String, mimicgen_engine::Pose> {
+            self.inner.object_poses()
+        }
+        fn subtask_term_signals(&self) -> std::collections::BTreeMap<String, i64> {
+            self.inner.subtask_term_signals()
+        }
+        fn is_success(&self) -> bool {
+            self.inner.is_success()
+        }
+        fn target_pose_to_action(&self, t: &mimicgen_engine::Pose) -> [f64; 6] {
+            self.inner.target_pose_to_action(t)
+        }
+        fn action_to_target_pose(&self, a: &[f64]) -> mimicgen_engine::Pose {
+            self.inner.action_to_target_pose(a)
+        }
+        fn action_dim(&self) -> usize {
+            7
+        }
+        fn step(&mut self, a: &[f64]) -> Result<(), mimicgen_engine::EnvError> {
+            self.inner.step(a)
+        }
+        fn state(&self) -> Vec<f64> {
+            self.inner.state()
+        }
+        fn set_state(&mut self, s: &[f64]) -> Result<(), mimicgen_engine::EnvError> {
+            self.inner.set_state(s)
+        }
+    }
+    let tally = Arc::new(Tally { started: AtomicUsize::new(0), handed_on: AtomicUsize::new(0), most_ahead: AtomicUsize::new(0) });
+    let g = generator(kinematic::pick_place_spec(40, 1));
+    let mut envs: Vec<Slow> = (0..2).map(|_| Slow { inner: PickPlace::new(0.1), tally: Arc::clone(&tally) }).collect();
+    let mut indices = Vec::new();
+    let stats = run(&g, &mut envs, |a, _| {
+        indices.push(a.index);
+        tally.handed_on.fetch_add(1, Ordering::SeqCst);
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    assert_eq!(stats.attempts, 40);
+    assert_eq!(indices, (0..40).collect::<Vec<u64>>());
+    // While the slow attempt held everything back, the other worker got exactly as far as the
+    // window, and no further.
+    assert_eq!(tally.most_ahead.load(Ordering::SeqCst), window);
+}

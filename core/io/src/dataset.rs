@@ -128,7 +128,7 @@ impl RobomimicDataset {
     /// As [`Self::open`].
     pub fn open_with(path: impl AsRef<Path>, options: ReadOptions) -> Result<Self> {
         let file = path.as_ref().display().to_string();
-        let h5 = hdf5::File::open(path.as_ref()).map_err(|e| IoError::hdf5(&file, "/", "", &e))?;
+        let h5 = IoError::open_h5(path.as_ref())?;
         let mut root = tree::read_group(&file, &h5, "/")?;
         let complete_flag = root.attrs.get(COMPLETE_ATTR).and_then(Array::as_i64);
         let Some(Node::Group(data)) = root.members.get_mut("data") else {
@@ -283,7 +283,7 @@ impl RobomimicDataset {
     /// Writes the whole file back out (an exact copy of what was read, plus any edits to `root`).
     ///
     /// # Errors
-    /// [`IoError::Hdf5`] when the file cannot be created or written.
+    /// [`IoError::Write`] when the file cannot be created or written.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
         write_tree(path, &self.root)
     }
@@ -477,7 +477,7 @@ impl DemoReader {
     /// As [`RobomimicDataset::open`].
     pub fn open_with(path: impl AsRef<Path>, options: ReadOptions) -> Result<Self> {
         let file = path.as_ref().display().to_string();
-        let h5 = hdf5::File::open(path.as_ref()).map_err(|e| IoError::hdf5(&file, "/", "", &e))?;
+        let h5 = IoError::open_h5(path.as_ref())?;
         let complete_flag = match h5.attr(COMPLETE_ATTR) {
             Ok(a) => tree::read_array(&file, "/", COMPLETE_ATTR, &a)?.as_i64(),
             Err(_) => None,
@@ -574,7 +574,7 @@ static EMPTY: Group = Group { attrs: BTreeMap::new(), members: BTreeMap::new() }
 /// [`IoError::Hdf5`] when the file cannot be opened.
 pub fn root_string_attrs(path: impl AsRef<Path>, names: &[&str]) -> Result<Vec<Option<String>>> {
     let label = path.as_ref().display().to_string();
-    let h5 = hdf5::File::open(path.as_ref()).map_err(|e| IoError::hdf5(&label, "/", "", &e))?;
+    let h5 = IoError::open_h5(path.as_ref())?;
     Ok(names
         .iter()
         .map(|name| {
@@ -590,9 +590,9 @@ pub fn root_string_attrs(path: impl AsRef<Path>, names: &[&str]) -> Result<Vec<O
 /// [`IoError::Hdf5`] when the file cannot be created or written.
 pub fn write_tree(path: impl AsRef<Path>, root: &Group) -> Result<()> {
     let file = path.as_ref().display().to_string();
-    let h5 = hdf5::File::create(path.as_ref()).map_err(|e| IoError::hdf5(&file, "/", "", &e))?;
+    let h5 = hdf5::File::create(path.as_ref()).map_err(|e| IoError::hdf5_write(&file, "/", "", &e))?;
     tree::write_group(&file, &h5, "/", root)?;
-    h5.close().map_err(|e| IoError::hdf5(&file, "/", "", &e))
+    h5.close().map_err(|e| IoError::hdf5_write(&file, "/", "", &e))
 }
 
 /// Reads the source demos a selection picks from a MimicGen source dataset.

@@ -7,9 +7,21 @@ use mimicgen_engine::EngineError;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum IoError {
-    /// The HDF5 library failed (unreadable or truncated file, write error).
+    /// The HDF5 library could not read (an unreadable or truncated file).
     #[error("{file}: group `{group}`{}: HDF5 error: {reason}", if field.is_empty() { String::new() } else { format!(" field `{field}`") })]
     Hdf5 {
+        /// The file.
+        file: String,
+        /// The group (`/` for the root).
+        group: String,
+        /// The dataset or attribute (empty when the group itself is at fault).
+        field: String,
+        /// The library's message.
+        reason: String,
+    },
+    /// Writing failed (a full disk, a file another program holds, no permission).
+    #[error("{file}: group `{group}`{}: HDF5 error while writing: {reason}", if field.is_empty() { String::new() } else { format!(" field `{field}`") })]
+    Write {
         /// The file.
         file: String,
         /// The group (`/` for the root).
@@ -86,6 +98,20 @@ pub enum IoError {
         /// The engine's error.
         source: Box<EngineError>,
     },
+    /// A file cannot be opened: missing, a directory, not readable, not HDF5.
+    #[error("{file}: {reason}")]
+    Open {
+        /// The file.
+        file: String,
+        /// Why, in a user's words (`no such file`).
+        reason: String,
+    },
+    /// An output exists and the caller did not ask to replace it.
+    #[error("{file}: exists")]
+    Exists {
+        /// The output.
+        file: String,
+    },
     /// A filesystem operation failed.
     #[error("{file}: {reason}")]
     Fs {
@@ -123,11 +149,59 @@ impl IoError {
     /// or the machine.
     #[must_use]
     pub fn is_user_error(&self) -> bool {
-        !matches!(self, Self::Fs { .. } | Self::Mcap { .. })
+        !matches!(self, Self::Fs { .. } | Self::Mcap { .. } | Self::Write { .. })
+    }
+
+    /// Opens an HDF5 file for reading; when HDF5 cannot, says why in a user's words (no such
+    /// file, a directory, permission denied, not an HDF5 file) and keeps HDF5's message for the
+    /// rest.
+    pub(crate) fn open_h5(path: &std::path::Path) -> Result<hdf5::File> {
+        hdf5::File::open(path).map_err(|e| {
+            let file = path.display().to_string();
+            match why_unreadable(path) {
+                Some(reason) => Self::Open { file, reason },
+                None => Self::hdf5(&file, "/", "", &e),
+            }
+        })
+    }
+
+    pub(crate) fn hdf5_write(file: &str, group: &str, field: &str, e: &hdf5::Error) -> Self {
+        Self::Write { file: file.to_owned(), group: group.to_owned(), field: field.to_owned(), reason: e.to_string() }
     }
 
     pub(crate) fn hdf5(file: &str, group: &str, field: &str, e: &hdf5::Error) -> Self {
         Self::Hdf5 { file: file.to_owned(), group: group.to_owned(), field: field.to_owned(), reason: e.to_string() }
+    }
+}
+
+/// Why `path` cannot be read as HDF5, as far as the file system and the format's signature tell.
+fn why_unreadable(path: &std::path::Path) -> Option<String> {
+    use std::io::Read as _;
+    const SIGNATURE: &[u8] = b"\x89HDF\r\n\x1a\n";
+    let meta = match std::fs::metadata(path) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Some("no such file".into()),
+        Err(e) => return Some(e.to_string()),
+    };
+    if meta.is_dir() {
+        return Some("is a directory, not an HDF5 file".into());
+    }
+    let mut f = match std::fs::File::open(path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::PermissionDenied => return Some("permission denied".into()),
+        Err(e) => return Some(e.to_string()),
+    };
+    let mut head = Vec::new();
+    // HDF5's signature sits at 0, 512, 1024, 2048, ... (after a user block); 4 KiB covers files
+    // as robomimic and h5py write them.
+    f.by_ref().take(4096).read_to_end(&mut head).ok()?;
+    let signed = [0usize, 512, 1024, 2048].iter().any(|&at| head.get(at..at + SIGNATURE.len()) == Some(SIGNATURE));
+    if head.is_empty() {
+        Some("is empty, not an HDF5 file".into())
+    } else if !signed {
+        Some("not an HDF5 file (no HDF5 signature)".into())
+    } else {
+        None
     }
 }
 

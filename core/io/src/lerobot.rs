@@ -100,7 +100,8 @@ pub struct LeRobotSummary {
 /// `on_episode(done, total)` after each.
 ///
 /// # Errors
-/// [`IoError::Fs`] when `out` exists without `overwrite`, or on write and ffmpeg failures;
+/// [`IoError::Exists`] when `out` exists without `overwrite`; [`IoError::Fs`] on write and
+/// ffmpeg failures;
 /// [`IoError::Invalid`] naming the demo and field when a demo lacks a state key, has a NaN or
 /// disagrees with the first demo's shapes.
 pub fn export_lerobot(
@@ -111,7 +112,7 @@ pub fn export_lerobot(
 ) -> Result<LeRobotSummary> {
     let label = source.file().to_owned();
     if out.exists() && !options.overwrite {
-        return Err(IoError::Fs { file: out.display().to_string(), reason: "exists; pass --overwrite to replace it".into() });
+        return Err(IoError::Exists { file: out.display().to_string() });
     }
     let names = source.demo_names().to_vec();
     let invalid = |group: &str, field: &str, reason: String| IoError::Invalid {
@@ -208,7 +209,7 @@ pub fn export_lerobot(
     }
     exporter.write_meta()?;
     if out.exists() {
-        std::fs::remove_dir_all(out).map_err(|e| fs_error(out, "replacing (--overwrite)", &e))?;
+        std::fs::remove_dir_all(out).map_err(|e| fs_error(out, "replacing it", &e))?;
     }
     std::fs::rename(&partial, out).map_err(|e| fs_error(out, &format!("moving {} into place", partial.display()), &e))?;
     Ok(LeRobotSummary {

@@ -350,7 +350,7 @@ pub(crate) fn write_group(file: &str, group: &hdf5::Group, group_path: &str, tre
         let child = join(group_path, name);
         match node {
             Node::Group(g) => {
-                let sub = group.create_group(name).map_err(|e| IoError::hdf5(file, group_path, name, &e))?;
+                let sub = group.create_group(name).map_err(|e| IoError::hdf5_write(file, group_path, name, &e))?;
                 write_group(file, &sub, &child, g)?;
             }
             Node::Dataset(d) => {
@@ -490,11 +490,11 @@ fn check_len(file: &str, group: &str, field: &str, a: &Array) -> Result<()> {
 /// Writes one dataset (without its attributes).
 pub(crate) fn write_dataset(file: &str, group: &hdf5::Group, group_path: &str, name: &str, d: &Dataset) -> Result<hdf5::Dataset> {
     check_len(file, group_path, name, &d.array)?;
-    dispatch(&d.array.values, |w| w.dataset(group, name, d)).map_err(|e| IoError::hdf5(file, group_path, name, &e))
+    dispatch(&d.array.values, |w| w.dataset(group, name, d)).map_err(|e| IoError::hdf5_write(file, group_path, name, &e))
 }
 
 /// Writes one attribute.
 pub(crate) fn write_attr(file: &str, loc: &hdf5::Location, loc_path: &str, name: &str, a: &Array) -> Result<()> {
     check_len(file, loc_path, name, a)?;
-    dispatch(&a.values, |w| w.attr(loc, name, &a.shape)).map(drop).map_err(|e| IoError::hdf5(file, loc_path, name, &e))
+    dispatch(&a.values, |w| w.attr(loc, name, &a.shape)).map(drop).map_err(|e| IoError::hdf5_write(file, loc_path, name, &e))
 }

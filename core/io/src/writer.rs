@@ -334,12 +334,12 @@ impl DatasetWriter {
     /// Starts a dataset that will end up at `out`.
     ///
     /// # Errors
-    /// [`IoError::Hdf5`] when the file cannot be created.
+    /// [`IoError::Write`] when the file cannot be created.
     pub fn create(out: impl AsRef<Path>, options: WriterOptions) -> Result<Self> {
         let out = out.as_ref().to_path_buf();
         let partial = Self::partial_path(&out);
         let label = partial.display().to_string();
-        let err = |g: &str, f: &str, e: &hdf5::Error| IoError::hdf5(&label, g, f, e);
+        let err = |g: &str, f: &str, e: &hdf5::Error| IoError::hdf5_write(&label, g, f, e);
         let h5 = hdf5::File::create(&partial).map_err(|e| err("/", "", &e))?;
         tree::write_attr(&label, &h5, "/", COMPLETE_ATTR, &Array::int(0))?;
         let data = h5.create_group("data").map_err(|e| err("/", "data", &e))?;
@@ -356,7 +356,7 @@ impl DatasetWriter {
     /// attempts before `next_attempt`.
     ///
     /// # Errors
-    /// [`IoError::Fs`] if there is no such file, [`IoError::Hdf5`] if it cannot be opened or edited.
+    /// [`IoError::Fs`] if there is no such file, [`IoError::Write`] if it cannot be opened or edited.
     pub fn resume(out: impl AsRef<Path>, options: WriterOptions, next_attempt: u64) -> Result<Self> {
         let out = out.as_ref().to_path_buf();
         let partial = Self::partial_path(&out);
@@ -364,7 +364,7 @@ impl DatasetWriter {
         if !partial.is_file() {
             return Err(IoError::Fs { file: label, reason: "no interrupted run to resume here (the file does not exist)".to_owned() });
         }
-        let err = |g: &str, f: &str, e: &hdf5::Error| IoError::hdf5(&label, g, f, e);
+        let err = |g: &str, f: &str, e: &hdf5::Error| IoError::hdf5_write(&label, g, f, e);
         let h5 = hdf5::File::open_rw(&partial).map_err(|e| err("/", "", &e))?;
         let data = h5.group("data").map_err(|e| err("/", "data", &e))?;
         let mut names = Vec::new();
@@ -396,7 +396,7 @@ impl DatasetWriter {
     /// (`None` for each one it lacks).
     ///
     /// # Errors
-    /// [`IoError::Fs`] if there is no such file, [`IoError::Hdf5`] if it cannot be read.
+    /// [`IoError::Fs`] if there is no such file, [`IoError::Write`] if it cannot be read.
     pub fn partial_root_attrs(out: impl AsRef<Path>, names: &[&str]) -> Result<Vec<Option<String>>> {
         let partial = Self::partial_path(out.as_ref());
         let label = partial.display().to_string();
@@ -409,13 +409,13 @@ impl DatasetWriter {
     /// Sets a string attribute on the file's root (replacing an earlier value) and flushes.
     ///
     /// # Errors
-    /// [`IoError::Hdf5`] on write errors.
+    /// [`IoError::Write`] on write errors.
     pub fn set_root_attr(&mut self, name: &str, value: &str) -> Result<()> {
         if self.h5.attr_names().is_ok_and(|names| names.iter().any(|n| n == name)) {
-            self.h5.delete_attr(name).map_err(|e| IoError::hdf5(&self.label, "/", name, &e))?;
+            self.h5.delete_attr(name).map_err(|e| IoError::hdf5_write(&self.label, "/", name, &e))?;
         }
         tree::write_attr(&self.label, &self.h5, "/", name, &Array::string(value))?;
-        self.h5.flush().map_err(|e| IoError::hdf5(&self.label, "/", name, &e))
+        self.h5.flush().map_err(|e| IoError::hdf5_write(&self.label, "/", name, &e))
     }
 
     /// Number of demos written so far.
@@ -433,16 +433,16 @@ impl DatasetWriter {
     /// Appends one demo as `data/demo_<i>` and flushes; returns its name.
     ///
     /// # Errors
-    /// [`IoError::Usage`] when the demo's arrays disagree in length, [`IoError::Hdf5`] on write errors.
+    /// [`IoError::Usage`] when the demo's arrays disagree in length, [`IoError::Write`] on write errors.
     pub fn append(&mut self, demo: &DemoData) -> Result<String> {
         let name = format!("demo_{}", self.names.len());
         let group_path = format!("data/{name}");
         let tree = demo.to_group(&self.label, &group_path, self.options.compress_obs)?;
-        let g = self.data.create_group(&name).map_err(|e| IoError::hdf5(&self.label, "data", &name, &e))?;
+        let g = self.data.create_group(&name).map_err(|e| IoError::hdf5_write(&self.label, "data", &name, &e))?;
         tree::write_group(&self.label, &g, &group_path, &tree)?;
         let steps = i64::try_from(demo.actions.len()).unwrap_or(i64::MAX);
         tree::write_attr(&self.label, &g, &group_path, "num_samples", &Array::int(steps))?;
-        self.h5.flush().map_err(|e| IoError::hdf5(&self.label, &group_path, "", &e))?;
+        self.h5.flush().map_err(|e| IoError::hdf5_write(&self.label, &group_path, "", &e))?;
         self.total += steps;
         self.names.push(name.clone());
         Ok(name)
@@ -452,7 +452,7 @@ impl DatasetWriter {
     /// the next `data/demo_<i>`, arrays, chunking, compression and attributes as they were.
     ///
     /// # Errors
-    /// [`IoError::Missing`] when `demo` has no `num_samples`, [`IoError::Hdf5`] on write errors.
+    /// [`IoError::Missing`] when `demo` has no `num_samples`, [`IoError::Write`] on write errors.
     pub fn append_group(&mut self, demo: &Group) -> Result<String> {
         let name = format!("demo_{}", self.names.len());
         let group_path = format!("data/{name}");
@@ -465,10 +465,10 @@ impl DatasetWriter {
         // `num_samples` last, as `append` writes it: a demo without it was not finished.
         let mut body = demo.clone();
         body.attrs.remove("num_samples");
-        let g = self.data.create_group(&name).map_err(|e| IoError::hdf5(&self.label, "data", &name, &e))?;
+        let g = self.data.create_group(&name).map_err(|e| IoError::hdf5_write(&self.label, "data", &name, &e))?;
         tree::write_group(&self.label, &g, &group_path, &body)?;
         tree::write_attr(&self.label, &g, &group_path, "num_samples", &Array::int(steps))?;
-        self.h5.flush().map_err(|e| IoError::hdf5(&self.label, &group_path, "", &e))?;
+        self.h5.flush().map_err(|e| IoError::hdf5_write(&self.label, &group_path, "", &e))?;
         self.total += steps;
         self.names.push(name.clone());
         Ok(name)
@@ -491,7 +491,7 @@ impl DatasetWriter {
     /// Writes totals and masks, marks the file complete and moves it to its final path.
     ///
     /// # Errors
-    /// [`IoError::Hdf5`] on write errors, [`IoError::Fs`] when the rename fails.
+    /// [`IoError::Write`] on write errors, [`IoError::Fs`] when the rename fails.
     pub fn finish(self) -> Result<PathBuf> {
         let label = self.label.clone();
         tree::write_attr(&label, &self.data, "data", "total", &Array::int(self.total))?;
@@ -504,7 +504,7 @@ impl DatasetWriter {
             (None, None) => None,
         };
         if let Some(masks) = masks.filter(|m| !m.is_empty()) {
-            let mask = self.h5.create_group("mask").map_err(|e| IoError::hdf5(&label, "/", "mask", &e))?;
+            let mask = self.h5.create_group("mask").map_err(|e| IoError::hdf5_write(&label, "/", "mask", &e))?;
             for (key, names) in masks {
                 let key = key.as_str();
                 let len = names.iter().map(String::len).max().unwrap_or(1).max(1);
@@ -514,12 +514,12 @@ impl DatasetWriter {
         }
         tree::write_attr(&label, &self.h5, "/", COMPLETE_ATTR, &Array::int(1)).or_else(|_| {
             // The attribute exists: overwrite its value in place.
-            let a = self.h5.attr(COMPLETE_ATTR).map_err(|e| IoError::hdf5(&label, "/", COMPLETE_ATTR, &e))?;
-            a.write_scalar(&1_i64).map_err(|e| IoError::hdf5(&label, "/", COMPLETE_ATTR, &e))
+            let a = self.h5.attr(COMPLETE_ATTR).map_err(|e| IoError::hdf5_write(&label, "/", COMPLETE_ATTR, &e))?;
+            a.write_scalar(&1_i64).map_err(|e| IoError::hdf5_write(&label, "/", COMPLETE_ATTR, &e))
         })?;
         let Self { h5, data, partial, out, .. } = self;
         drop(data);
-        h5.close().map_err(|e| IoError::hdf5(&label, "/", "", &e))?;
+        h5.close().map_err(|e| IoError::hdf5_write(&label, "/", "", &e))?;
         std::fs::rename(&partial, &out).map_err(|e| IoError::Fs {
             file: out.display().to_string(),
             reason: format!("renaming {} into place: {e}", partial.display()),

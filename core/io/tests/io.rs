@@ -288,6 +288,27 @@ mod malformed {
     }
 
     #[test]
+    fn a_file_that_cannot_be_opened_says_why_in_a_users_words() {
+        let _hdf5 = shared();
+        let dir = tempfile::tempdir().unwrap();
+        let text = dir.path().join("notes.hdf5");
+        std::fs::write(&text, "not a dataset\n").unwrap();
+        let empty = dir.path().join("empty.hdf5");
+        std::fs::write(&empty, "").unwrap();
+        for (path, reason) in [
+            (dir.path().join("nope.hdf5"), "no such file"),
+            (dir.path().to_path_buf(), "is a directory"),
+            (text, "not an HDF5 file"),
+            (empty, "is empty"),
+        ] {
+            let err = open_err(&path);
+            assert!(matches!(err, IoError::Open { .. }) && err.is_user_error(), "{err}");
+            assert_names(&err, &[&path.display().to_string(), reason]);
+            assert!(!err.to_string().contains("H5F"), "HDF5's own words leaked: {err}");
+        }
+    }
+
+    #[test]
     fn missing_data_group() {
         let _hdf5 = shared();
         let dir = tempfile::tempdir().unwrap();

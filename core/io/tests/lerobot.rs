@@ -174,8 +174,8 @@ fn an_export_holds_every_frame_episode_and_camera_as_lerobot_lays_them_out() {
     assert!(mae < 6.0, "decoded frames differ by {mae:.2} / 255 on average");
 
     // An existing export is not replaced without overwrite.
-    let err = export_lerobot(&reader, &out, &options(), |_, _| ()).unwrap_err().to_string();
-    assert!(err.contains("--overwrite"), "{err}");
+    let err = export_lerobot(&reader, &out, &options(), |_, _| ()).unwrap_err();
+    assert!(matches!(err, mimicgen_io::IoError::Exists { .. }) && err.is_user_error(), "{err}");
     export_lerobot(&reader, &out, &LeRobotOptions { overwrite: true, ..options() }, |_, _| ()).unwrap();
 }
 

@@ -133,7 +133,7 @@ impl Proposer {
     /// [`PipelineError`] naming the file and demo when its states do not fit the scene or its
     /// gripper commands cannot be read.
     pub fn annotate(&self, demo: &SourceDemo) -> Result<DemoAnnotation, PipelineError> {
-        let widths = if demo.sim.states.is_empty() { None } else { Some(self.scene.finger_widths(&demo.sim.states)?) };
+        let widths = if demo.sim.states.is_empty() { None } else { self.scene.finger_widths(&demo.sim.states)? };
         let proposals =
             propose_subtask_ends(demo, &self.spec, widths.as_deref()).map_err(|e| PipelineError::engine(self.label.clone(), e))?;
         let signal_ends = (self.signal_names.len() + 1 == self.spec.subtasks.len())

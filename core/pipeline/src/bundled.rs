@@ -9,23 +9,9 @@ use mimicgen_engine::TaskSpec;
 
 use crate::PipelineError;
 
-/// `(task, variant, file name, bytes)` of every bundled source file.
-const FILES: &[(&str, &str, &str, &[u8])] = &[
-    ("stack", "D0", "stack_D0_source.hdf5", include_bytes!("../../sim/data/stack_D0_source.hdf5")),
-    ("stack_three", "D0", "stack_three_D0_source.hdf5", include_bytes!("../../sim/data/stack_three_D0_source.hdf5")),
-    ("square", "D0", "square_D0_source.hdf5", include_bytes!("../../sim/data/square_D0_source.hdf5")),
-    ("lift", "D0", "lift_D0_source.hdf5", include_bytes!("../../sim/data/lift_D0_source.hdf5")),
-    ("nut_assembly", "D0", "nut_assembly_D0_source.hdf5", include_bytes!("../../sim/data/nut_assembly_D0_source.hdf5")),
-    (
-        "three_piece_assembly",
-        "D0",
-        "three_piece_assembly_D0_source.hdf5",
-        include_bytes!("../../sim/data/three_piece_assembly_D0_source.hdf5"),
-    ),
-    ("threading", "D0", "threading_D0_source.hdf5", include_bytes!("../../sim/data/threading_D0_source.hdf5")),
-    ("coffee", "D0", "coffee_D0_source.hdf5", include_bytes!("../../sim/data/coffee_D0_source.hdf5")),
-    ("pick_place", "D0", "pick_place_D0_source.hdf5", include_bytes!("../../sim/data/pick_place_D0_source.hdf5")),
-];
+/// `(task, variant, file name, bytes)` of every bundled source file: each
+/// `core/sim/data/<task>_<variant>_source.hdf5`, listed by the build script.
+const FILES: &[(&str, &str, &str, &[u8])] = include!(concat!(env!("OUT_DIR"), "/bundled_sources.rs"));
 
 /// The spec bundled for `task` (the paper's settings, `core/sim/tasks/<task>.toml`).
 ///

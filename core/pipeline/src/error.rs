@@ -2,6 +2,7 @@
 
 use mimicgen_engine::EngineError;
 use mimicgen_io::IoError;
+use mimicgen_run::FrontEnd;
 use mimicgen_sim::SimError;
 
 /// Everything that can stop a run. Failed attempts are not errors: they are records in the report.
@@ -17,6 +18,15 @@ pub enum PipelineError {
         field: String,
         /// What is wrong and what to do.
         reason: String,
+    },
+    /// An output exists and the caller did not ask to replace it (each front end words how:
+    /// [`PipelineError::advice`]).
+    #[error("{file}: exists{}", if *resumable { " (an interrupted run left it)" } else { "" })]
+    Exists {
+        /// The first output found.
+        file: String,
+        /// An interrupted run left it: it can be resumed.
+        resumable: bool,
     },
     /// The engine rejected the inputs or a simulator failed for good; `file` names the input.
     #[error("{file}: {source}")]
@@ -47,11 +57,38 @@ impl PipelineError {
     #[must_use]
     pub fn is_user_error(&self) -> bool {
         match self {
-            Self::Input { .. } => true,
+            Self::Input { .. } | Self::Exists { .. } => true,
             Self::Engine { source, .. } => source.is_user_error(),
             Self::Io(e) => e.is_user_error(),
             Self::Sim(e) => e.is_user_error(),
             Self::Fs { .. } => false,
+        }
+    }
+
+    /// What the user can do about this error, in `front`'s words (`pass --overwrite`), when it
+    /// is a choice the user has.
+    #[must_use]
+    pub fn advice(&self, front: FrontEnd) -> Option<String> {
+        match self {
+            Self::Exists { resumable, .. } => Some(front.output_exists_advice(*resumable)),
+            Self::Io(IoError::Exists { .. }) => Some(front.output_exists_advice(false)),
+            _ => None,
+        }
+    }
+
+    /// The whole message as `front` words it: a run's field by its name there (Python's
+    /// `spec["action_noise"]` for `--action-noise`), then the [advice](Self::advice).
+    #[must_use]
+    pub fn worded(&self, front: FrontEnd) -> String {
+        let message = match self {
+            Self::Input { file, field, reason } if field.starts_with("--") => {
+                Self::input(file.clone(), front.field(field), reason.clone()).to_string()
+            }
+            _ => self.to_string(),
+        };
+        match self.advice(front) {
+            Some(advice) => format!("{message}; {advice}"),
+            None => message,
         }
     }
 

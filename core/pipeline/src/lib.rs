@@ -40,7 +40,9 @@ pub mod render;
 mod run;
 
 pub use error::PipelineError;
-pub use mimicgen_run::{CameraConfig, DemoReport, FailureReport, OffsetRange, Outcome, Report, RunConfig, RunInfo, Scoped, SpecOverrides};
+pub use mimicgen_run::{
+    CameraConfig, Choice, DemoReport, FailureReport, FrontEnd, OffsetRange, Outcome, Report, RunConfig, RunInfo, Scoped, SpecOverrides,
+};
 pub use run::{
     AttemptEvent, AttemptRecord, Event, Observed, PROGRESS_ATTR, Pipeline, RUN_ATTR, attempt_log_path, failed_path, read_attempt_log,
     sibling,

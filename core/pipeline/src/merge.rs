@@ -49,7 +49,7 @@ fn read_shard(path: &Path) -> Result<ShardFiles, PipelineError> {
         return Err(PipelineError::input(
             report_path.display().to_string(),
             "cancelled",
-            "this shard was cancelled before its share was done; run it again (with --overwrite)",
+            "this shard was cancelled before its share was done; run it again, replacing its outputs",
         ));
     }
     let records = read_attempt_log(&attempt_log_path(path))?;

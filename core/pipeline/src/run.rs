@@ -210,7 +210,7 @@ pub(crate) fn differing_fields(a: &serde_json::Value, b: &serde_json::Value) -> 
 /// `out`'s folder. With `resumable`, a `.partial` left there is said to be resumable.
 ///
 /// # Errors
-/// [`PipelineError::Input`] (field `--out`) naming the first output that exists;
+/// [`PipelineError::Exists`] naming the first output that exists;
 /// [`PipelineError::Fs`] when one cannot be removed or the folder made.
 pub(crate) fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, resumable: bool) -> Result<(), PipelineError> {
     let failed = failed_path(out);
@@ -219,12 +219,8 @@ pub(crate) fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, r
     let existing: Vec<&Path> = outputs.iter().map(PathBuf::as_path).chain(extra).filter(|p| p.exists()).collect();
     if let Some(first) = existing.first() {
         if !overwrite {
-            let hint = if resumable && *first == partial.as_path() {
-                "an interrupted run left it: pass --resume to continue that run, or --overwrite to start over"
-            } else {
-                "refusing to replace it; pass --overwrite, or choose another --out"
-            };
-            return Err(PipelineError::input(first.display().to_string(), "--out", format!("exists; {hint}")));
+            let resumable = resumable && *first == partial.as_path();
+            return Err(PipelineError::Exists { file: first.display().to_string(), resumable });
         }
         for path in existing {
             std::fs::remove_file(path).map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
@@ -484,7 +480,7 @@ impl Pipeline {
                     file,
                     RUN_ATTR,
                     format!(
-                        "the interrupted run made a different dataset ({} differ); resume with the arguments it was started with, or pass --overwrite to start over",
+                        "the interrupted run made a different dataset ({} differ); resume with the arguments it was started with, or replace the outputs to start over",
                         differing.join(", ")
                     ),
                 ));

@@ -83,3 +83,86 @@ impl Default for RunConfig {
         }
     }
 }
+
+impl RunConfig {
+    /// The `mimicgen generate` arguments that describe this run (the flags; a field at its
+    /// default is left out). Every field is named here, so a new field does not compile until it
+    /// has its flag; the CLI's tests parse these back into the same config.
+    #[must_use]
+    pub fn to_args(&self) -> Vec<String> {
+        let Self {
+            task,
+            variant,
+            config,
+            source,
+            out,
+            workers,
+            num_demos,
+            seed,
+            keep_failed,
+            guarantee,
+            max_attempts,
+            valid_fraction,
+            early_abort,
+            overwrite,
+            resume,
+            spec,
+            shard,
+            cameras,
+            robot,
+        } = self;
+        let mut args: Vec<String> = Vec::new();
+        let mut value = |flag: &str, v: Option<String>| {
+            if let Some(v) = v {
+                args.extend([flag.to_owned(), v]);
+            }
+        };
+        value("--task", task.clone());
+        value("--variant", variant.clone());
+        value("--robot", robot.clone());
+        value("--config", config.as_ref().map(|p| p.display().to_string()));
+        value("--source", source.as_ref().map(|p| p.display().to_string()));
+        value("--num-demos", num_demos.map(|n| n.to_string()));
+        value("--seed", seed.map(|n| n.to_string()));
+        value("--workers", Some(workers.to_string()));
+        value("--out", Some(out.display().to_string()));
+        value("--max-attempts", max_attempts.map(|n| n.to_string()));
+        value("--valid-fraction", valid_fraction.map(|f| f.to_string()));
+        value("--shard", shard.map(|s| s.to_string()));
+        if let Some(c) = cameras {
+            value("--cameras", Some(c.names.join(",")));
+            value("--camera-size", Some(if c.height == c.width { c.height.to_string() } else { format!("{}x{}", c.height, c.width) }));
+        }
+        for (on, flag) in [
+            (*keep_failed, "--keep-failed"),
+            (*guarantee, "--guarantee"),
+            (*early_abort, "--early-abort"),
+            (*overwrite, "--overwrite"),
+            (*resume, "--resume"),
+            (cameras.as_ref().is_some_and(|c| c.depth), "--camera-depth"),
+            (cameras.as_ref().is_some_and(|c| c.fast), "--camera-fast"),
+        ] {
+            if on {
+                args.push(flag.to_owned());
+            }
+        }
+        args.extend(spec.to_args());
+        args
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flags_name_what_differs_from_the_default() {
+        let args = RunConfig { num_demos: Some(3), guarantee: true, ..RunConfig::default() }.to_args();
+        assert_eq!(args, ["--num-demos", "3", "--workers", "1", "--out", "out/generated.hdf5", "--guarantee"]);
+        let cameras = CameraConfig { height: 120, width: 160, depth: true, ..CameraConfig::default() };
+        let args = RunConfig { cameras: Some(cameras), robot: Some("ur5e".into()), ..RunConfig::default() }.to_args();
+        let line = args.join(" ");
+        assert!(line.contains("--robot ur5e") && line.contains("--cameras agentview,robot0_eye_in_hand --camera-size 120x160"), "{line}");
+        assert!(line.ends_with("--camera-depth"), "{line}");
+    }
+}

@@ -21,11 +21,13 @@ mod camera;
 mod config;
 mod overrides;
 mod report;
+mod wording;
 
 pub use camera::CameraConfig;
 pub use config::RunConfig;
 pub use overrides::{OffsetRange, Scoped, SpecOverrides};
 pub use report::{DemoReport, FailureReport, Outcome, Report, RunInfo};
+pub use wording::{Choice, FrontEnd};
 
 /// A run description that cannot be applied.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -96,6 +96,10 @@ pub struct SpecOverrides {
 }
 
 impl SpecOverrides {
+    /// The fields' names (Python's `spec` keys; the flags are these with `--` and dashes).
+    pub const FIELDS: [&str; 7] =
+        ["selection", "nn_k", "action_noise", "offset_range", "interpolation_steps", "fixed_steps", "select_src_per_subtask"];
+
     /// Whether it changes nothing.
     #[must_use]
     pub fn is_empty(&self) -> bool {

@@ -5,19 +5,10 @@ use std::sync::{Arc, OnceLock};
 use crate::task::Task;
 use crate::task_file::{DataTask, TaskFile};
 
-/// `(name, task file, generation spec)` of every task we ship, in the order `mimicgen tasks`
-/// lists them: `core/sim/tasks/<name>.task.toml` and `<name>.toml`.
-const BUNDLED: &[(&str, &str, &str)] = &[
-    ("stack", include_str!("../tasks/stack.task.toml"), include_str!("../tasks/stack.toml")),
-    ("stack_three", include_str!("../tasks/stack_three.task.toml"), include_str!("../tasks/stack_three.toml")),
-    ("nut_assembly", include_str!("../tasks/nut_assembly.task.toml"), include_str!("../tasks/nut_assembly.toml")),
-    ("lift", include_str!("../tasks/lift.task.toml"), include_str!("../tasks/lift.toml")),
-    ("square", include_str!("../tasks/square.task.toml"), include_str!("../tasks/square.toml")),
-    ("three_piece_assembly", include_str!("../tasks/three_piece_assembly.task.toml"), include_str!("../tasks/three_piece_assembly.toml")),
-    ("threading", include_str!("../tasks/threading.task.toml"), include_str!("../tasks/threading.toml")),
-    ("coffee", include_str!("../tasks/coffee.task.toml"), include_str!("../tasks/coffee.toml")),
-    ("pick_place", include_str!("../tasks/pick_place.task.toml"), include_str!("../tasks/pick_place.toml")),
-];
+/// `(name, task file, generation spec)` of every task we ship, by name: each
+/// `core/sim/tasks/<name>.task.toml` with `<name>.toml` beside it, listed by the build script (a
+/// new task is a new file there, and no line of code).
+const BUNDLED: &[(&str, &str, Option<&str>)] = include!(concat!(env!("OUT_DIR"), "/bundled_tasks.rs"));
 
 /// The environment variable naming a directory of the user's own task files: every
 /// `<name>.task.toml` there (with its generation spec `<name>.toml` beside it, if any) joins the
@@ -30,64 +21,95 @@ struct Entry {
     spec: Option<&'static str>,
 }
 
-/// The bundled task files and the user's, parsed once (an error names the file that does not
-/// parse).
-fn parsed() -> &'static Result<Vec<Entry>, String> {
-    static FILES: OnceLock<Result<Vec<Entry>, String>> = OnceLock::new();
+/// A task file that cannot be used, by the task name its file name gives.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Broken {
+    /// The task's name (`tower` for `tower.task.toml`).
+    pub name: String,
+    /// Why, naming the file and the field.
+    pub error: String,
+}
+
+/// The task files: those that parse, and those that do not.
+struct Registry {
+    entries: Vec<Entry>,
+    broken: Vec<Broken>,
+}
+
+/// The bundled task files and the user's, parsed once. A file that does not parse hides only its
+/// own task: using that task reports its error, and the others work.
+fn parsed() -> &'static Registry {
+    static FILES: OnceLock<Registry> = OnceLock::new();
     FILES.get_or_init(|| {
-        let mut entries = BUNDLED
-            .iter()
-            .map(|(name, text, spec)| {
-                let file = TaskFile::from_toml_str(text, &format!("core/sim/tasks/{name}.task.toml"))?;
-                Ok(Entry { file, spec: Some(*spec) })
-            })
-            .collect::<Result<Vec<_>, String>>()?;
-        if let Some(dir) = std::env::var_os(TASK_DIR_VAR) {
-            for entry in user_tasks(std::path::Path::new(&dir))? {
-                match entries.iter_mut().find(|e| e.file.name == entry.file.name) {
-                    Some(bundled) => *bundled = entry,
-                    None => entries.push(entry),
-                }
+        let mut registry = Registry { entries: Vec::new(), broken: Vec::new() };
+        for (name, text, spec) in BUNDLED {
+            match TaskFile::from_toml_str(text, &format!("core/sim/tasks/{name}.task.toml")) {
+                Ok(file) => registry.entries.push(Entry { file, spec: *spec }),
+                Err(error) => registry.broken.push(Broken { name: (*name).to_owned(), error }),
             }
         }
-        Ok(entries)
+        if let Some(dir) = std::env::var_os(TASK_DIR_VAR) {
+            user_tasks(std::path::Path::new(&dir), &mut registry);
+        }
+        registry
     })
 }
 
-/// The task files in `dir`, by file name. Each is read once per process, so its text is kept for
-/// the process's life.
-fn user_tasks(dir: &std::path::Path) -> Result<Vec<Entry>, String> {
-    let listing = std::fs::read_dir(dir).map_err(|e| format!("{TASK_DIR_VAR}={}: {e}", dir.display()))?;
+/// Adds the task files in `dir`, by file name, replacing a bundled task of the same name. Each is
+/// read once per process, so its text is kept for the process's life.
+fn user_tasks(dir: &std::path::Path, registry: &mut Registry) {
+    let listing = match std::fs::read_dir(dir) {
+        Ok(listing) => listing,
+        Err(e) => {
+            let error = format!("{TASK_DIR_VAR}={}: {e}", dir.display());
+            registry.broken.push(Broken { name: TASK_DIR_VAR.to_owned(), error });
+            return;
+        }
+    };
     let mut paths: Vec<std::path::PathBuf> =
         listing.filter_map(Result::ok).map(|e| e.path()).filter(|p| p.to_string_lossy().ends_with(".task.toml")).collect();
     paths.sort();
-    let mut entries = Vec::with_capacity(paths.len());
     for path in paths {
-        let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let file = TaskFile::from_toml_str(&text, &path.display().to_string())?;
-        let spec_path = path.with_file_name(format!("{}.toml", file.name));
-        let spec = match std::fs::read_to_string(&spec_path) {
-            Ok(spec) => Some(&*Box::leak(spec.into_boxed_str())),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-            Err(e) => return Err(format!("{}: {e}", spec_path.display())),
-        };
-        entries.push(Entry { file, spec });
+        let stem = path.file_name().map(|n| n.to_string_lossy().trim_end_matches(".task.toml").to_owned()).unwrap_or_default();
+        match user_task(&path) {
+            Ok(entry) => {
+                registry.broken.retain(|b| b.name != entry.file.name);
+                match registry.entries.iter_mut().find(|e| e.file.name == entry.file.name) {
+                    Some(bundled) => *bundled = entry,
+                    None => registry.entries.push(entry),
+                }
+            }
+            Err(error) => {
+                // The user's file meant to replace a bundled task of its name: that task is broken.
+                registry.entries.retain(|e| e.file.name != stem);
+                registry.broken.push(Broken { name: stem, error });
+            }
+        }
     }
-    Ok(entries)
 }
 
-/// Every task, in the order `mimicgen tasks` lists them: the bundled ones, then the user's
-/// ([`TASK_DIR_VAR`]). Empty if a file does not parse; [`task`] says which.
+fn user_task(path: &std::path::Path) -> Result<Entry, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let file = TaskFile::from_toml_str(&text, &path.display().to_string())?;
+    let spec_path = path.with_file_name(format!("{}.toml", file.name));
+    let spec = match std::fs::read_to_string(&spec_path) {
+        Ok(spec) => Some(&*Box::leak(spec.into_boxed_str())),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        Err(e) => return Err(format!("{}: {e}", spec_path.display())),
+    };
+    Ok(Entry { file, spec })
+}
+
+/// Every task that can be used, in the order `mimicgen tasks` lists them: the bundled ones by
+/// name, then the user's ([`TASK_DIR_VAR`]).
 pub fn tasks() -> impl Iterator<Item = &'static TaskFile> {
-    parsed().as_deref().unwrap_or_default().iter().map(|e| &e.file)
+    parsed().entries.iter().map(|e| &e.file)
 }
 
-/// Why the task files cannot be used (a file that does not parse, named with the field), if so.
-///
-/// # Errors
-/// That message.
-pub fn check() -> Result<(), String> {
-    parsed().as_ref().map(|_| ()).map_err(Clone::clone)
+/// The task files that cannot be used, each with its error (naming the file and field).
+#[must_use]
+pub fn broken() -> &'static [Broken] {
+    &parsed().broken
 }
 
 fn names() -> String {
@@ -103,7 +125,7 @@ pub fn instruction(name: &str) -> String {
 /// The generation spec (our TOML; the paper's settings for the bundled tasks) for `name`.
 #[must_use]
 pub fn default_spec_toml(name: &str) -> Option<&'static str> {
-    parsed().as_deref().unwrap_or_default().iter().find(|e| e.file.name == name).and_then(|e| e.spec)
+    parsed().entries.iter().find(|e| e.file.name == name).and_then(|e| e.spec)
 }
 
 /// Builds `name` / `variant`.
@@ -111,10 +133,15 @@ pub fn default_spec_toml(name: &str) -> Option<&'static str> {
 /// # Errors
 /// A message naming the known tasks or variants.
 pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
-    let entries = parsed().as_ref().map_err(Clone::clone)?;
     let wanted = name.to_ascii_lowercase();
-    let entry =
-        entries.iter().find(|e| e.file.name == wanted).ok_or_else(|| format!("unknown task {wanted:?}; known tasks: {}", names()))?;
+    if let Some(broken) = broken().iter().find(|b| b.name == wanted) {
+        return Err(broken.error.clone());
+    }
+    let entry = parsed()
+        .entries
+        .iter()
+        .find(|e| e.file.name == wanted)
+        .ok_or_else(|| format!("unknown task {wanted:?}; known tasks: {}", names()))?;
     Ok(Arc::new(DataTask::new(entry.file.clone(), variant)?))
 }
 
@@ -244,8 +271,10 @@ mod tests {
 
     #[test]
     fn every_bundled_task_file_parses_and_builds_each_variant() {
-        let files: Vec<&TaskFile> = parsed().as_ref().unwrap_or_else(|e| panic!("{e}")).iter().map(|e| &e.file).collect();
+        assert!(broken().is_empty(), "{:?}", broken());
+        let files: Vec<&TaskFile> = tasks().collect();
         assert_eq!(files.len(), BUNDLED.len());
+        assert!(files.len() >= 9 && files.iter().any(|f| f.name == "stack"), "the build script listed {}", files.len());
         for (file, (name, ..)) in files.iter().zip(BUNDLED) {
             assert_eq!(&file.name, name);
             for variant in &file.variants {

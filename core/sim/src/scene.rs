@@ -319,20 +319,17 @@ pub fn rotation_matrix(rotation: &Rot) -> Matrix3<f64> {
 }
 
 impl Scene {
-    /// The distance between the Panda's fingers (m) at each recorded state (robosuite's
-    /// `[time, qpos, qvel]`): the finger opening that auto-detection of subtask ends reads.
+    /// The distance between the fingers (m) at each recorded state (robosuite's
+    /// `[time, qpos, qvel]`): the finger opening that auto-detection of subtask ends reads. `None`
+    /// for a gripper that is not two sliding fingers (the UR5e's Robotiq linkage): detection then
+    /// reads the gripper commands and object poses alone.
     ///
     /// # Errors
     /// [`SimError::State`] for states too short for this scene.
-    pub fn finger_widths(&self, states: &mimicgen_engine::Rows) -> Result<Vec<f64>, SimError> {
+    pub fn finger_widths(&self, states: &mimicgen_engine::Rows) -> Result<Option<Vec<f64>>, SimError> {
         let [left, right] = match self.robot.finger_qpos.as_slice() {
             [l, r] => [*l, *r],
-            other => {
-                return Err(SimError::State {
-                    file: self.origin.clone(),
-                    reason: format!("the gripper has {} finger joints, not 2", other.len()),
-                });
-            }
+            _ => return Ok(None),
         };
         if states.width() <= 1 + left.max(right) {
             return Err(SimError::State {
@@ -340,6 +337,6 @@ impl Scene {
                 reason: format!("states have {} values, the fingers are at qpos {left} and {right}", states.width()),
             });
         }
-        Ok(states.iter().map(|s| (s[1 + left] - s[1 + right]).abs()).collect())
+        Ok(Some(states.iter().map(|s| (s[1 + left] - s[1 + right]).abs()).collect()))
     }
 }

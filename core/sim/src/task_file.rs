@@ -274,11 +274,18 @@ impl TaskFile {
         if self.variants.is_empty() {
             return Err("field `variants`: a task needs at least one variant".to_owned());
         }
-        let known = |name: &str, field: &str| -> Result<(), String> {
-            if name == "eef" || self.objects.iter().any(|o| o.name == name) {
+        let objects = self.object_names().join(", ");
+        // `eef` (the gripper) stands for a position only; an object's own state (its grasp,
+        // contacts, pose, speed, placement) needs an object.
+        let known = |(name, eef_ok): (&str, bool), field: &str| -> Result<(), String> {
+            if name == "eef" && !eef_ok {
+                Err(format!(
+                    "field `{field}` names \"eef\", which only a position may name (lifted, inside, apart, position, from_eef, to_eef, between); here name one of the objects: {objects}"
+                ))
+            } else if name == "eef" || self.objects.iter().any(|o| o.name == name) {
                 Ok(())
             } else {
-                Err(format!("field `{field}` names object {name:?}, which is not one of {}", self.object_names().join(", ")))
+                Err(format!("field `{field}` names object {name:?}, which is not one of {objects}"))
             }
         };
         for object in &self.objects {
@@ -296,24 +303,24 @@ impl TaskFile {
             }
         }
         for name in &self.place_order {
-            known(name, "place_order")?;
+            known((name, false), "place_order")?;
         }
         if !self.place_order.is_empty() && self.place_order.len() != self.objects.len() {
             return Err("field `place_order` must list every object once".to_owned());
         }
         for (signal, predicate) in &self.signals {
-            predicate.names().iter().try_for_each(|n| known(n, &format!("signals.{signal}")))?;
+            predicate.names().into_iter().try_for_each(|n| known(n, &format!("signals.{signal}")))?;
         }
-        self.success.names().iter().try_for_each(|n| known(n, "success"))?;
+        self.success.names().into_iter().try_for_each(|n| known(n, "success"))?;
         for entry in &self.observation {
-            entry.term.names().iter().try_for_each(|n| known(n, "observation"))?;
+            entry.term.names().into_iter().try_for_each(|n| known(n, "observation"))?;
             if let Some(v) = entry.variants.iter().find(|v| !self.variants.contains(v)) {
                 return Err(format!("an `observation` term names variant {v}, which the task does not have"));
             }
         }
         for script in &self.scripts {
-            known(&script.pick, "script.pick")?;
-            known(&script.place_on, "script.place_on")?;
+            known((&script.pick, false), "script.pick")?;
+            known((&script.place_on, false), "script.place_on")?;
         }
         Ok(())
     }
@@ -375,19 +382,16 @@ impl Predicate {
         }
     }
 
-    /// The object names it refers to.
-    fn names(&self) -> Vec<&str> {
+    /// The object names it refers to, each with whether `eef` (the gripper) may stand there:
+    /// where a position is read, not an object's own state (grasp, contacts, pose, speed).
+    fn names(&self) -> Vec<(&str, bool)> {
         match self {
-            Self::Grasped(o) => vec![o],
+            Self::Grasped(o) | Self::AtRest { object: o, .. } => vec![(o, false)],
             Self::Joint { .. } => Vec::new(),
-            Self::Lifted { object, .. } | Self::AtRest { object, .. } => vec![object],
-            Self::Contact([a, b]) => vec![a, b],
-            Self::Inside { object, of: other, .. }
-            | Self::Near { object, of: other, .. }
-            | Self::Aligned { object, with: other, .. }
-            | Self::Apart { object, from: other, .. } => {
-                vec![object, other]
-            }
+            Self::Lifted { object, .. } => vec![(object, true)],
+            Self::Contact([a, b]) => vec![(a, false), (b, false)],
+            Self::Near { object, of: other, .. } | Self::Aligned { object, with: other, .. } => vec![(object, false), (other, false)],
+            Self::Inside { object, of: other, .. } | Self::Apart { object, from: other, .. } => vec![(object, true), (other, true)],
             Self::All(all) | Self::Any(all) => all.iter().flat_map(Self::names).collect(),
             Self::Not(p) => p.names(),
         }
@@ -402,11 +406,13 @@ impl ObsTerm {
         }
     }
 
-    fn names(&self) -> Vec<&str> {
+    /// As [`Predicate::names`]: `eef` may stand where a position is read.
+    fn names(&self) -> Vec<(&str, bool)> {
         match self {
-            Self::Pose(o) | Self::Position(o) | Self::FromEef(o) | Self::ToEef(o) | Self::InGripper(o) => vec![o],
+            Self::Pose(o) | Self::InGripper(o) => vec![(o, false)],
+            Self::Position(o) | Self::FromEef(o) | Self::ToEef(o) => vec![(o, true)],
             Self::Joint(_) => Vec::new(),
-            Self::Between([a, b]) => vec![a, b],
+            Self::Between([a, b]) => vec![(a, true), (b, true)],
         }
     }
 }
@@ -466,6 +472,7 @@ impl DataTask {
     /// Whether `predicate` holds in `env`'s current state.
     #[must_use]
     pub fn holds(&self, predicate: &Predicate, env: &SimEnv) -> bool {
+        // `check` refused every name that is not an object where an object is needed.
         let index = |name: &str| self.index(name).unwrap_or_default();
         match predicate {
             Predicate::Grasped(o) => env.is_grasping(index(o)),
@@ -515,6 +522,7 @@ impl DataTask {
 
     fn observe(&self, term: &ObsTerm, env: &SimEnv, out: &mut Vec<f64>) {
         use mimicgen_engine::Environment as _;
+        // `check` refused every name that is not an object where an object is needed.
         let index = |name: &str| self.index(name).unwrap_or_default();
         let eef = env.eef_pose().translation.vector;
         match term {
@@ -675,5 +683,20 @@ mod tests {
         assert!(err.contains("my.task.toml") && err.contains("abov_m"), "{err}");
         let file = TaskFile::from_toml_str(STACK, "stack").unwrap_or_else(|e| panic!("{e}"));
         assert!(DataTask::new(file, "D7").unwrap_err().contains("D0 and D1"));
+    }
+
+    #[test]
+    fn eef_is_refused_where_an_object_is_needed_and_kept_where_a_position_is() {
+        let grasped = STACK.replace("grasped = \"cubeA\"", "grasped = \"eef\"");
+        let err = TaskFile::from_toml_str(&grasped, "my.task.toml").unwrap_err();
+        assert!(err.starts_with("my.task.toml: field `signals.grasp` names \"eef\""), "{err}");
+        assert!(err.contains("cubeA, cubeB"), "{err}");
+        let contact = STACK.replace("contact = [\"cubeA\", \"cubeB\"]", "contact = [\"cubeA\", \"eef\"]");
+        assert_ne!(contact, STACK);
+        assert!(TaskFile::from_toml_str(&contact, "my.task.toml").unwrap_err().contains("`success` names \"eef\""));
+        // Where a position is read, eef is the gripper's.
+        let lifted = STACK.replace("lifted = { object = \"cubeA\"", "lifted = { object = \"eef\"");
+        assert_ne!(lifted, STACK);
+        TaskFile::from_toml_str(&lifted, "my.task.toml").unwrap_or_else(|e| panic!("{e}"));
     }
 }

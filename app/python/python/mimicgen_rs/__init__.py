@@ -172,12 +172,14 @@ class Run:
         return self._native.report
 
 
-def _cameras(cameras: Union[None, bool, Sequence[str]], size: Union[int, Tuple[int, int]], depth: bool) -> Optional[Dict[str, Any]]:
+def _cameras(
+    cameras: Union[None, bool, Sequence[str]], size: Union[int, Tuple[int, int]], depth: bool, fast: bool
+) -> Optional[Dict[str, Any]]:
     if cameras is None or cameras is False:
         return None
     names = ["agentview", "robot0_eye_in_hand"] if cameras is True else [str(c) for c in cameras]
     height, width = (size, size) if isinstance(size, int) else (int(size[0]), int(size[1]))
-    return {"names": names, "height": int(height), "width": int(width), "depth": bool(depth)}
+    return {"names": names, "height": int(height), "width": int(width), "depth": bool(depth), "fast": bool(fast)}
 
 
 def generate(
@@ -203,6 +205,7 @@ def generate(
     cameras: Union[None, bool, Sequence[str]] = None,
     camera_size: Union[int, Tuple[int, int]] = 84,
     camera_depth: bool = False,
+    camera_fast: bool = False,
     env: Optional[Any] = None,
 ) -> Run:
     """Start a generation run in the background; the arguments are ``mimicgen generate``'s.
@@ -213,8 +216,10 @@ def generate(
     :func:`merge`). ``robot="sawyer"`` (or ``"iiwa"``) generates with that arm from the same
     source demos. ``cameras=True`` renders agentview and the wrist camera into every kept demo
     (``obs/<camera>_image``, uint8), or name them: ``cameras=["agentview", "frontview"]``, at
-    ``camera_size`` (``84`` or ``(height, width)``). ``env`` is a callable returning an :class:`Environment` (one per worker) to
-    drive instead of the bundled MuJoCo backend.
+    ``camera_size`` (``84`` or ``(height, width)``); ``camera_depth`` adds depth, ``camera_fast``
+    renders without multisampling (faster, edges differ from robosuite's). ``env`` is a callable
+    returning an :class:`Environment` (one per worker) to drive instead of the bundled MuJoCo
+    backend.
 
     Returns a :class:`Run`: iterate it for events, ``wait()`` for the report, ``cancel()``.
     """
@@ -237,7 +242,7 @@ def generate(
         "resume": resume,
         "spec": _spec_overrides(spec),
         "shard": _shard(shard),
-        "cameras": _cameras(cameras, camera_size, camera_depth),
+        "cameras": _cameras(cameras, camera_size, camera_depth, camera_fast),
     }
     if env is not None and not callable(env):
         raise MimicgenError("env: pass a callable that returns a new environment (one per worker), e.g. a class")
@@ -265,7 +270,8 @@ def write_subtask_ends(
 def tasks() -> Dict[str, List[Dict[str, Any]]]:
     """Every task (``name``, robosuite ``env_name``, ``variants``, ``description``, ``instruction``,
     ``objects``, ``signals``) and every arm (``name``, ``robosuite_name``, ``status``), as
-    ``mimicgen tasks`` lists them; task files under ``$MIMICGEN_TASK_DIR`` included."""
+    ``mimicgen tasks`` lists them; task files under ``$MIMICGEN_TASK_DIR`` included. A task file
+    that does not parse is under ``broken`` (``name``, ``error``); the other tasks still work."""
     return json.loads(_native.tasks())
 
 

@@ -21,19 +21,8 @@ from typing import Any, Dict, List, Optional
 
 import mimicgen_rs
 
-#: For tests of retries: a directory; the first try of shard 0 writes a marker there and kills
-#: its worker process, as a lost node would.
-CRASH_ONCE_ENV = "MIMICGEN_RAY_CRASH_ONCE"
-
-
 def _run_shard(part: int, count: int, kwargs: Dict[str, Any]) -> Dict[str, bytes]:
     """Runs one shard in a scratch directory; returns its files by name."""
-    marker_dir = os.environ.get(CRASH_ONCE_ENV)
-    if marker_dir and part == 0:
-        marker = os.path.join(marker_dir, "crashed_once")
-        if not os.path.exists(marker):
-            open(marker, "w").close()
-            os._exit(1)
     with tempfile.TemporaryDirectory(prefix=f"mimicgen_shard{part}_") as scratch:
         out = os.path.join(scratch, f"shard_{part}.hdf5")
         mimicgen_rs.generate(out, shard=(part, count), overwrite=True, **kwargs).wait()
