@@ -35,8 +35,9 @@ fn attempts_before_kill(count: usize, seed: u64) -> Vec<usize> {
 
 /// Reads the child's progress lines (`progress N/TOTAL: ...`, what `generate` logs when stderr is
 /// not a terminal) until `n` attempts beyond the first one it reported have been decided: waits
-/// on the run's own events, not on time. False if the child ended first.
-fn wait_for_attempts(stderr: &mut impl std::io::BufRead, n: usize) -> bool {
+/// on the run's own events, not on time. False if the child ended first; `said` keeps what it
+/// read.
+fn wait_for_attempts(stderr: &mut impl std::io::BufRead, n: usize, said: &mut String) -> bool {
     let mut first: Option<usize> = None;
     let mut line = String::new();
     loop {
@@ -44,6 +45,7 @@ fn wait_for_attempts(stderr: &mut impl std::io::BufRead, n: usize) -> bool {
         if stderr.read_line(&mut line).unwrap_or(0) == 0 {
             return false;
         }
+        said.push_str(&line);
         let Some(done) = line.strip_prefix("progress ").and_then(|l| l.split('/').next()).and_then(|d| d.parse::<usize>().ok()) else {
             continue;
         };
@@ -75,15 +77,15 @@ fn a_run_killed_five_times_and_resumed_equals_an_uninterrupted_run() {
         let mut child = generate(&pieces, resume).spawn().unwrap();
         started_fresh = true;
         let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-        if wait_for_attempts(&mut stderr, attempts) && child.try_wait().unwrap().is_none() {
+        let mut said = String::new();
+        if wait_for_attempts(&mut stderr, attempts, &mut said) && child.try_wait().unwrap().is_none() {
             child.kill().unwrap();
             child.wait().unwrap();
             kills += 1;
         } else {
             let status = child.wait().unwrap();
-            let mut rest = String::new();
-            std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
-            assert!(status.success(), "{rest}");
+            std::io::Read::read_to_string(&mut stderr, &mut said).unwrap();
+            assert!(status.success(), "session {} ({kills} killed before it), {resume:?}: {said}", kills + 1);
         }
     }
     if !pieces.exists() {
@@ -107,7 +109,8 @@ fn resuming_with_other_arguments_is_refused() {
     let mut child = generate(&out, &[]).spawn().unwrap();
     let partial = mimicgen_io::DatasetWriter::partial_path(&out);
     let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    assert!(wait_for_attempts(&mut stderr, 2), "the run ended before it was killed");
+    let mut said = String::new();
+    assert!(wait_for_attempts(&mut stderr, 2, &mut said), "the run ended before it was killed: {said}");
     child.kill().unwrap();
     child.wait().unwrap();
     assert!(partial.exists());

@@ -68,7 +68,7 @@ def test_the_same_seed_gives_the_same_dataset(small_run, tmp_path):
 def test_errors_are_mimicgen_errors_naming_the_file_and_field(tmp_path):
     with pytest.raises(mg.MimicgenError, match="missing.hdf5"):
         mg.Dataset(tmp_path / "missing.hdf5")
-    with pytest.raises(mg.MimicgenError, match="missing_source.hdf5: no such file"):
+    with pytest.raises(mg.MimicgenError, match="missing_source.hdf5: source: no such file"):
         mg.generate(tmp_path / "o.hdf5", source=tmp_path / "missing_source.hdf5").wait()
     # A run's fields are named as Python names them, never by the CLI's flags.
     with pytest.raises(mg.MimicgenError, match=r'spec\["action_noise"\]: names subtask 7') as err:

@@ -1,12 +1,98 @@
-//! How a run's task, variant, spec and sources are worked out from its description ([`crate::RunConfig`]).
+//! How a run's task, variant, spec, source demos and output `env_args` are worked out from its
+//! description ([`crate::RunConfig`]): the one place that decides them (from the flags, the
+//! spec file, the source file and the bundled defaults).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use mimicgen_engine::TaskSpec;
-use mimicgen_sim::{Task, registry};
+use mimicgen_sim::{Scene, Task, registry};
 
-use crate::PipelineError;
+use crate::{CameraConfig, PipelineError, RunConfig};
+
+/// What a run works on, decided from its description.
+pub(crate) struct Resolved {
+    pub task: Arc<dyn Task>,
+    pub variant: String,
+    /// The spec with the run's fields over it (`num_demos`, `seed`, `--action-noise`, ...).
+    pub spec: TaskSpec,
+    pub source_path: PathBuf,
+    /// The source file, checked to be recorded with the controller generation drives.
+    pub dataset: mimicgen_io::RobomimicDataset,
+}
+
+/// Decides the task and variant ([`resolve_task`]), the spec (`config.config`, else the task's
+/// bundled one, with the run's fields applied) and the source demos (`config.source`, else the
+/// task's bundled ones, checked by [`check_controller`]).
+///
+/// # Errors
+/// [`PipelineError`] naming the flag or file at fault.
+pub(crate) fn resolve(config: &RunConfig) -> Result<Resolved, PipelineError> {
+    let spec_from_file = match &config.config {
+        Some(path) => Some(TaskSpec::load(path).map_err(|e| PipelineError::engine(path.display().to_string(), e))?),
+        None => None,
+    };
+    let source_file = match &config.source {
+        Some(path) => {
+            if !path.exists() {
+                return Err(PipelineError::input(path.display().to_string(), "--source", "no such file"));
+            }
+            Some((path.clone(), mimicgen_io::RobomimicDataset::open(path)?))
+        }
+        None => None,
+    };
+    let (task, variant) = resolve_task(
+        config.task.as_deref(),
+        config.variant.as_deref(),
+        spec_from_file.as_ref().zip(config.config.as_deref()),
+        source_file.as_ref().and_then(|(p, d)| d.env_args().map(|a| (a, p.as_path()))),
+    )?;
+    let mut spec = match spec_from_file {
+        Some(spec) => spec,
+        None => crate::bundled::spec(task.name())?,
+    };
+    config.spec.apply(&mut spec)?;
+    let g = &mut spec.generation;
+    if let Some(n) = config.num_demos {
+        g.num_trials = n;
+    }
+    if let Some(seed) = config.seed {
+        g.seed = seed;
+    }
+    g.keep_failed |= config.keep_failed;
+    g.guarantee |= config.guarantee;
+    g.early_abort |= config.early_abort;
+    if let Some(cap) = config.max_attempts {
+        g.max_attempts = cap;
+    }
+    let (source_path, dataset) = match source_file {
+        Some(found) => found,
+        None => {
+            let path = crate::bundled::source_demos(task.name())?;
+            let dataset = mimicgen_io::RobomimicDataset::open(&path)?;
+            (path, dataset)
+        }
+    };
+    check_controller(dataset.env_args(), &source_path)?;
+    Ok(Resolved { task, variant, spec, source_path, dataset })
+}
+
+/// The `env_args` a run's outputs carry: the sources' (their controller settings) naming the
+/// generated task variant, the arm generation used and the cameras rendered.
+pub(crate) fn output_env_args(
+    source_env_args: Option<&str>,
+    task: &dyn Task,
+    variant: &str,
+    scene: &Scene,
+    cameras: Option<&CameraConfig>,
+) -> String {
+    let env_args = registry::env_args_for_variant(source_env_args, task.name(), variant);
+    let env_args = registry::env_args_with_robot(&env_args, scene.robot.model);
+    match cameras {
+        Some(cameras) => registry::env_args_with_cameras(&env_args, cameras),
+        None => env_args,
+    }
+}
 
 /// The task and variant one input names, with where it said so.
 #[derive(Debug, Clone)]

@@ -12,10 +12,10 @@ use mimicgen_engine::image::ImageStream;
 use mimicgen_engine::{Attempt, EngineError, Environment, Failure, Generator, RunControl, RunStats, Shard, TaskSpec};
 use mimicgen_io::{DatasetWriter, DemoData, Observation, WriterOptions};
 use mimicgen_sim::camera::Cameras;
-use mimicgen_sim::{Scene, SimEnv, Task, registry};
+use mimicgen_sim::{Scene, SimEnv, Task};
 use serde::{Deserialize, Serialize};
 
-use crate::config::{check_controller, resolve_task};
+use crate::config::{Resolved, output_env_args, resolve};
 use crate::{DemoReport, FailureReport, Outcome, PipelineError, Report, RunConfig, RunInfo};
 
 /// Root attribute of the output (and of its `.partial`) holding the run description.
@@ -270,53 +270,8 @@ impl Pipeline {
         {
             return Err(PipelineError::input("", "--valid-fraction", format!("must be between 0 and 1, got {f}")));
         }
-        let spec_from_file = match &config.config {
-            Some(path) => Some(TaskSpec::load(path).map_err(|e| PipelineError::engine(path.display().to_string(), e))?),
-            None => None,
-        };
-        let source_file = match &config.source {
-            Some(path) => {
-                if !path.is_file() {
-                    return Err(PipelineError::input(path.display().to_string(), "--source", "no such file"));
-                }
-                Some((path.clone(), mimicgen_io::RobomimicDataset::open(path)?))
-            }
-            None => None,
-        };
-        let (task, variant) = resolve_task(
-            config.task.as_deref(),
-            config.variant.as_deref(),
-            spec_from_file.as_ref().zip(config.config.as_deref()),
-            source_file.as_ref().and_then(|(p, d)| d.env_args().map(|a| (a, p.as_path()))),
-        )?;
-        let mut spec = match spec_from_file {
-            Some(spec) => spec,
-            None => crate::bundled::spec(task.name())?,
-        };
-        config.spec.apply(&mut spec)?;
-        let g = &mut spec.generation;
-        if let Some(n) = config.num_demos {
-            g.num_trials = n;
-        }
-        if let Some(seed) = config.seed {
-            g.seed = seed;
-        }
-        g.keep_failed |= config.keep_failed;
-        g.guarantee |= config.guarantee;
-        g.early_abort |= config.early_abort;
-        if let Some(cap) = config.max_attempts {
-            g.max_attempts = cap;
-        }
-        let (source_path, dataset) = match source_file {
-            Some(found) => found,
-            None => {
-                let path = crate::bundled::source_demos(task.name())?;
-                let dataset = mimicgen_io::RobomimicDataset::open(&path)?;
-                (path, dataset)
-            }
-        };
+        let Resolved { task, variant, spec, source_path, dataset } = resolve(config)?;
         let source_label = source_path.display().to_string();
-        check_controller(dataset.env_args(), &source_path)?;
         let mut sources = dataset.to_source_dataset(&spec.source)?;
         drop(dataset);
         for (name, demo_ends) in ends {
@@ -341,11 +296,7 @@ impl Pipeline {
             (None, robot) => Scene::for_task_with_robot(task.as_ref(), robot.unwrap_or(&mimicgen_sim::robot::PANDA))?,
         };
         let scene_xml = mimicgen_sim::assets::portable_asset_paths(&xml);
-        let mut env_args = registry::env_args_for_variant(sources.env_args.as_deref(), task.name(), &variant);
-        env_args = registry::env_args_with_robot(&env_args, scene.robot.model);
-        if let Some(cameras) = &config.cameras {
-            env_args = registry::env_args_with_cameras(&env_args, cameras);
-        }
+        let env_args = output_env_args(sources.env_args.as_deref(), task.as_ref(), &variant, &scene, config.cameras.as_ref());
         let generator = Generator::new(spec.clone(), sources).map_err(|e| PipelineError::engine(source_label.clone(), e))?;
         let bytes = std::fs::read(&source_path).map_err(|e| PipelineError::Fs { file: source_label.clone(), reason: e.to_string() })?;
         let description = RunDescription {
