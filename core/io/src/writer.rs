@@ -352,11 +352,17 @@ impl DatasetWriter {
 
     /// Reopens the `<out>.partial` file an interrupted writer left, to go on appending: keeps the
     /// demos that were completely written (`num_samples` set) and whose attempt index (if any) is
-    /// below `next_attempt`, and removes the rest, so the file holds exactly the demos of the
+    /// below `next_attempt`, and drops the rest, so the file holds exactly the demos of the
     /// attempts before `next_attempt`.
     ///
+    /// The killed file is read, not edited: a process killed while HDF5 was writing can leave
+    /// metadata flushed past the file's recorded end, which HDF5 then refuses to extend ("addr
+    /// overflow"). The kept demos (arrays, chunking, attributes as they were) and the root and
+    /// `data` attributes are copied into a fresh file, which replaces the partial one by a rename.
+    ///
     /// # Errors
-    /// [`IoError::Fs`] if there is no such file, [`IoError::Write`] if it cannot be opened or edited.
+    /// [`IoError::Fs`] if there is no such file, [`IoError::Hdf5`] if it cannot be read,
+    /// [`IoError::Write`] if the fresh file cannot be written.
     pub fn resume(out: impl AsRef<Path>, options: WriterOptions, next_attempt: u64) -> Result<Self> {
         let out = out.as_ref().to_path_buf();
         let partial = Self::partial_path(&out);
@@ -364,32 +370,55 @@ impl DatasetWriter {
         if !partial.is_file() {
             return Err(IoError::Fs { file: label, reason: "no interrupted run to resume here (the file does not exist)".to_owned() });
         }
-        let err = |g: &str, f: &str, e: &hdf5::Error| IoError::hdf5_write(&label, g, f, e);
-        let h5 = hdf5::File::open_rw(&partial).map_err(|e| err("/", "", &e))?;
-        let data = h5.group("data").map_err(|e| err("/", "data", &e))?;
-        let mut names = Vec::new();
-        let mut total = 0i64;
-        let mut dropping = false;
+        let old = IoError::open_h5(&partial)?;
+        let old_data = old.group("data").map_err(|e| IoError::hdf5(&label, "/", "data", &e))?;
+        let mut root_attrs = tree::read_group_attrs(&label, &old, "/")?;
+        root_attrs.remove(COMPLETE_ATTR);
+        let mut data_attrs = tree::read_group_attrs(&label, &old_data, "data")?;
+        data_attrs.remove("total");
+        let mut fresh = PathBuf::from(&partial).into_os_string();
+        fresh.push(".resume");
+        let fresh = PathBuf::from(fresh);
+        let fresh_label = fresh.display().to_string();
+        let err = |g: &str, f: &str, e: &hdf5::Error| IoError::hdf5_write(&fresh_label, g, f, e);
+        let h5 = hdf5::File::create(&fresh).map_err(|e| err("/", "", &e))?;
+        tree::write_attr(&fresh_label, &h5, "/", COMPLETE_ATTR, &Array::int(0))?;
+        tree::write_attrs(&fresh_label, &h5, "/", &root_attrs)?;
+        let data = h5.create_group("data").map_err(|e| err("/", "data", &e))?;
+        tree::write_attrs(&fresh_label, &data, "data", &data_attrs)?;
+        let mut writer =
+            Self { h5, data, label: fresh_label, partial: partial.clone(), out, options, names: Vec::new(), total: 0, masks: None };
         for i in 0.. {
             let name = format!("demo_{i}");
-            if !data.link_exists(&name) {
+            if !old_data.link_exists(&name) {
                 break;
             }
-            let g = data.group(&name).map_err(|e| err("data", &name, &e))?;
-            let int_attr = |attr: &str| -> Option<i64> { g.attr(attr).ok().and_then(|a| a.read_scalar::<i64>().ok()) };
-            let steps = int_attr("num_samples");
+            let path = format!("data/{name}");
+            // A demo half written when the writer died can be unreadable: it is dropped, as is
+            // every one after it.
+            let Ok(demo) = old_data
+                .group(&name)
+                .map_err(|e| IoError::hdf5(&label, "data", &name, &e))
+                .and_then(|g| tree::read_group(&label, &g, &path))
+            else {
+                break;
+            };
+            let int_attr = |attr: &str| demo.attrs.get(attr).and_then(Array::as_i64);
             let attempt = int_attr(ATTEMPT_ATTR).and_then(|a| u64::try_from(a).ok());
-            dropping |= steps.is_none() || attempt.is_some_and(|a| a >= next_attempt);
-            if dropping {
-                drop(g);
-                data.unlink(&name).map_err(|e| err("data", &name, &e))?;
-                continue;
+            if int_attr("num_samples").is_none() || attempt.is_some_and(|a| a >= next_attempt) {
+                break;
             }
-            total += steps.unwrap_or(0);
-            names.push(name);
+            writer.append_group(&demo)?;
         }
-        h5.flush().map_err(|e| err("/", "", &e))?;
-        Ok(Self { h5, data, label, partial, out, options, names, total, masks: None })
+        drop(old_data);
+        drop(old);
+        writer.h5.flush().map_err(|e| IoError::hdf5_write(&writer.label, "/", "", &e))?;
+        std::fs::rename(&fresh, &partial).map_err(|e| IoError::Fs {
+            file: label.clone(),
+            reason: format!("replacing it with the resumed copy {}: {e}", fresh.display()),
+        })?;
+        writer.label = label;
+        Ok(writer)
     }
 
     /// String attributes `names` of the root of the `<out>.partial` file an interrupted writer left

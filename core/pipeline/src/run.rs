@@ -441,7 +441,14 @@ impl Pipeline {
             let next = progress.next_attempt as u64;
             let writer = DatasetWriter::resume(out, options, next)?;
             let failed_writer = if keep_failed {
-                Some(if DatasetWriter::partial_path(&failed).is_file() {
+                // A run killed while finishing may have finished its failed attempts' file but
+                // not the dataset (whose rename commits the run): that file goes on.
+                let failed_partial = DatasetWriter::partial_path(&failed);
+                if !failed_partial.is_file() && failed.is_file() {
+                    std::fs::rename(&failed, &failed_partial)
+                        .map_err(|e| PipelineError::Fs { file: failed.display().to_string(), reason: e.to_string() })?;
+                }
+                Some(if failed_partial.is_file() {
                     DatasetWriter::resume(&failed, failed_options, next)?
                 } else {
                     DatasetWriter::create(&failed, failed_options)?
@@ -600,8 +607,10 @@ impl Pipeline {
         let cancelled = cancel.load(std::sync::atomic::Ordering::Relaxed)
             && !(settings.guarantee && stats.successes >= settings.num_trials)
             && stats.attempts < settings.attempt_cap();
-        let written = writer.finish()?;
+        // The failed attempts first: the dataset's rename is the run's commit point (a run killed
+        // between the two resumes, and takes the finished failed file back).
         let failed_written = failed_writer.map(DatasetWriter::finish).transpose()?;
+        let written = writer.finish()?;
         let wall = started.elapsed().as_secs_f64();
         #[allow(clippy::cast_precision_loss)]
         let session_attempts = stats.attempts.saturating_sub(resumed_from) as f64;
