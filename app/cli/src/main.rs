@@ -17,6 +17,7 @@ mod coverage;
 mod exit;
 mod generate;
 mod prepare;
+mod replay;
 mod serve;
 mod view;
 
@@ -123,6 +124,9 @@ Examples:
     Prepare(prepare::PrepareArgs),
     /// Add camera observations to a dataset from its stored states (robomimic's states-to-obs).
     Render(prepare::RenderArgs),
+    /// Replay a dataset's demos in our simulator (stored targets closed loop, or actions open
+    /// loop): did they succeed again, and per step what the physics did (--trace).
+    Replay(replay::ReplayArgs),
     /// Measure generation against bare physics stepping and across worker counts.
     BenchSim(bench_sim::BenchSimArgs),
     /// Measure the app's frame time with a file loaded, and the time until it is browsable.
@@ -403,6 +407,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Render(args) => {
             prepare::render(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Replay(args) => {
+            replay::run(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::BenchSim(args) => {

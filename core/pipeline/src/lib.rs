@@ -37,6 +37,7 @@ pub mod merge;
 pub mod prepare;
 pub mod preview;
 pub mod render;
+pub mod replay;
 mod run;
 
 pub use error::PipelineError;

@@ -84,6 +84,14 @@ impl SimEnv {
         self.set_state(state)
     }
 
+    /// Makes the arm's present joint positions the controller's null-space posture, as a reset
+    /// does: after [`SimEnv::reset_to_state`] with an attempt's first state, the controller is the
+    /// one that attempt ran with.
+    pub fn hold_posture_here(&mut self) {
+        let qpos = self.data.qpos();
+        self.osc.initial_joint = self.scene.robot.arm_qpos.iter().map(|&i| qpos[i]).collect();
+    }
+
     /// Whether any geom of `a` touches any geom of `b`.
     #[must_use]
     pub fn in_contact(&self, a: &[usize], b: &[usize]) -> bool {
@@ -91,6 +99,42 @@ impl SimEnv {
             let (g1, g2) = (usize::try_from(c.geom[0]).unwrap_or(usize::MAX), usize::try_from(c.geom[1]).unwrap_or(usize::MAX));
             (a.contains(&g1) && b.contains(&g2)) || (a.contains(&g2) && b.contains(&g1))
         })
+    }
+
+    /// The finger pads' contacts with object `i`: how many, and the sum of their normal forces
+    /// (N, MuJoCo's `mj_contactForce`). With [`SimEnv::is_grasping`], what a physics comparison
+    /// reads per step.
+    #[must_use]
+    pub fn pad_contacts(&self, object: usize) -> (usize, f64) {
+        let geoms = &self.scene.objects[object].geoms;
+        let pads: Vec<usize> = self.scene.robot.finger_pads.iter().flatten().copied().collect();
+        let (mut count, mut force) = (0, 0.0);
+        for (i, c) in self.data.contact().iter().enumerate() {
+            let (g1, g2) = (usize::try_from(c.geom[0]).unwrap_or(usize::MAX), usize::try_from(c.geom[1]).unwrap_or(usize::MAX));
+            if (pads.contains(&g1) && geoms.contains(&g2)) || (pads.contains(&g2) && geoms.contains(&g1)) {
+                let mut wrench = [0.0; 6];
+                #[allow(unsafe_code)]
+                // SAFETY: `i` indexes one of the data's `ncon` contacts and `wrench` holds the 6
+                // values mj_contactForce writes; the data belongs to the scene's model.
+                unsafe {
+                    mujoco_rs::mujoco_c::mj_contactForce(
+                        self.scene.model.ffi(),
+                        self.data.ffi(),
+                        i32::try_from(i).unwrap_or(i32::MAX),
+                        &raw mut wrench,
+                    );
+                }
+                count += 1;
+                force += wrench[0];
+            }
+        }
+        (count, force)
+    }
+
+    /// How many contacts the simulation holds now (MuJoCo's `ncon`).
+    #[must_use]
+    pub fn contact_count(&self) -> usize {
+        self.data.contact().len()
     }
 
     /// robosuite's `_check_grasp`: both finger pads touch the object.

@@ -13,6 +13,7 @@ pub mod camera;
 pub mod compose;
 pub mod env;
 pub mod geometry;
+pub mod legacy_contacts;
 pub mod osc;
 pub mod registry;
 pub mod robot;

@@ -92,6 +92,11 @@ impl Scene {
         let physics_xml =
             crate::robot::for_simulation(&crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M"), robot_model);
         let model = compile_mjcf(&physics_xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?;
+        let model = match crate::legacy_contacts::contact_section(&model).filter(|_| crate::legacy_contacts::enabled()) {
+            Some(section) => compile_mjcf(&crate::legacy_contacts::with_section(&physics_xml, &section))
+                .map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?,
+            None => model,
+        };
         let mut to_mocap = Vec::new();
         for (_, body_name) in objects {
             let body = id(&model, MjtObjBase::mjOBJ_BODY, body_name, origin)?;
@@ -269,6 +274,18 @@ impl Scene {
             }
         }
         Ok(out)
+    }
+
+    /// The names of these geoms (empty for an unnamed one).
+    #[must_use]
+    pub fn geom_names(&self, geoms: &[usize]) -> Vec<String> {
+        geoms.iter().map(|&g| self.model.id_to_name(MjtObjBase::mjOBJ_GEOM, g).unwrap_or_default().to_owned()).collect()
+    }
+
+    /// The name of a site.
+    #[must_use]
+    pub fn site_name(&self, site: usize) -> String {
+        self.model.id_to_name(MjtObjBase::mjOBJ_SITE, site).unwrap_or_default().to_owned()
     }
 
     /// Length of robosuite's flattened state: `[time, qpos, qvel]`.
