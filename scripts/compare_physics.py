@@ -2,7 +2,7 @@
 """Run the same attempts in our simulator and in robosuite, step by step, and say where they part.
 
 Usage: compare_physics.py DATASET [--demos demo_0,demo_3] [--num N] [--mode targets|actions]
-                          [--show K] [--json OUT] [--max-eef-mm MM]
+                          [--show K] [--json OUT] [--max-eef-mm MM] [--max-object-mm MM]
 
 For each demo of DATASET (a dataset or a failed-attempts file that `mimicgen generate` wrote, on
 our backend or on robosuite through `mimicgen_rs.robosuite`), both simulators start from the
@@ -21,8 +21,8 @@ The script prints, per demo, the outcome in each simulator, the first step where
 (end effector or an object more than --part-mm apart, or a finger more than 1 mm), and with
 --show K the K steps from there side by side; then the demos whose outcome differs.
 
-Exit status: 0 done, 1 when --max-eef-mm is given and a demo's end effector parted by more
-(the guard `core/sim/tests` runs), 2 bad input.
+Exit status: 0 done, 1 when --max-eef-mm or --max-object-mm is given and a demo's end effector
+or an object parted by more (the guard scripts/test.sh runs), 2 bad input.
 
 Run it in the robosuite environment (scripts/setup_robosuite.sh); from another interpreter it
 re-executes itself with that environment's python.
@@ -224,6 +224,7 @@ def main(argv=None):
     ap.add_argument("--show", type=int, default=0, help="print K steps side by side from where each demo parts")
     ap.add_argument("--json", default=None, help="write per-demo results (and per-step differences) here")
     ap.add_argument("--max-eef-mm", type=float, default=None, help="exit 1 if any demo's end effector parts by more than this")
+    ap.add_argument("--max-object-mm", type=float, default=None, help="exit 1 if any demo's object parts by more than this")
     args = ap.parse_args(argv)
     rr.ensure_robosuite()
     import h5py
@@ -249,7 +250,7 @@ def main(argv=None):
         if args.num is not None:
             names = names[: args.num]
         traces = ours(path, names, args.mode)
-        results, worst_eef = [], 0.0
+        results, worst_eef, worst_object = [], 0.0, 0.0
         for ref in traces:
             name = ref["demo"]
             rs = robosuite_trace(env, f["data"][name], name, path, args.mode, ref)
@@ -258,6 +259,7 @@ def main(argv=None):
             part, what = parting(diffs, args.part_mm)
             worst = {k: max(d[k] for d in diffs) for k in diffs[0]}
             worst_eef = max(worst_eef, worst["eef_mm"])
+            worst_object = max([worst_object] + [worst[o + "_mm"] for o in ref["objects"]])
             outcome = lambda s, fs: f"success at step {fs}" if s else "fails"  # noqa: E731
             where = f"part at step {part} ({', '.join(what)})" if part is not None else "never part"
             print(f"{name}: ours {outcome(ref['success'], ref['first_success'])}, robosuite "
@@ -273,12 +275,16 @@ def main(argv=None):
     differ = [r for r in results if r["ours_success"] != r["robosuite_success"]]
     print(f"compare_physics ({args.mode}, {env_name}): ours {sum(r['ours_success'] for r in results)} of {len(results)}, "
           f"robosuite {sum(r['robosuite_success'] for r in results)} of {len(results)}; outcomes differ in "
-          f"{len(differ)}: {', '.join(r['demo'] for r in differ) or '-'}; worst end-effector gap {worst_eef:.1f} mm")
+          f"{len(differ)}: {', '.join(r['demo'] for r in differ) or '-'}; worst gaps: end effector {worst_eef:.1f} mm, "
+          f"object {worst_object:.1f} mm")
     if args.json:
         with open(args.json, "w") as out:
             json.dump({"dataset": path, "mode": args.mode, "demos": results}, out)
     if args.max_eef_mm is not None and worst_eef > args.max_eef_mm:
         print(f"compare_physics: end effectors parted by {worst_eef:.1f} mm, more than --max-eef-mm {args.max_eef_mm}", file=sys.stderr)
+        return 1
+    if args.max_object_mm is not None and worst_object > args.max_object_mm:
+        print(f"compare_physics: objects parted by {worst_object:.1f} mm, more than --max-object-mm {args.max_object_mm}", file=sys.stderr)
         return 1
     return 0
 

@@ -43,6 +43,7 @@ Examples:
   mimicgen info source_D0.hdf5                 demos, lengths, obs/action shapes, objects, signals
   mimicgen export generated.hdf5 --mcap out.mcap   poses, actions, labels for Foxglove
   mimicgen view generated.hdf5 --demo 3 --spawn     one demo in the Rerun viewer
+  mimicgen replay out_failed.hdf5 --trace t.json    each attempt again, step by step (compare_physics.py)
   mimicgen app                                the inspection app in a window
   mimicgen serve                              the same app in a browser (headless servers, over SSH)";
 

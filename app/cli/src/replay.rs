@@ -80,7 +80,11 @@ pub fn run(args: &ReplayArgs) -> anyhow::Result<()> {
         println!("{}: {} steps, {outcome}{recorded}", t.demo, t.steps.len() - 1);
     }
     let successes = traces.iter().filter(|t| t.success).count();
-    println!("replay ({}): {successes} of {} succeeded", if matches!(mode, ReplayMode::Targets) { "targets" } else { "actions" }, traces.len());
+    println!(
+        "replay ({}): {successes} of {} succeeded",
+        if matches!(mode, ReplayMode::Targets) { "targets" } else { "actions" },
+        traces.len()
+    );
     if let Some(path) = &args.trace {
         let json = serde_json::to_vec(&traces)?;
         std::fs::write(path, json).map_err(|e| anyhow::anyhow!("{}: cannot write the trace: {e}", path.display()))?;

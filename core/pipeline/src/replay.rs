@@ -91,9 +91,13 @@ pub struct DemoTrace {
 /// `datagen_info/<field>` of a demo: one 4x4 pose per step.
 fn poses(demo: &mimicgen_io::tree::Group, field: &str, file: &str, name: &str) -> Result<Vec<Pose>, PipelineError> {
     let at = format!("data/{name}/datagen_info/{field}");
-    let d = demo
-        .dataset_at(&format!("datagen_info/{field}"))
-        .ok_or_else(|| PipelineError::input(file, format!("data/{name}"), format!("has no datagen_info/{field} (--mode targets needs it; --mode actions does not)")))?;
+    let d = demo.dataset_at(&format!("datagen_info/{field}")).ok_or_else(|| {
+        PipelineError::input(
+            file,
+            format!("data/{name}"),
+            format!("has no datagen_info/{field} (--mode targets needs it; --mode actions does not)"),
+        )
+    })?;
     let values = d.array.values.to_f64().ok_or_else(|| PipelineError::input(file, at.clone(), "is not numeric"))?;
     if d.array.shape.len() != 3 || d.array.shape[1..] != [4, 4] {
         return Err(PipelineError::input(file, at, format!("has shape {:?}, not (steps, 4, 4)", d.array.shape)));
@@ -102,7 +106,8 @@ fn poses(demo: &mimicgen_io::tree::Group, field: &str, file: &str, name: &str) -
         .chunks(16)
         .enumerate()
         .map(|(t, m)| {
-            pose_from_matrix(&Mat4::from_row_slice(m), &format!("step {t}")).map_err(|e| PipelineError::input(file, at.clone(), e.to_string()))
+            pose_from_matrix(&Mat4::from_row_slice(m), &format!("step {t}"))
+                .map_err(|e| PipelineError::input(file, at.clone(), e.to_string()))
         })
         .collect()
 }

@@ -191,20 +191,28 @@ fn nominal_segments_equal_the_references_on_its_own_source_file() {
     }
 }
 
-/// BENCHMARKS.md reports the Stack D0 rate from the bundled demos over 1000 attempts; these 60
-/// attempts are a fixed, deterministic sample of the same run. A drop of 10 points in the real
-/// rate would put this sample below the bound with high probability, so a change to the engine,
-/// the controller or the demos that costs that much fails here.
+/// The Stack D0 rate on the reference's own source demos and config, held against the same engine
+/// driving robosuite itself (BENCHMARKS.md, "Physics fidelity": 484 of 500, 96.8 %). These
+/// attempts are the first 200 of the seed-11 run BENCHMARKS.md reports (477 of 500 on our backend,
+/// 187 of these 200): a fixed, deterministic sample. A change to the physics, the controller or
+/// the engine that costs 5 points turns about 10 of its successes into failures, under the bound
+/// (183).
 #[test]
-fn the_stack_d0_rate_stays_where_benchmarks_reports_it() {
-    const REPORTED_RATE: f64 = 0.956;
+fn the_stack_d0_rate_on_the_references_files_stays_near_robosuites() {
+    const ROBOSUITE_RATE: f64 = 0.968;
+    const ATTEMPTS: usize = 200;
     let dir = tempfile::tempdir().unwrap();
-    let config = RunConfig { seed: Some(1), ..config(&dir.path().join("rate.hdf5"), 60, 2) };
+    let config = RunConfig {
+        seed: Some(11),
+        source: Some(data("../io/tests/data/source_D0_prepared.hdf5")),
+        config: Some(data("../engine/tests/data/config_D0.json")),
+        ..config(&dir.path().join("rate.hdf5"), ATTEMPTS, 2)
+    };
     let (report, _) = run(&config).unwrap();
-    #[allow(clippy::cast_precision_loss)]
-    let bound = ((REPORTED_RATE - 0.05) * 60.0).floor() as usize;
-    println!("Stack D0 from the bundled demos: {} of 60 (bound {bound})", report.successes);
-    assert!(report.successes >= bound, "{} of 60 succeeded; BENCHMARKS.md reports {REPORTED_RATE}", report.successes);
+    #[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let bound = ((ROBOSUITE_RATE - 0.05) * ATTEMPTS as f64).floor() as usize;
+    println!("Stack D0 from the reference's files: {} of {ATTEMPTS} (bound {bound})", report.successes);
+    assert!(report.successes >= bound, "{} of {ATTEMPTS} succeeded; robosuite: {ROBOSUITE_RATE}", report.successes);
 }
 
 /// Auto-detected subtask ends against the ends the stored signals give, on the reference's own

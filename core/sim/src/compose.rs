@@ -318,7 +318,8 @@ fn write_nut(out: &mut String, name: &str, geoms: &[([f64; 3], [f64; 3], f64)], 
     let _ = writeln!(out, r#"      <body name="{name}_object" pos="0 0 0" gravcomp="0">"#);
     for (i, ([px, py, pz], [sx, sy, sz], yaw)) in geoms.iter().enumerate() {
         let (pos, size) = (format!("{px} {py} {pz}"), format!("{sx} {sy} {sz}"));
-        // Only rotated bars carry an axisangle, so the square nut's XML is what it always was.
+        // Only rotated bars carry an axisangle. Visual geoms are named as robosuite names them
+        // (`_visual`), so robosuite loads the model_file.
         let turn = if *yaw == 0.0 { String::new() } else { format!(r#" axisangle="0 0 1 {yaw}""#) };
         let _ = writeln!(
             out,
@@ -326,7 +327,7 @@ fn write_nut(out: &mut String, name: &str, geoms: &[([f64; 3], [f64; 3], f64)], 
         );
         let _ = writeln!(
             out,
-            r#"        <geom name="{name}_g{i}_vis" pos="{pos}" size="{size}"{turn} type="box" contype="0" conaffinity="0" group="1" mass="0" material="{name}_bmetal"/>"#
+            r#"        <geom name="{name}_g{i}_visual" pos="{pos}" size="{size}"{turn} type="box" contype="0" conaffinity="0" group="1" mass="0" material="{name}_bmetal"/>"#
         );
     }
     let [hx, hy, hz] = handle;
@@ -337,6 +338,8 @@ fn write_nut(out: &mut String, name: &str, geoms: &[([f64; 3], [f64; 3], f64)], 
     let _ = writeln!(out, r#"      <site name="{name}_bottom_site" pos="0 0 -0.05" size="0.005" rgba="0 0 0 0"/>"#);
     let _ = writeln!(out, r#"      <site name="{name}_top_site" pos="0 0 {top_z}" size="0.005" rgba="0 0 0 0"/>"#);
     let _ = writeln!(out, r#"      <site name="{name}_horizontal_radius_site" pos="{rx} {ry} 0" size="0.005" rgba="0 0 0 0"/>"#);
+    // robosuite's nut objects look this site up when they load a model_file.
+    let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 0"/>"#);
     let _ = writeln!(out, "    </body>");
 }
 

@@ -1,13 +1,14 @@
 //! Box-box contacts as the MuJoCo that robosuite 1.4 runs (2.3) computes them.
 //!
-//! Until late 2025 MuJoCo's box-box collider reported half the penetration depth of most box-box
-//! contacts (the bug was found in MuJoCo Warp, google-deepmind/mujoco_warp#822, and fixed in
-//! MuJoCo's CPU collider after it). MuJoCo 3.17, which we run, reports the true depth; robosuite
-//! 1.4 runs MuJoCo 2.3, and its assets (the finger pads' stiffness, the objects' contacts) and the
-//! reference's datasets were made with the half depth. The same state then pushes twice as hard
-//! on a box resting on the table or squeezed between the finger pads
-//! (`scripts/compare_physics.py` found it: in one state, pads on a cube at 2.3 mm in 3.17 and
-//! 1.2 mm in 2.3, 45 N against 22 N).
+//! MuJoCo's box-box collider changed between 2.3, which robosuite 1.4 runs, and 3.17, which we
+//! run: in the same state 3.17 reports twice the penetration depth of a box-box contact, every
+//! contact, while mesh and sphere contacts agree (`scripts/compare_physics.py` led there; in one
+//! state the pads on a cube at 2.34 mm in 3.17 and 1.17 mm in 2.3, 45 N against 22 N). 3.17's
+//! depth is the true one; robosuite's assets (the pads' stiffness, the objects' contacts) and the
+//! reference's datasets were made with the half depth, so the same state pushes twice as hard on
+//! a box resting on the table or squeezed between the finger pads. (Which MuJoCo release changed
+//! it we did not pin down; MuJoCo Warp's port of the same collider is discussed in
+//! google-deepmind/mujoco_warp#822.)
 //!
 //! A soft contact's reference acceleration is `-b v - k imp(|d|) d` (MuJoCo's solver parameters);
 //! at half the depth it is `-b v - k imp(|d| / 2) d / 2`. So a box-box contact computed by MuJoCo
