@@ -283,7 +283,16 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
 }
 
 /// Numbers as MJCF writes a vector: `0.1 0 -2`.
-fn words(v: &[f64]) -> String {
+/// `xml` with `section` added as the last element of `<mujoco>`.
+#[must_use]
+pub fn with_section(xml: &str, section: &str) -> String {
+    match xml.rfind("</mujoco>") {
+        Some(end) => format!("{}{section}{}", &xml[..end], &xml[end..]),
+        None => xml.to_owned(),
+    }
+}
+
+pub(crate) fn words(v: &[f64]) -> String {
     v.iter().map(f64::to_string).collect::<Vec<_>>().join(" ")
 }
 

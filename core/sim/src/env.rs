@@ -92,13 +92,18 @@ impl SimEnv {
         self.osc.initial_joint = self.scene.robot.arm_qpos.iter().map(|&i| qpos[i]).collect();
     }
 
+    /// The indices of the contacts between a geom of `a` and a geom of `b`.
+    fn contacts_between<'a>(&'a self, a: &'a [usize], b: &'a [usize]) -> impl Iterator<Item = usize> + 'a {
+        self.data.contact().iter().enumerate().filter_map(move |(i, c)| {
+            let (g1, g2) = (usize::try_from(c.geom[0]).unwrap_or(usize::MAX), usize::try_from(c.geom[1]).unwrap_or(usize::MAX));
+            ((a.contains(&g1) && b.contains(&g2)) || (a.contains(&g2) && b.contains(&g1))).then_some(i)
+        })
+    }
+
     /// Whether any geom of `a` touches any geom of `b`.
     #[must_use]
     pub fn in_contact(&self, a: &[usize], b: &[usize]) -> bool {
-        self.data.contact().iter().any(|c| {
-            let (g1, g2) = (usize::try_from(c.geom[0]).unwrap_or(usize::MAX), usize::try_from(c.geom[1]).unwrap_or(usize::MAX));
-            (a.contains(&g1) && b.contains(&g2)) || (a.contains(&g2) && b.contains(&g1))
-        })
+        self.contacts_between(a, b).next().is_some()
     }
 
     /// The finger pads' contacts with object `i`: how many, and the sum of their normal forces
@@ -109,24 +114,21 @@ impl SimEnv {
         let geoms = &self.scene.objects[object].geoms;
         let pads: Vec<usize> = self.scene.robot.finger_pads.iter().flatten().copied().collect();
         let (mut count, mut force) = (0, 0.0);
-        for (i, c) in self.data.contact().iter().enumerate() {
-            let (g1, g2) = (usize::try_from(c.geom[0]).unwrap_or(usize::MAX), usize::try_from(c.geom[1]).unwrap_or(usize::MAX));
-            if (pads.contains(&g1) && geoms.contains(&g2)) || (pads.contains(&g2) && geoms.contains(&g1)) {
-                let mut wrench = [0.0; 6];
-                #[allow(unsafe_code)]
-                // SAFETY: `i` indexes one of the data's `ncon` contacts and `wrench` holds the 6
-                // values mj_contactForce writes; the data belongs to the scene's model.
-                unsafe {
-                    mujoco_rs::mujoco_c::mj_contactForce(
-                        self.scene.model.ffi(),
-                        self.data.ffi(),
-                        i32::try_from(i).unwrap_or(i32::MAX),
-                        &raw mut wrench,
-                    );
-                }
-                count += 1;
-                force += wrench[0];
+        for i in self.contacts_between(&pads, geoms) {
+            let mut wrench = [0.0; 6];
+            #[allow(unsafe_code)]
+            // SAFETY: `i` indexes one of the data's `ncon` contacts and `wrench` holds the 6
+            // values mj_contactForce writes; the data belongs to the scene's model.
+            unsafe {
+                mujoco_rs::mujoco_c::mj_contactForce(
+                    self.scene.model.ffi(),
+                    self.data.ffi(),
+                    i32::try_from(i).unwrap_or(i32::MAX),
+                    &raw mut wrench,
+                );
             }
+            count += 1;
+            force += wrench[0];
         }
         (count, force)
     }

@@ -127,10 +127,6 @@ fn collide(model: &MjModel, g1: usize, g2: usize, excluded: &[i32]) -> bool {
     (t1 & a2) != 0 || (t2 & a1) != 0
 }
 
-fn words<const N: usize>(v: &[f64; N]) -> String {
-    v.iter().map(ToString::to_string).collect::<Vec<_>>().join(" ")
-}
-
 /// The `<contact>` section that makes `model`'s box-box contacts behave as MuJoCo 2.3's (see the
 /// module's documentation), or `None` when no two box geoms can touch (or one is unnamed, so no
 /// pair can name it: the model is then simulated as it is).
@@ -175,9 +171,9 @@ pub fn contact_section(model: &MjModel) -> Option<String> {
                 out,
                 r#"    <pair geom1="{n1}" geom2="{n2}" condim="{}" friction="{}" solref="{}" solimp="{}" margin="{}" gap="{}"/>"#,
                 p.condim,
-                words(&p.friction),
-                words(&p.solref),
-                words(&p.solimp),
+                crate::compose::words(&p.friction),
+                crate::compose::words(&p.solref),
+                crate::compose::words(&p.solimp),
                 p.margin,
                 p.gap
             );
@@ -185,15 +181,6 @@ pub fn contact_section(model: &MjModel) -> Option<String> {
     }
     out.push_str("  </contact>\n");
     Some(out)
-}
-
-/// `xml` with `section` added as the last element of `<mujoco>`.
-#[must_use]
-pub fn with_section(xml: &str, section: &str) -> String {
-    match xml.rfind("</mujoco>") {
-        Some(end) => format!("{}{section}{}", &xml[..end], &xml[end..]),
-        None => xml.to_owned(),
-    }
 }
 
 #[cfg(test)]

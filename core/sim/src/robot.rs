@@ -298,10 +298,7 @@ pub fn for_simulation(xml: &str, robot: &RobotModel) -> String {
     if !couplings.is_empty() {
         sections += &format!("<equality>{couplings}</equality>\n");
     }
-    match xml.rfind("</mujoco>") {
-        Some(end) if !sections.is_empty() => format!("{}{sections}{}", &xml[..end], &xml[end..]),
-        _ => xml,
-    }
+    crate::compose::with_section(&xml, &sections)
 }
 
 /// The arm whose joints `has_joint` finds in a scene (Panda for a scene with none of them).

@@ -92,8 +92,9 @@ impl Scene {
         let physics_xml =
             crate::robot::for_simulation(&crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M"), robot_model);
         let model = compile_mjcf(&physics_xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?;
-        let model = match crate::legacy_contacts::contact_section(&model).filter(|_| crate::legacy_contacts::enabled()) {
-            Some(section) => compile_mjcf(&crate::legacy_contacts::with_section(&physics_xml, &section))
+        let section = if crate::legacy_contacts::enabled() { crate::legacy_contacts::contact_section(&model) } else { None };
+        let model = match section {
+            Some(section) => compile_mjcf(&crate::compose::with_section(&physics_xml, &section))
                 .map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?,
             None => model,
         };
