@@ -426,6 +426,8 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
         let demo =
             mimicgen_engine::demonstrator::record_sequence(&scripts, &mut env, "demo", &mut rng).map_err(|e| anyhow::anyhow!("{e}"))?;
         if !env.is_success() {
+            let unmet = env.unmet_success().unwrap_or_else(|| "task not achieved".to_owned());
+            eprintln!("try {tries}: failed ({unmet}); discarded");
             continue;
         }
         if let Some(Err(e)) = spec.as_ref().map(|spec| mimicgen_engine::segment::Segmentation::new(std::slice::from_ref(&demo), spec)) {

@@ -4,6 +4,8 @@
 //! It drives any [`Environment`], so the same script makes source demos for the kinematic test
 //! environment and for MuJoCo.
 
+use std::f64::consts::PI;
+
 use rand::Rng;
 
 use crate::SourceDemo;
@@ -13,7 +15,9 @@ use crate::pose::{Pose, Rot, Vec3, pose_from_parts, yaw_of};
 use crate::transform::{Waypoint, WaypointKind, interpolate_poses};
 
 /// What to pick, where to put it, and the timing of the gripper. A task file's `[[script]]`
-/// table: fields it leaves out take [`PickPlaceScript::default`]'s values.
+/// table: fields it leaves out take [`PickPlaceScript::default`]'s values. With `path_on` set it
+/// is a path instead (a pull on a drawer's handle, a push on its front): the gripper closes where
+/// it is and moves through `path_m`, and `pick` and `place_on` stay empty.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PickPlaceScript {
@@ -48,6 +52,9 @@ pub struct PickPlaceScript {
     /// Turn the carried object to the target's yaw modulo this angle before placing it (a square
     /// nut onto a square peg: a quarter turn); `None` keeps the gripper's yaw.
     pub place_yaw_symmetry_rad: Option<f64>,
+    /// With `place_yaw_symmetry_rad`: the carried object's yaw at the place is the target's plus
+    /// this (rad): a hammer laid along a drawer rather than across it.
+    pub place_yaw_offset_rad: f64,
     /// Steps to wait, holding still, before looking at the scene (objects that reset in the
     /// air, as robosuite's nuts do, land first).
     pub settle_steps: usize,
@@ -69,6 +76,15 @@ pub struct PickPlaceScript {
     /// After the place, move the closed gripper through these points (in the target's frame, m),
     /// keeping its orientation: a push (closing a lid).
     pub then_m: Vec<[f64; 3]>,
+    /// A path instead of a pick-and-place: the object whose frame `path_m` is in.
+    pub path_on: String,
+    /// The closed gripper's path (in `path_on`'s frame at the path's start, m), keeping its
+    /// orientation: the first point reached quickly, the others slowly, each before the next.
+    pub path_m: Vec<[f64; 3]>,
+    /// Turn the gripper for the path so its fingers close along `path_on`'s x axis turned by this
+    /// (rad, either way round: a half-turn symmetry), and back on the way to the last point;
+    /// `None` keeps its yaw.
+    pub path_yaw_rad: Option<f64>,
 }
 
 /// One leg of a scripted motion: goal, speed (m per step), gripper command, steps to pause at the
@@ -114,6 +130,7 @@ impl Default for PickPlaceScript {
             preplace_height_m: (0.03, 0.08),
             retreat_height_m: 0.08,
             place_yaw_symmetry_rad: None,
+            place_yaw_offset_rad: 0.0,
             settle_steps: 0,
             wait_for_arm: true,
             place_point_m: [0.0; 3],
@@ -121,6 +138,9 @@ impl Default for PickPlaceScript {
             approach_m: None,
             release: true,
             then_m: Vec::new(),
+            path_on: String::new(),
+            path_m: Vec::new(),
+            path_yaw_rad: None,
         }
     }
 }
@@ -145,6 +165,9 @@ impl PickPlaceScript {
         traj: &mut Trajectory,
         rng: &mut R,
     ) -> Result<(), EnvError> {
+        if !self.path_on.is_empty() {
+            return self.record_path(env, traj, rng);
+        }
         let hold = Waypoint { pose: env.eef_pose(), gripper: vec![-1.0], noise: 0.0 };
         for _ in 0..self.settle_steps {
             execute_step(env, &hold, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
@@ -229,6 +252,38 @@ impl PickPlaceScript {
         Ok(())
     }
 
+    /// A path: close the fingers where the gripper is, then through `path_m`, all of it offset
+    /// by one small error of the operator's hand.
+    fn record_path<E: Environment + ?Sized, R: Rng + ?Sized>(
+        &self,
+        env: &mut E,
+        traj: &mut Trajectory,
+        rng: &mut R,
+    ) -> Result<(), EnvError> {
+        let frame = *env.object_poses().get(&self.path_on).ok_or_else(|| env_err(&self.path_on))?;
+        let mut current = env.eef_pose();
+        let g = self.grasp_offset_m;
+        let offset = Vec3::new(rng.random_range(-g..=g), rng.random_range(-g..=g), rng.random_range(-g..=g));
+        let (fast, slow) = (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008));
+        let rotation = match self.path_yaw_rad {
+            Some(offset) => {
+                let (yaw, eef_yaw) = (yaw_of(&frame) + offset, yaw_of(&current));
+                let turn = yaw + ((eef_yaw - yaw) / PI).round() * PI - eef_yaw;
+                Rot::from_axis_angle(&Vec3::z_axis(), turn) * current.rotation
+            }
+            None => current.rotation,
+        };
+        let mut legs: Vec<Leg> = vec![(current, slow, 1.0, rng.random_range(self.close_steps.0..=self.close_steps.1), false)];
+        let last = self.path_m.len().saturating_sub(1);
+        for (k, point) in self.path_m.iter().enumerate() {
+            // A turned hand turns back on the way to the last point (a relaxed wrist).
+            let rotation = if k == last && k > 0 { current.rotation } else { rotation };
+            let goal = pose_from_parts(frame.translation.vector + frame.rotation * Vec3::from(*point) + offset, rotation);
+            legs.push((goal, if k == 0 { fast } else { slow }, 1.0, rng.random_range(0..3), true));
+        }
+        self.follow(env, traj, rng, &mut current, legs)
+    }
+
     /// The gripper pose that puts the held object `place_offset` from `target`'s centre, given
     /// where it sits in the gripper now; `commanded` is the gripper orientation being commanded.
     ///
@@ -252,7 +307,7 @@ impl PickPlaceScript {
         let Some(sym) = self.place_yaw_symmetry_rad else { return Ok(place(0.0)) };
         // Of the turns that fit, the one that keeps the hand nearest where it started (the
         // robot's side of the target), within what the wrist comfortably turns.
-        let error = yaw_of(target) - yaw_of(now);
+        let error = yaw_of(target) + self.place_yaw_offset_rad - yaw_of(now);
         let base = error - (error / sym).round() * sym;
         let mut best: Option<(f64, Pose)> = None;
         for k in -4_i32..=4 {

@@ -87,6 +87,9 @@ pub enum ObjectModel {
         /// A hinged part (a lid), if it has one.
         #[serde(default)]
         hinge: Option<Hinge>,
+        /// A sliding part (a drawer), if it has one.
+        #[serde(default)]
+        slide: Option<Slide>,
     },
 }
 
@@ -103,6 +106,26 @@ pub struct Hinge {
     pub open_deg: f64,
     /// Its geoms, relative to the hinge, as they sit when closed.
     pub geoms: Vec<Part>,
+}
+
+/// A sliding part of a [`ObjectModel::Compound`]: body `<name>_drawer` on joint `<name>_slide`,
+/// closed at reset. The joint reads how far it is pulled out along `axis` (m): 0 closed.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Slide {
+    /// The direction it pulls out, in the object frame.
+    pub axis: [f64; 3],
+    /// How far it can be pulled out (m).
+    pub travel_m: f64,
+    /// Viscous damping of the slide (N s/m): how hard it is to move quickly.
+    #[serde(default = "drawer_damping")]
+    pub damping: f64,
+    /// Its geoms, in the object frame, as they sit when closed.
+    pub geoms: Vec<Part>,
+}
+
+fn drawer_damping() -> f64 {
+    10.0
 }
 
 fn unit_scale() -> [f64; 3] {
@@ -243,7 +266,9 @@ impl ObjectModel {
                 let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 -1"/>"#);
                 let _ = writeln!(out, "    </body>");
             }
-            Self::Compound { name, geoms, fixed, rgba, hinge } => write_compound(out, name, geoms, *fixed, *rgba, hinge.as_ref()),
+            Self::Compound { name, geoms, fixed, rgba, hinge, slide } => {
+                write_compound(out, name, geoms, *fixed, *rgba, hinge.as_ref(), slide.as_ref());
+            }
             Self::FixedBox { body, half_size: [x, y, z], pos: [px, py, pz] } => {
                 let _ = writeln!(out, r#"    <body name="{body}" pos="{px} {py} {pz}" mocap="true">"#);
                 let _ = writeln!(
@@ -261,8 +286,8 @@ impl ObjectModel {
 }
 
 /// A [`ObjectModel::Compound`]: collision geoms (group 0) and visual copies (group 1), and its
-/// hinged part.
-fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgba: [f64; 4], hinge: Option<&Hinge>) {
+/// hinged and sliding parts.
+fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgba: [f64; 4], hinge: Option<&Hinge>, slide: Option<&Slide>) {
     let joint = if fixed { r#" mocap="true""# } else { r#" gravcomp="0""# };
     let _ = writeln!(out, r#"    <body name="{name}_main" pos="0 0 0"{joint}>"#);
     if !fixed {
@@ -276,6 +301,16 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
         let _ = writeln!(out, r#"      <body name="{name}_lid" pos="{pos}" axisangle="{axis} {open}">"#);
         let _ = writeln!(out, r#"        <joint name="{name}_hinge" type="hinge" axis="{axis}" range="{range}" damping="0.01"/>"#);
         write_parts(out, &format!("{name}_lid_g"), &h.geoms, rgba, "        ");
+        let _ = writeln!(out, "      </body>");
+    }
+    if let Some(s) = slide {
+        let (axis, travel, damping) = (words(&s.axis), s.travel_m, s.damping);
+        let _ = writeln!(out, r#"      <body name="{name}_drawer" pos="0 0 0">"#);
+        let _ = writeln!(
+            out,
+            r#"        <joint name="{name}_slide" type="slide" axis="{axis}" range="0 {travel}" limited="true" damping="{damping}" armature="0.1"/>"#
+        );
+        write_parts(out, &format!("{name}_drawer_g"), &s.geoms, rgba, "        ");
         let _ = writeln!(out, "      </body>");
     }
     let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 -1"/>"#);

@@ -195,6 +195,14 @@ pub enum Predicate {
         /// Distance (m).
         min_m: f64,
     },
+    /// `object`'s z axis is within `tolerance_deg` of the world's vertical (robosuite's
+    /// `z_axis[2] > cos(tolerance)`: a mug standing in a drawer).
+    Upright {
+        /// The object.
+        object: String,
+        /// Largest tilt (deg).
+        tolerance_deg: f64,
+    },
     /// `object` moves slower than `max_speed_m_s`.
     AtRest {
         /// The object.
@@ -319,8 +327,14 @@ impl TaskFile {
             }
         }
         for script in &self.scripts {
-            known((&script.pick, false), "script.pick")?;
-            known((&script.place_on, false), "script.place_on")?;
+            if script.path_on.is_empty() {
+                known((&script.pick, false), "script.pick")?;
+                known((&script.place_on, false), "script.place_on")?;
+            } else if !script.pick.is_empty() || !script.place_on.is_empty() || script.path_m.is_empty() {
+                return Err("a `script` with `path_on` is a path: give it `path_m` and no `pick` or `place_on`".to_owned());
+            } else {
+                known((&script.path_on, false), "script.path_on")?;
+            }
         }
         Ok(())
     }
@@ -366,6 +380,7 @@ impl Predicate {
             Self::Aligned { object, with, .. } => format!("{object} turned like {with}"),
             Self::Apart { object, from, min_m } => format!("{object} at least {min_m:.3} m from {from}"),
             Self::AtRest { object, .. } => format!("{object} at rest"),
+            Self::Upright { object, .. } => format!("{object} upright"),
             Self::All(all) => list(all, " and "),
             Self::Any(all) => format!("any of ({})", list(all, ", ")),
             Self::Not(p) => format!("not ({})", p.words()),
@@ -386,7 +401,7 @@ impl Predicate {
     /// where a position is read, not an object's own state (grasp, contacts, pose, speed).
     fn names(&self) -> Vec<(&str, bool)> {
         match self {
-            Self::Grasped(o) | Self::AtRest { object: o, .. } => vec![(o, false)],
+            Self::Grasped(o) | Self::AtRest { object: o, .. } | Self::Upright { object: o, .. } => vec![(o, false)],
             Self::Joint { .. } => Vec::new(),
             Self::Lifted { object, .. } => vec![(object, true)],
             Self::Contact([a, b]) => vec![(a, false), (b, false)],
@@ -514,6 +529,10 @@ impl DataTask {
             }
             Predicate::Apart { object, from, min_m } => (self.position(env, object) - self.position(env, from)).norm() >= *min_m,
             Predicate::AtRest { object, max_speed_m_s } => env.object_speed(index(object)) < *max_speed_m_s,
+            Predicate::Upright { object, tolerance_deg } => {
+                let z = env.object_pose(index(object)).rotation * Vec3::z();
+                z.z >= tolerance_deg.to_radians().cos()
+            }
             Predicate::All(all) => all.iter().all(|p| self.holds(p, env)),
             Predicate::Any(any) => any.iter().any(|p| self.holds(p, env)),
             Predicate::Not(p) => !self.holds(p, env),

@@ -158,3 +158,51 @@ fn pick_place_objects_rest_on_the_table_and_its_demos_fill_the_bin() {
     let signals = ["grasp_milk", "place_milk", "grasp_bread", "place_bread", "grasp_cereal", "place_cereal", "grasp_can"];
     bundled_demos_succeed_and_generate("pick_place", &signals, "D0");
 }
+
+#[test]
+fn mug_cleanup_drawer_starts_shut_and_its_demos_open_it_put_the_mug_in_and_shut_it() {
+    use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
+    rests_unsolved("mug_cleanup", &["D0", "D1"]);
+    let task = registry::task("mug_cleanup", "D0").unwrap();
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    assert!(scene.objects[1].mocap.is_some(), "the cabinet is fixed in the world");
+    let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
+    let obs = task.object_obs(&env);
+    assert_eq!(obs.len(), 7 + 7 + 7 + 7 + 1);
+    assert!(obs[28].abs() < 1e-6, "the drawer starts shut: slide at {:.4} m", obs[28]);
+    assert_eq!(task.unmet_success(&env).as_deref(), Some("mug in drawer"));
+
+    // Along a bundled demo: whenever the drawer is out, the task is not done; it ends done.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/mug_cleanup_D0_source.hdf5");
+    let demo = mimicgen_io::read_source_dataset(&path, &Default::default()).unwrap().demos.remove(0);
+    env.place_fixed_objects(&mimicgen_engine::demo::initial_object_poses(&demo.object_poses));
+    let mut furthest = 0.0_f64;
+    for t in (0..demo.len()).step_by(5) {
+        env.reset_to_state(demo.sim.states.row(t)).unwrap();
+        let out = task.object_obs(&env)[28];
+        furthest = furthest.max(out);
+        if out > 0.02 {
+            assert!(!task.is_success(&env), "step {t}: the drawer is {out:.3} m out");
+        }
+    }
+    assert!(furthest > 0.15, "the demo pulls the drawer out: at most {furthest:.3} m");
+    env.reset_to_state(demo.sim.states.row(demo.len() - 1)).unwrap();
+    assert!(task.is_success(&env));
+    // The same mug in the shut drawer, lying on its side, is not put away.
+    let mug = env.object_pose(0).translation.vector;
+    env.place_object(0, &pose_from_parts(mug + Vec3::new(0.0, 0.0, 0.04), Rot::from_axis_angle(&Vec3::x_axis(), 1.4)));
+    env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
+    assert!(task.unmet_success(&env).unwrap().contains("mug upright"), "{:?}", task.unmet_success(&env));
+
+    bundled_demos_succeed_and_generate("mug_cleanup", &["open", "grasp"], "D0");
+}
+
+#[test]
+fn hammer_cleanup_demos_open_the_drawer_put_the_hammer_in_and_shut_it() {
+    rests_unsolved("hammer_cleanup", &["D0", "D1"]);
+    let task = registry::task("hammer_cleanup", "D0").unwrap();
+    let names: Vec<String> = task.objects().into_iter().map(|(o, _)| o).collect();
+    assert_eq!(names, ["hammer", "drawer"]);
+    bundled_demos_succeed_and_generate("hammer_cleanup", &["open", "grasp"], "D0");
+}
