@@ -457,6 +457,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             model_xml: Some(scene.xml_with_fixed_objects(&xml, &initial)?),
             attempt_index: None,
             failure: None,
+            object_instance: None,
         };
         let name = writer.append(&data)?;
         eprintln!("{name}: {n} steps");

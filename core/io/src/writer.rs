@@ -59,6 +59,8 @@ pub struct DemoData {
     pub attempt_index: Option<u64>,
     /// Where and why the attempt failed (written as [`FAILURE_ATTR`]).
     pub failure: Option<String>,
+    /// Which of a variant's object instances the episode used (written as [`INSTANCE_ATTR`]).
+    pub object_instance: Option<String>,
 }
 
 /// The demo attribute holding [`DemoData::attempt_index`].
@@ -66,6 +68,8 @@ pub const ATTEMPT_ATTR: &str = "mimicgen_attempt";
 /// Demo attribute of a failed attempt: where and why it failed (`subtask 0: signal "grasp" never
 /// turned on`), so a failed-attempts file explains itself.
 pub const FAILURE_ATTR: &str = "mimicgen_failure";
+/// Demo attribute naming the object instance an object-transfer episode drew (`tall_green`).
+pub const INSTANCE_ATTR: &str = "mimicgen_object_instance";
 
 impl DemoData {
     /// A generation attempt as a demo: its trajectory, annotations and source labels, with
@@ -96,6 +100,7 @@ impl DemoData {
             model_xml,
             attempt_index: Some(attempt.index),
             failure: attempt.failure.as_ref().map(|f| format!("subtask {}: {}", f.subtask, f.reason)),
+            object_instance: None,
         }
     }
 
@@ -202,6 +207,9 @@ impl DemoData {
         }
         if let Some(failure) = &self.failure {
             g.attrs.insert(FAILURE_ATTR.into(), Array::string(failure));
+        }
+        if let Some(instance) = &self.object_instance {
+            g.attrs.insert(INSTANCE_ATTR.into(), Array::string(instance));
         }
         Ok(g)
     }

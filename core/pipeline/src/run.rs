@@ -34,6 +34,8 @@ pub struct Observed {
     pub images: BTreeMap<String, ImageStream>,
     /// The episode's scene XML.
     pub model_xml: Option<String>,
+    /// The episode's object instance (object transfer variants).
+    pub object_instance: Option<String>,
 }
 
 /// What a run was asked to make; a resumed run must describe the same dataset.
@@ -119,6 +121,9 @@ pub struct Pipeline {
     scene: Arc<Scene>,
     /// The scene's MJCF with portable asset paths: each demo's `model_file` starts from it.
     scene_xml: String,
+    /// The variant's object instances, `(label, scene)`, one drawn per episode (the paper's
+    /// object transfer); empty for the others.
+    instances: Vec<(String, Arc<Scene>)>,
     env_args: String,
     description: RunDescription,
     /// The cameras rendered into every kept demo (`config.cameras`).
@@ -287,7 +292,24 @@ impl Pipeline {
             .map(mimicgen_sim::robot::robot)
             .transpose()
             .map_err(|reason| PipelineError::input("", "robot", reason))?;
+        // Object transfer: the variant's own objects, composed with the arm, not the sources' scene.
+        let instances: Vec<(String, Arc<Scene>)> = Scene::instances_for_task(task.as_ref(), robot.unwrap_or(&mimicgen_sim::robot::PANDA))?
+            .into_iter()
+            .map(|(label, scene)| (label, Arc::new(scene)))
+            .collect();
+        if instances.len() > 1 && config.cameras.is_some() {
+            return Err(PipelineError::input(
+                "",
+                "cameras",
+                format!(
+                    "{} {variant} draws one of {} objects per episode; cameras are not supported there yet",
+                    task.name(),
+                    instances.len()
+                ),
+            ));
+        }
         let (scene, xml) = match (model_xml, robot) {
+            _ if !instances.is_empty() => Scene::for_task_with_robot(task.as_ref(), robot.unwrap_or(&mimicgen_sim::robot::PANDA))?,
             // Another arm than the sources': the task's scene composed with it (robot transfer).
             (Some(xml), Some(robot)) if !xml.contains(&format!("\"{}\"", robot.arm_joints[0])) => {
                 Scene::for_task_with_robot(task.as_ref(), robot)?
@@ -319,6 +341,7 @@ impl Pipeline {
             generator,
             scene: Arc::new(scene),
             scene_xml,
+            instances,
             env_args,
             description,
             cameras,
@@ -481,8 +504,9 @@ impl Pipeline {
     /// # Errors
     /// [`PipelineError`] for outputs that exist, fatal simulator errors and write failures.
     pub fn run(&self, cancel: &AtomicBool, on_event: impl FnMut(&Event)) -> Result<Report, PipelineError> {
-        let mut envs: Vec<SimEnv> =
-            (0..self.config.workers).map(|_| SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task))).collect();
+        let mut envs: Vec<SimEnv> = (0..self.config.workers)
+            .map(|_| SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task)).with_instances(self.instances.clone()))
+            .collect();
         let cameras = self.cameras.as_ref();
         // On the workers: observations, camera images and the episode's model_file.
         let observe = |env: &mut SimEnv, attempt: &Attempt| -> Result<Observed, EngineError> {
@@ -494,11 +518,13 @@ impl Pipeline {
                 Some(cameras) => env.images_for_states(&attempt.trajectory.states, cameras).map_err(env_error)?,
                 None => BTreeMap::new(),
             };
-            let xml = self
-                .scene
-                .xml_with_fixed_objects(&self.scene_xml, &initial)
+            // The instance's own scene where the variant draws one per episode.
+            let instance_xml = env.instance().map(|_| mimicgen_sim::assets::portable_asset_paths(&env.scene().xml));
+            let xml = env
+                .scene()
+                .xml_with_fixed_objects(instance_xml.as_deref().unwrap_or(&self.scene_xml), &initial)
                 .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;
-            Ok(Observed { obs, images, model_xml: Some(xml) })
+            Ok(Observed { obs, images, model_xml: Some(xml), object_instance: env.instance().map(str::to_owned) })
         };
         self.run_on(&mut envs, observe, cancel, on_event)
     }
@@ -561,8 +587,8 @@ impl Pipeline {
                     None
                 };
                 let outcome = match (target, payload) {
-                    (Some((w, success)), Some(Observed { obs, images, model_xml })) => {
-                        let demo = w.append(&DemoData { images, ..DemoData::from_attempt(&attempt, obs, model_xml) })?;
+                    (Some((w, success)), Some(Observed { obs, images, model_xml, object_instance })) => {
+                        let demo = w.append(&DemoData { images, object_instance, ..DemoData::from_attempt(&attempt, obs, model_xml) })?;
                         if success { Outcome::Written { demo } } else { Outcome::KeptFailed { demo } }
                     }
                     _ => Outcome::Discarded,

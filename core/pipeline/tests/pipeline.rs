@@ -544,3 +544,41 @@ fn render_adds_camera_observations_to_a_dataset_and_keeps_the_rest() {
     let err = mimicgen_pipeline::render::render(&input, &out, &wrist, None, true, |_, _| ()).unwrap_err().to_string();
     assert!(err.contains("\"wristcam\""), "{err}");
 }
+
+#[test]
+fn object_transfer_draws_a_mug_per_episode_records_it_and_does_not_depend_on_the_worker_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let mug_cleanup = |out: &Path, workers: usize| RunConfig {
+        task: Some("mug_cleanup".to_owned()),
+        variant: Some("O2".to_owned()),
+        keep_failed: true,
+        ..config(out, 6, workers)
+    };
+    let (one, two) = (dir.path().join("one.hdf5"), dir.path().join("two.hdf5"));
+    let (report, _) = run(&mug_cleanup(&one, 1)).unwrap();
+    run(&mug_cleanup(&two, 2)).unwrap();
+    assert!(report.successes >= 2, "{report:?}");
+    let (a, b) = (RobomimicDataset::open(&one).unwrap(), RobomimicDataset::open(&two).unwrap());
+    assert_eq!(a.data(), b.data(), "1 and 2 workers wrote different data");
+    let env_args: serde_json::Value = serde_json::from_str(a.env_args().unwrap()).unwrap();
+    assert_eq!(env_args["env_name"], "MugCleanup_O2");
+    // Every episode, kept or failed, names its mug, and its model_file holds that mug: episodes
+    // with different mugs have different scenes.
+    let task = mimicgen_sim::registry::task("mug_cleanup", "O2").unwrap();
+    let labels: Vec<String> = task.instances().into_iter().map(|(label, _)| label).collect();
+    assert_eq!(labels.len(), 12);
+    let failed = RobomimicDataset::open(dir.path().join("one_failed.hdf5")).unwrap();
+    let mut scenes = std::collections::BTreeMap::new();
+    for file in [&a, &failed] {
+        for name in file.demo_names() {
+            let attrs = &file.demo(name).unwrap().attrs;
+            let label = attrs[mimicgen_io::INSTANCE_ATTR].as_str().unwrap().to_owned();
+            assert!(labels.contains(&label), "{name}: {label}");
+            let xml = attrs["model_file"].as_str().unwrap().to_owned();
+            assert_eq!(scenes.entry(label).or_insert_with(|| xml.clone()), &xml, "{name}: one scene per mug");
+        }
+    }
+    assert!(scenes.len() >= 2, "6 episodes drew only {:?}", scenes.keys());
+    let distinct: std::collections::BTreeSet<&String> = scenes.values().collect();
+    assert_eq!(distinct.len(), scenes.len(), "each mug's scene is its own");
+}

@@ -71,6 +71,27 @@ pub enum ObjectModel {
         /// Density (kg/m^3).
         density: f64,
     },
+    /// A mug from primitive geoms, its frame at the centre of its base: a bottom disc, a wall of
+    /// 16 boxes and a handle of two arms and a bar along +x. Written as a free
+    /// [`ObjectModel::Compound`] (geoms `<name>_g<i>`); varied, it is the paper's set of mugs
+    /// for object transfer.
+    Mug {
+        /// Object name (`mug`).
+        name: String,
+        /// Outer radius (m).
+        radius_m: f64,
+        /// Height, base to rim (m).
+        height_m: f64,
+        /// Wall thickness (m).
+        wall_m: f64,
+        /// The handle: how far it reaches out from the wall, and the heights of its lower and
+        /// upper arms (m).
+        handle_m: [f64; 3],
+        /// Colour.
+        rgba: [f64; 4],
+        /// Density (kg/m^3).
+        density: f64,
+    },
     /// An object built from primitive geoms (ours, for the tasks whose objects robosuite does not
     /// ship): body `<name>_main`, with a free joint, or fixed in the world (a mocap body the task
     /// may move between episodes); collision geoms `<name>_g<i>` and coloured visual copies.
@@ -195,11 +216,46 @@ impl ObjectModel {
             | Self::SquareNut { name }
             | Self::RoundNut { name }
             | Self::Compound { name, .. }
+            | Self::Mug { name, .. }
             | Self::Mesh { name, .. } => {
                 format!("{name}_main")
             }
             Self::FixedBox { body, .. } | Self::FixedCylinder { body, .. } => body.clone(),
         }
+    }
+
+    /// A [`ObjectModel::Mug`]'s geoms (empty for any other model).
+    fn mug_parts(&self) -> Vec<Part> {
+        const WALL_BOXES: u32 = 16;
+        const BOTTOM_M: f64 = 0.008;
+        let Self::Mug { radius_m: r, height_m: h, wall_m: w, handle_m: [reach, low, high], density, .. } = *self else {
+            return Vec::new();
+        };
+        let part = |size: Vec<f64>, pos: [f64; 3], yaw_deg: f64, kind: &str| Part {
+            kind: kind.to_owned(),
+            size,
+            pos,
+            yaw_deg,
+            roll_deg: 0.0,
+            rgba: None,
+            density: Some(density),
+        };
+        let middle = r - w / 2.0;
+        let step = std::f64::consts::TAU / f64::from(WALL_BOXES);
+        // Each box a little wider than its share of the circle, so the wall has no gaps.
+        let half_width = middle * (step / 2.0).tan() * 1.06;
+        let mut parts = vec![part(vec![middle, BOTTOM_M / 2.0], [0.0, 0.0, BOTTOM_M / 2.0], 0.0, "cylinder")];
+        for k in 0..WALL_BOXES {
+            let angle = step * f64::from(k);
+            let pos = [middle * angle.cos(), middle * angle.sin(), (h + BOTTOM_M / 2.0) / 2.0];
+            parts.push(part(vec![w / 2.0, half_width, (h - BOTTOM_M / 2.0) / 2.0], pos, angle.to_degrees(), "box"));
+        }
+        let (arm, bar) = ([reach / 2.0, 0.005, 0.004], 0.004);
+        for z in [high, low] {
+            parts.push(part(arm.to_vec(), [r + reach / 2.0, 0.0, z], 0.0, "box"));
+        }
+        parts.push(part(vec![bar, 0.005, (high - low) / 2.0 + bar], [r + reach - bar, 0.0, (high + low) / 2.0], 0.0, "box"));
+        parts
     }
 
     fn write_assets(&self, out: &mut String) {
@@ -210,7 +266,7 @@ impl ObjectModel {
             }
             Self::SquareNut { name } | Self::RoundNut { name } => write_brass(out, name),
             Self::FixedBox { body, .. } | Self::FixedCylinder { body, .. } => write_brass(out, body),
-            Self::Compound { .. } => {}
+            Self::Compound { .. } | Self::Mug { .. } => {}
             Self::Mesh { name, mesh, scale: [sx, sy, sz], texture, .. } => {
                 let _ = writeln!(out, r#"    <mesh name="{name}_mesh" file="{{ASSETS}}/{mesh}" scale="{sx} {sy} {sz}"/>"#);
                 let _ = writeln!(out, r#"    <texture type="2d" name="{name}_tex" file="{{ASSETS}}/{texture}"/>"#);
@@ -266,6 +322,7 @@ impl ObjectModel {
                 let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 -1"/>"#);
                 let _ = writeln!(out, "    </body>");
             }
+            Self::Mug { name, rgba, .. } => write_compound(out, name, &self.mug_parts(), false, *rgba, None, None),
             Self::Compound { name, geoms, fixed, rgba, hinge, slide } => {
                 write_compound(out, name, geoms, *fixed, *rgba, hinge.as_ref(), slide.as_ref());
             }

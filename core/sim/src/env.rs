@@ -8,7 +8,7 @@ use mimicgen_engine::action::DeltaPoseScale;
 use mimicgen_engine::pose::{Pose, quat_to_wxyz};
 use mimicgen_engine::{EnvError, Environment};
 use mujoco_rs::prelude::*;
-use rand::RngCore;
+use rand::{Rng as _, RngCore};
 use rand_distr::{Distribution, Normal};
 
 use crate::osc::{Osc, OscConfig};
@@ -43,6 +43,9 @@ pub struct SimEnv {
     gripper_command: [f64; 2],
     warnings_seen: i64,
     control_log: Option<Vec<f64>>,
+    /// The object instances resets draw among (`(label, scene)`), and the one in use.
+    instances: Vec<(String, Arc<Scene>)>,
+    instance: usize,
 }
 
 impl std::fmt::Debug for SimEnv {
@@ -58,7 +61,33 @@ impl SimEnv {
         let data = MjData::new(Arc::clone(&scene.model));
         let nv = usize::try_from(scene.model.ffi().nv).unwrap_or_default();
         let osc = Osc::new(OscConfig::default(), scene.robot.model.init_qpos.to_vec(), nv);
-        Self { scene, task, data, osc, gripper_command: [0.0; 2], warnings_seen: 0, control_log: None }
+        Self { scene, task, data, osc, gripper_command: [0.0; 2], warnings_seen: 0, control_log: None, instances: Vec::new(), instance: 0 }
+    }
+
+    /// This environment drawing one of `instances` (`(label, scene)`, from
+    /// [`Scene::instances_for_task`]) at every reset, starting in the first: the paper's object
+    /// transfer. Every scene must hold the same robot and joints.
+    #[must_use]
+    pub fn with_instances(mut self, instances: Vec<(String, Arc<Scene>)>) -> Self {
+        self.instances = instances;
+        self.use_instance(0);
+        self
+    }
+
+    /// The label of the object instance in use; `None` without instances.
+    #[must_use]
+    pub fn instance(&self) -> Option<&str> {
+        self.instances.get(self.instance).map(|(label, _)| label.as_str())
+    }
+
+    fn use_instance(&mut self, k: usize) {
+        if let Some((_, scene)) = self.instances.get(k) {
+            if !Arc::ptr_eq(scene, &self.scene) {
+                self.scene = Arc::clone(scene);
+                self.data = MjData::new(Arc::clone(&self.scene.model));
+            }
+            self.instance = k;
+        }
     }
 
     /// The scene.
@@ -333,6 +362,10 @@ impl SimEnv {
 
 impl Environment for SimEnv {
     fn reset(&mut self, rng: &mut dyn RngCore) -> Result<(), EnvError> {
+        if self.instances.len() > 1 {
+            let k = rng.random_range(0..self.instances.len());
+            self.use_instance(k);
+        }
         self.data.reset();
         self.warnings_seen = 0;
         let noise = Normal::new(0.0, ARM_INIT_NOISE).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;

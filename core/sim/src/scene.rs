@@ -236,15 +236,39 @@ impl Scene {
     /// # Errors
     /// As [`Scene::for_task`].
     pub fn for_task_with_robot(task: &dyn crate::Task, robot: &crate::robot::RobotModel) -> Result<(Self, String), SimError> {
-        let assets = crate::assets::robosuite_assets_dir()?;
-        let xml = crate::compose::compose_scene_with(robot, &assets, &task.object_models(), task.table_top_z());
         let origin = if robot.name == crate::robot::PANDA.name {
             format!("composed {} scene", task.name())
         } else {
             format!("composed {} scene with {}", task.name(), robot.robosuite_name)
         };
-        let scene = Self::compile(&xml, &origin, &task.objects(), 20.0)?;
-        scene.check_joints_read(task, &origin)?;
+        Self::compose(task, robot, &task.object_models(), &origin)
+    }
+
+    /// The scenes of `task`'s object instances ([`crate::Task::instances`]) with `robot`, each
+    /// composed and compiled once: `(label, scene)`; empty for a variant without instances.
+    ///
+    /// # Errors
+    /// As [`Scene::for_task`].
+    pub fn instances_for_task(task: &dyn crate::Task, robot: &crate::robot::RobotModel) -> Result<Vec<(String, Self)>, SimError> {
+        task.instances()
+            .into_iter()
+            .map(|(label, models)| {
+                let origin = format!("composed {} scene with {} {label}", task.name(), robot.robosuite_name);
+                Self::compose(task, robot, &models, &origin).map(|(scene, _)| (label, scene))
+            })
+            .collect()
+    }
+
+    fn compose(
+        task: &dyn crate::Task,
+        robot: &crate::robot::RobotModel,
+        models: &[crate::compose::ObjectModel],
+        origin: &str,
+    ) -> Result<(Self, String), SimError> {
+        let assets = crate::assets::robosuite_assets_dir()?;
+        let xml = crate::compose::compose_scene_with(robot, &assets, models, task.table_top_z());
+        let scene = Self::compile(&xml, origin, &task.objects(), 20.0)?;
+        scene.check_joints_read(task, origin)?;
         Ok((scene, xml))
     }
 

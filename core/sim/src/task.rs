@@ -18,8 +18,14 @@ pub trait Task: Send + Sync {
     fn name(&self) -> &str;
     /// `(object name, body name)` of every object, in order.
     fn objects(&self) -> Vec<(String, String)>;
-    /// The object models our composed scene adds to the base scene, in the same order.
+    /// The object models our composed scene adds to the base scene, in the same order (the first
+    /// instance's where the variant has [`Task::instances`]).
     fn object_models(&self) -> Vec<ObjectModel>;
+    /// The object instances the variant draws among, one per episode: `(label, every object's
+    /// model)`; empty for a variant without (the same objects every episode).
+    fn instances(&self) -> Vec<(String, Vec<ObjectModel>)> {
+        Vec::new()
+    }
     /// Initial `world_from_object` of every object, in order.
     ///
     /// # Errors

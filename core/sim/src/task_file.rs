@@ -94,6 +94,23 @@ pub struct ObjectDef {
     pub radius_m: f64,
     /// Where each variant places it.
     pub place: BTreeMap<String, Region>,
+    /// Other objects of its category that variants use in its place (the paper's object
+    /// transfer: O1 an unseen mug, O2 one of twelve drawn per episode).
+    #[serde(default, rename = "instance")]
+    pub instances: Vec<Instance>,
+}
+
+/// An object that stands in for a task's object in some variants: same name, same frame
+/// conventions, another shape.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Instance {
+    /// What datasets record as the episode's instance (`tall_green`).
+    pub label: String,
+    /// The variants that use it; a variant with several draws one per episode.
+    pub variants: Vec<String>,
+    /// Its model, named like the object's (its body is the object's body).
+    pub model: ObjectModel,
 }
 
 /// Where an object is placed: uniform x, y (m, around the table centre) and yaw (deg). A range
@@ -309,6 +326,29 @@ impl TaskFile {
             if let Some(extra) = object.place.keys().find(|v| !self.variants.contains(v)) {
                 return Err(format!("object {:?} has `place.{extra}` but the variants are {}", object.name, self.variants.join(", ")));
             }
+            for instance in &object.instances {
+                if let Some(v) = instance.variants.iter().find(|v| !self.variants.contains(v)) {
+                    return Err(format!(
+                        "object {:?}: instance {:?} names variant {v}, which the task does not have",
+                        object.name, instance.label
+                    ));
+                }
+                if instance.model.body_name() != object.model.body_name() {
+                    return Err(format!(
+                        "object {:?}: instance {:?} must name its model {:?} like the object's (its body stands in for the object's)",
+                        object.name,
+                        instance.label,
+                        object.model.body_name().trim_end_matches("_main")
+                    ));
+                }
+            }
+        }
+        for variant in &self.variants {
+            let with_instances: Vec<&str> =
+                self.objects.iter().filter(|o| o.instances.iter().any(|i| i.variants.contains(variant))).map(|o| o.name.as_str()).collect();
+            if with_instances.len() > 1 {
+                return Err(format!("variant {variant}: only one object may have instances, not {}", with_instances.join(" and ")));
+            }
         }
         for name in &self.place_order {
             known((name, false), "place_order")?;
@@ -439,6 +479,8 @@ pub struct DataTask {
     variant: String,
     /// Each object's region in this variant, in object order.
     regions: Vec<Region>,
+    /// The variant's object instances: `(label, every object's model)`; empty when it has none.
+    instances: Vec<(String, Vec<ObjectModel>)>,
 }
 
 impl DataTask {
@@ -456,7 +498,15 @@ impl DataTask {
             .iter()
             .map(|o| o.place.get(&variant).copied().unwrap_or(Region { x: [0.0; 2], y: [0.0; 2], yaw_deg: [0.0; 2] }))
             .collect();
-        Ok(Self { file, variant, regions })
+        let mut instances = Vec::new();
+        for (i, object) in file.objects.iter().enumerate() {
+            for instance in object.instances.iter().filter(|x| x.variants.contains(&variant)) {
+                let mut models: Vec<ObjectModel> = file.objects.iter().map(|o| o.model.clone()).collect();
+                models[i] = instance.model.clone();
+                instances.push((instance.label.clone(), models));
+            }
+        }
+        Ok(Self { file, variant, regions, instances })
     }
 
     /// The task file.
@@ -601,7 +651,14 @@ impl Task for DataTask {
     }
 
     fn object_models(&self) -> Vec<ObjectModel> {
-        self.file.objects.iter().map(|o| o.model.clone()).collect()
+        match self.instances.first() {
+            Some((_, models)) => models.clone(),
+            None => self.file.objects.iter().map(|o| o.model.clone()).collect(),
+        }
+    }
+
+    fn instances(&self) -> Vec<(String, Vec<ObjectModel>)> {
+        self.instances.clone()
     }
 
     fn joints_read(&self) -> Vec<(String, String)> {
@@ -702,6 +759,31 @@ mod tests {
         assert!(err.contains("my.task.toml") && err.contains("abov_m"), "{err}");
         let file = TaskFile::from_toml_str(STACK, "stack").unwrap_or_else(|e| panic!("{e}"));
         assert!(DataTask::new(file, "D7").unwrap_err().contains("D0 and D1"));
+    }
+
+    #[test]
+    fn object_instances_belong_to_variants_and_stand_in_for_the_object() {
+        let mugs = include_str!("../tasks/mug_cleanup.task.toml");
+        let file = TaskFile::from_toml_str(mugs, "mug_cleanup").unwrap_or_else(|e| panic!("{e}"));
+        let count = |variant: &str| DataTask::new(file.clone(), variant).map(|t| t.instances().len()).unwrap_or_default();
+        assert_eq!([count("D0"), count("D1"), count("O1"), count("O2")], [0, 0, 1, 12]);
+        // O1's scene is its instance's mug, not the sources' one.
+        let o1 = DataTask::new(file.clone(), "O1").unwrap_or_else(|e| panic!("{e}"));
+        let d0 = DataTask::new(file, "D0").unwrap_or_else(|e| panic!("{e}"));
+        assert_ne!(o1.object_models()[0], d0.object_models()[0]);
+        assert_eq!(o1.object_models()[1], d0.object_models()[1], "the cabinet is the same");
+        let unknown = mugs.replacen("variants = [\"O1\", \"O2\"]", "variants = [\"O3\"]", 1);
+        assert_ne!(unknown, mugs);
+        let err = TaskFile::from_toml_str(&unknown, "my.task.toml").unwrap_err();
+        assert!(err.contains("my.task.toml") && err.contains("bronze_slim") && err.contains("O3"), "{err}");
+        let renamed = mugs.replacen(
+            "label = \"red_round\"\nvariants = [\"O2\"]\nmodel = { kind = \"mug\", name = \"mug\"",
+            "label = \"red_round\"\nvariants = [\"O2\"]\nmodel = { kind = \"mug\", name = \"cup\"",
+            1,
+        );
+        assert_ne!(renamed, mugs);
+        let err = TaskFile::from_toml_str(&renamed, "my.task.toml").unwrap_err();
+        assert!(err.contains("red_round") && err.contains("\"mug\""), "{err}");
     }
 
     #[test]
