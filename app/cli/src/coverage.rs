@@ -61,5 +61,12 @@ pub fn run(args: &CoverageArgs) -> anyhow::Result<()> {
             println!("    bin {i}: {n:>6} {bar}");
         }
     }
+    if !found.instances.is_empty() {
+        println!("  object instances (demos each):");
+        let most = found.instances.values().copied().max().unwrap_or(1).max(1);
+        for (label, n) in &found.instances {
+            println!("    {label:<20} {n:>6} {}", "#".repeat(n * 40 / most));
+        }
+    }
     Ok(())
 }

@@ -118,13 +118,22 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         Ok(found) => found,
         Err(e) => crate::exit::usage!("{}: {e}", args.file.display()),
     };
-    let origin = format!("{} (model_file)", args.file.display());
-    let scene = match sources.demos.first().and_then(|d| d.sim.model_xml.as_deref()) {
+    if let Some(i) = args.demo.filter(|&i| i >= sources.demos.len()) {
+        crate::exit::usage!("--demo {i}: {} has {} demos", args.file.display(), sources.demos.len());
+    }
+    // The scene of the demo shown (object-transfer datasets hold one scene per object instance).
+    let shown = sources.demos.get(args.demo.unwrap_or(0));
+    let origin = format!("{} (model_file of {})", args.file.display(), shown.map_or("its first demo", |d| d.name.as_str()));
+    let scene = match shown.and_then(|d| d.sim.model_xml.as_deref()) {
         Some(xml) => Scene::from_model_file(xml, &origin, task.as_ref())?,
         None => Scene::for_task(task.as_ref())?,
     };
-    if let Some(i) = args.demo.filter(|&i| i >= sources.demos.len()) {
-        crate::exit::usage!("--demo {i}: {} has {} demos", args.file.display(), sources.demos.len());
+    let scenes: std::collections::BTreeSet<&str> = sources.demos.iter().filter_map(|d| d.sim.model_xml.as_deref()).collect();
+    if args.demo.is_none() && scenes.len() > 1 {
+        eprintln!(
+            "note: the demos have {} different scenes (object instances); the 3D view draws every demo in demo_0's: pass --demo N for one demo in its own",
+            scenes.len()
+        );
     }
     let sink = match (&args.out, &args.connect) {
         (Some(path), _) => Sink::Save(path.clone()),

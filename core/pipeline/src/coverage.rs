@@ -22,6 +22,9 @@ pub struct DatasetCoverage {
     /// The analysis.
     #[serde(flatten)]
     pub coverage: Coverage,
+    /// Demos per object instance (object-transfer datasets: each demo's
+    /// `mimicgen_object_instance`); empty for the others.
+    pub instances: BTreeMap<String, usize>,
 }
 
 /// Support coverage of the initial scenes of `path` (each demo's first
@@ -46,8 +49,12 @@ pub fn dataset_coverage(path: &Path, task: Option<&str>, variant: Option<&str>, 
     let task = registry::task(&name, &variant).map_err(|e| PipelineError::input("", "task", e))?;
     let dims = task.coverage_dimensions();
     let mut scenes = Vec::with_capacity(reader.demo_names().len());
+    let mut instances: BTreeMap<String, usize> = BTreeMap::new();
     for demo_name in reader.demo_names() {
         let demo = reader.load_demo(demo_name)?;
+        if let Some(label) = demo.attrs.get(mimicgen_io::INSTANCE_ATTR).and_then(mimicgen_io::tree::Array::as_str) {
+            *instances.entry(label.to_owned()).or_default() += 1;
+        }
         let mut scene: BTreeMap<String, Pose> = BTreeMap::new();
         for d in &dims {
             if scene.contains_key(&d.object) {
@@ -69,5 +76,5 @@ pub fn dataset_coverage(path: &Path, task: Option<&str>, variant: Option<&str>, 
         scenes.push(scene);
     }
     let coverage = coverage(&scenes, &dims, bins).map_err(|e| PipelineError::engine(file, e))?;
-    Ok(DatasetCoverage { task: task.name().to_owned(), variant, coverage })
+    Ok(DatasetCoverage { task: task.name().to_owned(), variant, coverage, instances })
 }

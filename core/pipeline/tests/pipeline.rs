@@ -579,6 +579,10 @@ fn object_transfer_draws_a_mug_per_episode_records_it_and_does_not_depend_on_the
         }
     }
     assert!(scenes.len() >= 2, "6 episodes drew only {:?}", scenes.keys());
+    // Coverage splits the demos by instance.
+    let coverage = mimicgen_pipeline::coverage::dataset_coverage(&one, None, None, 3).unwrap();
+    assert_eq!(coverage.variant, "O2");
+    assert_eq!(coverage.instances.values().sum::<usize>(), a.demo_names().len());
     let distinct: std::collections::BTreeSet<&String> = scenes.values().collect();
     assert_eq!(distinct.len(), scenes.len(), "each mug's scene is its own");
 }

@@ -146,12 +146,15 @@ pub fn task(name: &str, variant: &str) -> Result<Arc<dyn Task>, String> {
 }
 
 /// The task and variant a robosuite `env_name` names (`Stack_D0` -> stack, D0; `StackThree_D1`
-/// -> stack_three, D1; a bare `Stack` is D0).
+/// -> stack_three, D1; `MugCleanup_O2` -> mug_cleanup, O2; a bare `Stack` is D0).
 ///
 /// # Errors
 /// A message naming the known environments when `env_name` is not one of them.
 pub fn task_from_env_name(env_name: &str) -> Result<(Arc<dyn Task>, String), String> {
-    let (base, variant) = env_name.rsplit_once('_').filter(|(_, v)| v.starts_with('D')).unwrap_or((env_name, "D0"));
+    let is_variant = |base: &str, v: &str| {
+        v.starts_with('D') || tasks().any(|t| t.env_name.eq_ignore_ascii_case(base) && t.variants.iter().any(|x| x.eq_ignore_ascii_case(v)))
+    };
+    let (base, variant) = env_name.rsplit_once('_').filter(|(base, v)| is_variant(base, v)).unwrap_or((env_name, "D0"));
     let info = tasks().find(|t| t.env_name.eq_ignore_ascii_case(base)).ok_or_else(|| {
         let envs: Vec<&str> = tasks().map(|t| t.env_name.as_str()).collect();
         format!("environment {env_name:?} is not one of ours ({})", envs.join(", "))
@@ -290,6 +293,8 @@ mod tests {
         assert_eq!((task.name(), variant.as_str()), ("stack_three", "D1"));
         assert_eq!(task_from_env_name("Stack").map(|(t, v)| (t.name().to_owned(), v)), Ok(("stack".to_owned(), "D0".to_owned())));
         assert!(task_from_env_name("Kitchen_D0").is_err());
+        let (task, variant) = task_from_env_name("MugCleanup_O2").unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((task.name(), variant.as_str(), task.instances().len()), ("mug_cleanup", "O2", 12));
         assert_eq!(task_from_env_name("Lift").map(|(t, v)| (t.name().to_owned(), v)), Ok(("lift".to_owned(), "D0".to_owned())));
         let args: serde_json::Value = serde_json::from_str(&env_args("stack_three", "d1")).unwrap_or_default();
         assert_eq!(args["env_name"], "StackThree_D1");
