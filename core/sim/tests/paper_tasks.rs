@@ -206,3 +206,22 @@ fn hammer_cleanup_demos_open_the_drawer_put_the_hammer_in_and_shut_it() {
     assert_eq!(names, ["hammer", "drawer"]);
     bundled_demos_succeed_and_generate("hammer_cleanup", &["open", "grasp"], "D0");
 }
+
+#[test]
+fn kitchen_switch_starts_off_and_its_demos_cook_serve_and_switch_off() {
+    rests_unsolved("kitchen", &["D0", "D1"]);
+    let task = registry::task("kitchen", "D0").unwrap();
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let mut env = SimEnv::new(scene, Arc::clone(&task));
+    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
+    for _ in 0..20 {
+        env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
+    }
+    // The switch rests against its off stop (the last observation term, radians).
+    let obs = task.object_obs(&env);
+    assert_eq!(obs.len(), 5 * 7 + 1);
+    assert!(obs[35].abs() < 0.02, "switch at {:.3} rad", obs[35]);
+    assert_eq!(task.signals(&env)["stove_on"], 0);
+    let signals = ["stove_on", "grasp_pot", "place_pot_on_stove", "grasp_bread", "place_bread_in_pot", "serve"];
+    bundled_demos_succeed_and_generate("kitchen", &signals, "D0");
+}
