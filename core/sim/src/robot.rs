@@ -118,7 +118,7 @@ pub const PANDA: RobotModel = RobotModel {
 pub const SAWYER: RobotModel = RobotModel {
     name: "sawyer",
     robosuite_name: "Sawyer",
-    status: "Square D0 / D1 73.9 / 72.4 % (paper 55.8 / 38.8)",
+    status: "Square D0 / D1 79.0 / 78.0 % (paper 55.8 / 38.8)",
     base_xml: include_str!("../../../viewer_assets/scenes/sawyer_table.xml"),
     arm_joints: &[
         "robot0_right_j0",
@@ -153,7 +153,7 @@ pub const SAWYER: RobotModel = RobotModel {
 pub const IIWA: RobotModel = RobotModel {
     name: "iiwa",
     robosuite_name: "IIWA",
-    status: "Square D0 / D1 27.8 / 28.2 % (paper 37.7 / 26.5)",
+    status: "Square D0 / D1 32.9 / 38.2 % (paper 37.7 / 26.5)",
     base_xml: include_str!("../../../viewer_assets/scenes/iiwa_table.xml"),
     arm_joints: &[
         "robot0_joint_1",
@@ -207,7 +207,7 @@ pub const IIWA: RobotModel = RobotModel {
 pub const UR5E: RobotModel = RobotModel {
     name: "ur5e",
     robosuite_name: "UR5e",
-    status: "Square D0 / D1 64.0 / 65.4 % (paper 64.7 / 34.1)",
+    status: "Square D0 / D1 77.0 / 72.6 % (paper 64.7 / 34.1)",
     base_xml: include_str!("../../../viewer_assets/scenes/ur5e_table.xml"),
     arm_joints: &[
         "robot0_shoulder_pan_joint",
