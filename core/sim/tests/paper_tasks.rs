@@ -42,6 +42,19 @@ fn rests_unsolved(task: &str, variants: &[&str]) {
     }
 }
 
+/// `task`'s D0 scene after a reset (seed 1) and 20 steps with the arm still: what its movable
+/// parts rest at.
+fn settled(task: &str) -> (Arc<dyn mimicgen_sim::Task>, SimEnv) {
+    let task = registry::task(task, "D0").unwrap();
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let mut env = SimEnv::new(scene, Arc::clone(&task));
+    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
+    for _ in 0..20 {
+        env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
+    }
+    (task, env)
+}
+
 /// The bundled demos of `task` end in success with `signals` turning on in this order, and a few
 /// generated attempts in `variant` succeed.
 fn bundled_demos_succeed_and_generate(task_name: &str, signals: &[&str], variant: &str) {
@@ -134,13 +147,7 @@ fn three_piece_assembly_counts_the_post_in_the_tube_not_lying_across_it() {
 fn coffee_starts_open_and_its_demos_insert_the_pod_and_shut_the_lid() {
     rests_unsolved("coffee", &["D0", "D1", "D2"]);
     // The lid starts open (hinge at 0), resting against its stop, and the hinge is observed.
-    let task = registry::task("coffee", "D0").unwrap();
-    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
-    let mut env = SimEnv::new(scene, Arc::clone(&task));
-    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
-    for _ in 0..20 {
-        env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
-    }
+    let (task, env) = settled("coffee");
     let obs = task.object_obs(&env);
     assert_eq!(obs.len(), 7 + 7 + 7 + 7 + 1);
     assert!(obs[28].abs() < 0.05, "hinge at {:.3} rad", obs[28]);
@@ -210,13 +217,7 @@ fn hammer_cleanup_demos_open_the_drawer_put_the_hammer_in_and_shut_it() {
 #[test]
 fn kitchen_switch_starts_off_and_its_demos_cook_serve_and_switch_off() {
     rests_unsolved("kitchen", &["D0", "D1"]);
-    let task = registry::task("kitchen", "D0").unwrap();
-    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
-    let mut env = SimEnv::new(scene, Arc::clone(&task));
-    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
-    for _ in 0..20 {
-        env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
-    }
+    let (task, env) = settled("kitchen");
     // The switch rests against its off stop (the last observation term, radians).
     let obs = task.object_obs(&env);
     assert_eq!(obs.len(), 5 * 7 + 1);
