@@ -129,3 +129,54 @@ fn resuming_with_other_arguments_is_refused() {
     assert_eq!(fresh.status.code(), Some(2), "{said}");
     assert!(said.contains("pass --resume to continue that run, or pass --overwrite to start over"), "{said}");
 }
+
+#[test]
+fn an_object_transfer_run_killed_and_resumed_draws_the_same_mugs() {
+    let run = |out: &Path, resume: bool| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_mimicgen"));
+        c.args([
+            "generate",
+            "--task",
+            "mug_cleanup",
+            "--variant",
+            "O2",
+            "--num-demos",
+            "8",
+            "--seed",
+            "5",
+            "--workers",
+            "2",
+            "--keep-failed",
+        ])
+        .arg("--out")
+        .arg(out)
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+        if resume {
+            c.arg("--resume");
+        }
+        c
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let whole = dir.path().join("whole.hdf5");
+    let out = run(&whole, false).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // Killed (SIGKILL) once two attempts beyond its first are decided, then resumed.
+    let pieces = dir.path().join("pieces.hdf5");
+    let mut child = run(&pieces, false).spawn().unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut said = String::new();
+    assert!(wait_for_attempts(&mut stderr, 2, &mut said) && child.try_wait().unwrap().is_none(), "the run ended before the kill: {said}");
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let out = run(&pieces, true).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for (a, b) in [(&whole, &pieces), (&dir.path().join("whole_failed.hdf5"), &dir.path().join("pieces_failed.hdf5"))] {
+        let (a, b) = (RobomimicDataset::open(a).unwrap(), RobomimicDataset::open(b).unwrap());
+        assert_eq!(a.data(), b.data(), "demos differ after a kill");
+        for name in a.demo_names() {
+            assert!(a.demo(name).unwrap().attrs.contains_key(mimicgen_io::INSTANCE_ATTR), "{name} names no mug");
+        }
+    }
+}
