@@ -52,20 +52,21 @@ pub fn run(args: &CoverageArgs) -> anyhow::Result<()> {
         c.joint_bins_total,
         c.bins
     );
-    let widest = c.histograms.iter().flatten().copied().max().unwrap_or(1).max(1);
+    // A bar of `n` against the largest count `most`, 40 characters at the most.
+    let bar = |n: usize, most: usize| "#".repeat(n * 40 / most.max(1));
+    let widest = c.histograms.iter().flatten().copied().max().unwrap_or(1);
     for (d, hist) in c.dimensions.iter().zip(&c.histograms) {
         let unit = if d.coordinate == Coordinate::Yaw { "rad" } else { "m" };
         println!("  {} {:?} [{:.3}, {:.3}] {unit}", d.object, d.coordinate, d.low, d.high);
         for (i, n) in hist.iter().enumerate() {
-            let bar = "#".repeat(n * 40 / widest);
-            println!("    bin {i}: {n:>6} {bar}");
+            println!("    bin {i}: {n:>6} {}", bar(*n, widest));
         }
     }
     if !found.instances.is_empty() {
         println!("  object instances (demos each):");
-        let most = found.instances.values().copied().max().unwrap_or(1).max(1);
+        let most = found.instances.values().copied().max().unwrap_or(1);
         for (label, n) in &found.instances {
-            println!("    {label:<20} {n:>6} {}", "#".repeat(n * 40 / most));
+            println!("    {label:<20} {n:>6} {}", bar(*n, most));
         }
     }
     Ok(())

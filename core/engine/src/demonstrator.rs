@@ -106,6 +106,11 @@ fn moves(from: &Pose, to: &Pose, speed_m: f64) -> Vec<Pose> {
     interpolate_poses(from, to, steps - 1).into_iter().skip(1).collect()
 }
 
+/// Of the yaws `yaw + k * symmetry`, the one closest to `current` (rad).
+fn nearest_symmetric_yaw(yaw: f64, current: f64, symmetry: f64) -> f64 {
+    yaw + ((current - yaw) / symmetry).round() * symmetry
+}
+
 fn env_err(what: &str) -> EnvError {
     EnvError::Fatal { reason: format!("the scene has no object {what:?}") }
 }
@@ -179,7 +184,7 @@ impl PickPlaceScript {
         // Grasp about one of the object's symmetric yaws, the one closest to the gripper's.
         let symmetry = self.grasp_symmetry_rad;
         let (object_yaw, eef_yaw) = (yaw_of(&world_from_pick) + self.grasp_yaw_offset_rad, yaw_of(&start));
-        let grasp_yaw = object_yaw + ((eef_yaw - object_yaw) / symmetry).round() * symmetry + rng.random_range(-0.15..0.15);
+        let grasp_yaw = nearest_symmetric_yaw(object_yaw, eef_yaw, symmetry) + rng.random_range(-0.15..0.15);
         let grasp_rot = Rot::from_axis_angle(&Vec3::z_axis(), grasp_yaw - eef_yaw) * start.rotation;
         let g = self.grasp_offset_m;
         let grip_point = world_from_pick.rotation * Vec3::from(self.grasp_point_m);
@@ -266,9 +271,9 @@ impl PickPlaceScript {
         let offset = Vec3::new(rng.random_range(-g..=g), rng.random_range(-g..=g), rng.random_range(-g..=g));
         let (fast, slow) = (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008));
         let rotation = match self.path_yaw_rad {
-            Some(offset) => {
-                let (yaw, eef_yaw) = (yaw_of(&frame) + offset, yaw_of(&current));
-                let turn = yaw + ((eef_yaw - yaw) / PI).round() * PI - eef_yaw;
+            Some(yaw_offset) => {
+                let eef_yaw = yaw_of(&current);
+                let turn = nearest_symmetric_yaw(yaw_of(&frame) + yaw_offset, eef_yaw, PI) - eef_yaw;
                 Rot::from_axis_angle(&Vec3::z_axis(), turn) * current.rotation
             }
             None => current.rotation,

@@ -308,14 +308,16 @@ impl Pipeline {
                 ),
             ));
         }
+        let composed = |(scene, xml): (Scene, String)| (Arc::new(scene), xml);
         let (scene, xml) = match (model_xml, robot) {
-            _ if !instances.is_empty() => Scene::for_task_with_robot(task.as_ref(), robot.unwrap_or(&mimicgen_sim::robot::PANDA))?,
+            // The first instance's scene, compiled above, is the run's scene.
+            _ if let Some((_, first)) = instances.first() => (Arc::clone(first), first.xml.clone()),
             // Another arm than the sources': the task's scene composed with it (robot transfer).
             (Some(xml), Some(robot)) if !xml.contains(&format!("\"{}\"", robot.arm_joints[0])) => {
-                Scene::for_task_with_robot(task.as_ref(), robot)?
+                composed(Scene::for_task_with_robot(task.as_ref(), robot)?)
             }
-            (Some(xml), _) => (Scene::from_model_file(&xml, &format!("{source_label} (model_file)"), task.as_ref())?, xml),
-            (None, robot) => Scene::for_task_with_robot(task.as_ref(), robot.unwrap_or(&mimicgen_sim::robot::PANDA))?,
+            (Some(xml), _) => (Arc::new(Scene::from_model_file(&xml, &format!("{source_label} (model_file)"), task.as_ref())?), xml),
+            (None, robot) => composed(Scene::for_task_with_robot(task.as_ref(), robot.unwrap_or(&mimicgen_sim::robot::PANDA))?),
         };
         let scene_xml = mimicgen_sim::assets::portable_asset_paths(&xml);
         let env_args = output_env_args(sources.env_args.as_deref(), task.as_ref(), &variant, &scene, config.cameras.as_ref());
@@ -339,7 +341,7 @@ impl Pipeline {
             variant,
             source_path,
             generator,
-            scene: Arc::new(scene),
+            scene,
             scene_xml,
             instances,
             env_args,
