@@ -125,6 +125,10 @@ pub struct Hinge {
     /// The part's turn about the axis from closed to open at reset (deg): the joint reads 0 open
     /// and `-open_deg` closed.
     pub open_deg: f64,
+    /// The joint's range (deg) in place of the one `open_deg` implies: for a part that starts
+    /// closed (`open_deg = 0`) and opens by turning, a lid opened to `[-100, 0]`.
+    #[serde(default)]
+    pub range_deg: Option<[f64; 2]>,
     /// Its geoms, relative to the hinge, as they sit when closed.
     pub geoms: Vec<Part>,
 }
@@ -354,7 +358,11 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
     if let Some(h) = hinge {
         let (pos, axis) = (words(&h.pos), words(&h.axis));
         let open = h.open_deg.to_radians();
-        let range = if open < 0.0 { format!("0 {}", -open) } else { format!("{} 0", -open) };
+        let range = match h.range_deg {
+            Some([low, high]) => format!("{} {}", low.to_radians(), high.to_radians()),
+            None if open < 0.0 => format!("0 {}", -open),
+            None => format!("{} 0", -open),
+        };
         let _ = writeln!(out, r#"      <body name="{name}_lid" pos="{pos}" axisangle="{axis} {open}">"#);
         let _ = writeln!(out, r#"        <joint name="{name}_hinge" type="hinge" axis="{axis}" range="{range}" damping="0.01"/>"#);
         write_parts(out, &format!("{name}_lid_g"), &h.geoms, rgba, "        ");
