@@ -1,7 +1,8 @@
-//! The paper's tasks added as task files (Threading, Three Piece Assembly, Coffee from primitive
-//! geoms; Pick Place with robosuite's object meshes), described only
-//! by their task files: scenes compose and rest, nothing succeeds at reset, the bundled scripted
-//! demos end in success with their signals in order, and generation from them succeeds.
+//! The paper's tasks added as task files (Threading, Three Piece Assembly, Coffee, the drawer
+//! tasks, Kitchen and Coffee Preparation from primitive geoms; Pick Place with robosuite's object
+//! meshes), described only by their task files: scenes compose and rest, nothing succeeds at
+//! reset, the bundled scripted demos end in success with their signals in order, and generation
+//! from them succeeds.
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 
 use std::ops::ControlFlow;
@@ -225,4 +226,35 @@ fn kitchen_switch_starts_off_and_its_demos_cook_serve_and_switch_off() {
     assert_eq!(task.signals(&env)["stove_on"], 0);
     let signals = ["stove_on", "grasp_pot", "place_pot_on_stove", "grasp_bread", "place_bread_in_pot", "serve"];
     bundled_demos_succeed_and_generate("kitchen", &signals, "D0");
+}
+
+#[test]
+fn coffee_preparation_starts_shut_and_its_demos_open_lid_and_drawer_then_shut_the_lid_on_the_pod() {
+    rests_unsolved("coffee_preparation", &["D0", "D1"]);
+    let (task, mut env) = settled("coffee_preparation");
+    // Six 7-number terms (mug, pod, machine, drawer poses; mug and pod relative to the gripper),
+    // then the lid's hinge and the drawer's slide: both rest shut.
+    let obs = task.object_obs(&env);
+    assert_eq!(obs.len(), 6 * 7 + 2);
+    assert!(obs[42].abs() < 0.02, "lid hinge at {:.3} rad", obs[42]);
+    assert!(obs[43].abs() < 1e-3, "drawer slide at {:.4} m", obs[43]);
+    assert_eq!(task.unmet_success(&env).as_deref(), Some("mug in machine and pod in machine"));
+
+    // Along a bundled demo the lid opens past 95 deg and the drawer past 12 cm, and while the lid
+    // is open the task is not done (the drawer may stay out at the end, as in the reference).
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/coffee_preparation_D0_source.hdf5");
+    let demo = mimicgen_io::read_source_dataset(&path, &Default::default()).unwrap().demos.remove(0);
+    env.place_fixed_objects(&mimicgen_engine::demo::initial_object_poses(&demo.object_poses));
+    let (mut widest, mut furthest) = (0.0_f64, 0.0_f64);
+    for t in (0..demo.len()).step_by(5) {
+        env.reset_to_state(demo.sim.states.row(t)).unwrap();
+        let obs = task.object_obs(&env);
+        (widest, furthest) = (widest.min(obs[42]), furthest.max(obs[43]));
+        if obs[42] < -0.1 {
+            assert!(!task.is_success(&env), "step {t}: the lid is open at {:.2} rad", obs[42]);
+        }
+    }
+    assert!(widest < -95_f64.to_radians(), "the demo opens the lid: at most {widest:.3} rad");
+    assert!(furthest > 0.12, "the demo pulls the drawer out: at most {furthest:.3} m");
+    bundled_demos_succeed_and_generate("coffee_preparation", &["mug_grasp", "mug_place", "drawer_open", "pod_grasp"], "D0");
 }
