@@ -16,7 +16,7 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use mimicgen_engine::image::{ImageStream, Pixels};
 use mimicgen_engine::transform::WaypointKind;
 use mimicgen_engine::{Attempt, Overrides, Plan, Pose, RunStats, SourceDataset, SourceDemo};
-use mimicgen_io::{ATTEMPT_ATTR, DemoReader, DemoSource as _, FAILURE_ATTR, IoError, ReadOptions, source_demo_from_group};
+use mimicgen_io::{ATTEMPT_ATTR, DemoReader, DemoSource as _, FAILURE_ATTR, INSTANCE_ATTR, IoError, ReadOptions, source_demo_from_group};
 use mimicgen_pipeline::annotate::{Annotations, DemoAnnotation};
 use mimicgen_pipeline::preview::Previewer;
 use mimicgen_pipeline::{AttemptEvent, Event, FrontEnd, Outcome, Pipeline, PipelineError, Report, RunConfig, RunInfo, annotate, prepare};
@@ -277,6 +277,7 @@ fn attempt_row(event: &AttemptEvent) -> AttemptRow {
         },
         elapsed_s: event.elapsed_s,
         objects: objects(&a.initial_object_poses),
+        instance: event.instance.clone(),
         stats: event.stats.clone(),
     }
 }
@@ -434,6 +435,7 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
                 outcome: if success { name.clone() } else { format!("{name} (failed)") },
                 elapsed_s: 0.0,
                 objects: objects(&demo.object_poses.iter().filter_map(|(k, v)| Some((k.clone(), *v.first()?))).collect()),
+                instance: group.attrs.get(INSTANCE_ATTR).and_then(mimicgen_io::tree::Array::as_str).map(str::to_owned),
                 stats: RunStats::default(),
             });
         }

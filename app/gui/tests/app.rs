@@ -741,3 +741,39 @@ fn coffee_preparation_opens_previews_its_five_subtasks_and_is_tried() {
     assert_eq!(executed.success, executed.failure.is_none());
     h.get_by_label_contains("Tried: ");
 }
+
+/// An object-transfer run (Mug Cleanup O2: one of twelve mugs per episode) opened in the app
+/// splits its attempts by the mug each episode drew.
+#[test]
+fn an_object_transfer_run_is_split_by_mug() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("mugs.hdf5");
+    let config = mimicgen_pipeline::RunConfig {
+        task: Some("mug_cleanup".to_owned()),
+        variant: Some("O2".to_owned()),
+        num_demos: Some(4),
+        workers: 2,
+        keep_failed: true,
+        seed: Some(3),
+        out: out.clone(),
+        ..Default::default()
+    };
+    let pipeline = mimicgen_pipeline::Pipeline::prepare(&config).unwrap();
+    let report = pipeline.run(&std::sync::atomic::AtomicBool::new(false), |_| {}).unwrap();
+    let mugs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/mug_cleanup_D0_source.hdf5");
+    let mut h = harness(Some(mugs));
+    settle(&mut h);
+    h.get_by_label("Generate").click();
+    h.step();
+    h.state_mut().command(Command::OpenRun(out));
+    settle(&mut h);
+    let run = h.state().model.run.as_ref().unwrap();
+    assert_eq!(run.rows.len(), report.attempts, "every attempt was kept");
+    let rates = mimicgen_gui::run_ui::instance_rates(&run.rows);
+    assert_eq!(rates.iter().map(|(_, _, tried)| tried).sum::<usize>(), 4, "{rates:?}");
+    assert_eq!(rates.iter().map(|(_, ok, _)| ok).sum::<usize>(), report.successes);
+    h.get_by_label("Success by object instance");
+    let (label, ok, tried) = &rates[0];
+    h.get_by_label(label.as_str());
+    h.get_all_by_label(&format!("{ok} of {tried}")).next().unwrap();
+}

@@ -116,6 +116,10 @@ pub struct AttemptRow {
     pub elapsed_s: f64,
     /// The scene's objects before the first action.
     pub objects: Vec<ObjectView>,
+    /// The object instance its episode drew (object transfer: which mug); `None` for the other
+    /// tasks.
+    #[serde(default)]
+    pub instance: Option<String>,
     /// Statistics of the run so far, this attempt included.
     pub stats: RunStats,
 }

@@ -340,6 +340,19 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
             }
         });
     }
+    let instances = instance_rates(&run.rows);
+    if !instances.is_empty() {
+        ui.strong("Success by object instance");
+        egui::Grid::new("instances").striped(true).num_columns(3).show(ui, |ui| {
+            for (label, successes, attempts) in &instances {
+                ui.label(label);
+                ui.label(format!("{successes} of {attempts}"));
+                #[allow(clippy::cast_precision_loss)] // counts of attempts
+                ui.label(format!("{:.1} %", 100.0 * *successes as f64 / *attempts as f64));
+                ui.end_row();
+            }
+        });
+    }
     if let Some(report) = run.report.as_ref().filter(|r| r.attempts > run.rows.len()) {
         ui.label(RichText::new(format!(
             "{} of {} attempts are in the files: failures not kept (beyond max_num_failures, or without --keep-failed) are only counted",
@@ -351,6 +364,21 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
     coverage_view(ui, run, model.compare.as_ref(), &mut state.coverage);
     ui.separator();
     attempt_table(ui, model, run, state, commands);
+}
+
+/// Per object instance (object transfer runs: which mug each episode drew), its successes and
+/// attempts among `rows`, by label; empty when no row names an instance.
+#[must_use]
+pub fn instance_rates(rows: &[AttemptRow]) -> Vec<(String, usize, usize)> {
+    let mut counts: BTreeMap<&str, (usize, usize)> = BTreeMap::new();
+    for row in rows {
+        if let Some(label) = &row.instance {
+            let entry = counts.entry(label).or_default();
+            entry.0 += usize::from(row.success);
+            entry.1 += 1;
+        }
+    }
+    counts.into_iter().map(|(label, (ok, tried))| (label.to_owned(), ok, tried)).collect()
 }
 
 /// A failed attempt and a successful one, re-run, side by side: outcome, sources, what went wrong

@@ -54,6 +54,12 @@ pub trait Environment {
         None
     }
 
+    /// The label of the object instance this episode uses (the paper's object transfer: one mug
+    /// of several drawn at reset); `None` for a task without instances.
+    fn object_instance(&self) -> Option<String> {
+        None
+    }
+
     /// Pose part of the action that moves the controller towards `world_from_target`.
     fn target_pose_to_action(&self, world_from_target: &Pose) -> [f64; 6];
 

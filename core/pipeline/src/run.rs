@@ -34,7 +34,8 @@ pub struct Observed {
     pub images: BTreeMap<String, ImageStream>,
     /// The episode's scene XML.
     pub model_xml: Option<String>,
-    /// The episode's object instance (object transfer variants).
+    /// The episode's object instance (object transfer variants); the pipeline fills it in from
+    /// the environment's [`mimicgen_engine::Environment::object_instance`].
     pub object_instance: Option<String>,
 }
 
@@ -84,6 +85,9 @@ pub struct AttemptRecord {
     pub steps: usize,
     /// Its demo in the shard's dataset (a success) or failed-attempts file (a kept failure).
     pub kept: Option<String>,
+    /// The object instance its episode drew (object transfer); absent for the other tasks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub instance: Option<String>,
 }
 
 /// What a run reports as it goes. Front ends (the CLI's progress bar, the app, Python) consume
@@ -105,6 +109,9 @@ pub struct AttemptEvent {
     pub attempt: Attempt,
     /// Where it went.
     pub outcome: Outcome,
+    /// The object instance its episode drew (object transfer: which mug); `None` for the other
+    /// tasks.
+    pub instance: Option<String>,
     /// Statistics of the run so far, this attempt included.
     pub stats: RunStats,
     /// Seconds since this session of the run started.
@@ -526,7 +533,7 @@ impl Pipeline {
                 .scene()
                 .xml_with_fixed_objects(instance_xml.as_deref().unwrap_or(&self.scene_xml), &initial)
                 .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;
-            Ok(Observed { obs, images, model_xml: Some(xml), object_instance: env.instance().map(str::to_owned) })
+            Ok(Observed { obs, images, model_xml: Some(xml), object_instance: None })
         };
         self.run_on(&mut envs, observe, cancel, on_event)
     }
@@ -561,12 +568,15 @@ impl Pipeline {
             resumed_from,
         })));
         let keep_failed = settings.keep_failed;
-        // Only attempts that may be kept are observed.
-        let finish = |env: &mut E, attempt: &Attempt| -> Result<Option<Observed>, EngineError> {
+        // Only attempts that may be kept are observed; every one says which object instance its
+        // episode drew.
+        let finish = |env: &mut E, attempt: &Attempt| -> Result<(Option<Observed>, Option<String>), EngineError> {
+            let instance = env.object_instance();
             if !attempt.success && !keep_failed {
-                return Ok(None);
+                return Ok((None, instance));
             }
-            observe(env, attempt).map(Some)
+            let observed = observe(env, attempt)?;
+            Ok((Some(Observed { object_instance: instance.clone(), ..observed }), instance))
         };
         let started = Instant::now();
         let mut write_error: Option<PipelineError> = None;
@@ -577,7 +587,7 @@ impl Pipeline {
             cancel: Some(cancel),
             shard: self.config.shard.unwrap_or_default(),
         };
-        let result = mimicgen_engine::run_with(&self.generator, envs, control, finish, |attempt, payload, stats| {
+        let result = mimicgen_engine::run_with(&self.generator, envs, control, finish, |attempt, (payload, instance), stats| {
             control_steps += attempt.trajectory.len();
             let step = (|| -> Result<Outcome, PipelineError> {
                 let target = if attempt.success {
@@ -606,6 +616,7 @@ impl Pipeline {
                             Outcome::Written { demo } | Outcome::KeptFailed { demo } => Some(demo.clone()),
                             Outcome::Discarded => None,
                         },
+                        instance: instance.clone(),
                     })?;
                 }
                 let progress = Progress {
@@ -619,7 +630,7 @@ impl Pipeline {
             match step {
                 Ok(outcome) => {
                     let elapsed_s = started.elapsed().as_secs_f64();
-                    on_event(&Event::Attempt(Box::new(AttemptEvent { attempt, outcome, stats: stats.clone(), elapsed_s })));
+                    on_event(&Event::Attempt(Box::new(AttemptEvent { attempt, outcome, instance, stats: stats.clone(), elapsed_s })));
                     ControlFlow::Continue(())
                 }
                 Err(e) => {

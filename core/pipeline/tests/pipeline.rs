@@ -547,6 +547,9 @@ fn render_adds_camera_observations_to_a_dataset_and_keeps_the_rest() {
 
 #[test]
 fn object_transfer_draws_a_mug_per_episode_records_it_and_does_not_depend_on_the_worker_count() {
+    let a_file = |path: &Path| RobomimicDataset::open(path).unwrap();
+    let a_demo_instance =
+        |file: &RobomimicDataset, demo: &str| file.demo(demo).unwrap().attrs[mimicgen_io::INSTANCE_ATTR].as_str().unwrap().to_owned();
     let dir = tempfile::tempdir().unwrap();
     let mug_cleanup = |out: &Path, workers: usize| RunConfig {
         task: Some("mug_cleanup".to_owned()),
@@ -555,7 +558,7 @@ fn object_transfer_draws_a_mug_per_episode_records_it_and_does_not_depend_on_the
         ..config(out, 6, workers)
     };
     let (one, two) = (dir.path().join("one.hdf5"), dir.path().join("two.hdf5"));
-    let (report, _) = run(&mug_cleanup(&one, 1)).unwrap();
+    let (report, events) = run(&mug_cleanup(&one, 1)).unwrap();
     run(&mug_cleanup(&two, 2)).unwrap();
     assert!(report.successes >= 2, "{report:?}");
     let (a, b) = (RobomimicDataset::open(&one).unwrap(), RobomimicDataset::open(&two).unwrap());
@@ -579,6 +582,19 @@ fn object_transfer_draws_a_mug_per_episode_records_it_and_does_not_depend_on_the
         }
     }
     assert!(scenes.len() >= 2, "6 episodes drew only {:?}", scenes.keys());
+    // Each attempt's event names the mug its episode drew (the app's split by instance), the
+    // same as its kept demo says.
+    for event in &events {
+        let Event::Attempt(a) = event else { continue };
+        let drawn = a.instance.as_deref().unwrap();
+        assert!(labels.iter().any(|l| l == drawn), "attempt {}: {drawn}", a.attempt.index);
+        let kept = match &a.outcome {
+            mimicgen_pipeline::Outcome::Written { demo } => a_demo_instance(&a_file(&one), demo),
+            mimicgen_pipeline::Outcome::KeptFailed { demo } => a_demo_instance(&failed, demo),
+            mimicgen_pipeline::Outcome::Discarded => continue,
+        };
+        assert_eq!(kept, drawn, "attempt {}", a.attempt.index);
+    }
     // Coverage splits the demos by instance.
     let coverage = mimicgen_pipeline::coverage::dataset_coverage(&one, None, None, 3).unwrap();
     assert_eq!(coverage.variant, "O2");

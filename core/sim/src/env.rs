@@ -361,6 +361,10 @@ impl SimEnv {
 }
 
 impl Environment for SimEnv {
+    fn object_instance(&self) -> Option<String> {
+        self.instance().map(str::to_owned)
+    }
+
     fn reset(&mut self, rng: &mut dyn RngCore) -> Result<(), EnvError> {
         if self.instances.len() > 1 {
             let k = rng.random_range(0..self.instances.len());
