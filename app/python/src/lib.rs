@@ -359,6 +359,7 @@ fn event_json(event: &Event) -> Option<String> {
             "steps": a.attempt.trajectory.len(),
             "stats": a.stats,
             "elapsed_s": a.elapsed_s,
+            "instance": a.instance,
         }),
         Event::Finished(_) => return None,
     };
