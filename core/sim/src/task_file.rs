@@ -36,7 +36,7 @@ use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
 use rand::{Rng, RngCore};
 use serde::Deserialize;
 
-use crate::compose::{BASE_TABLE_TOP_Z, ObjectModel};
+use crate::compose::{BASE_TABLE_TOP_Z, Hinge, ObjectModel};
 use crate::env::SimEnv;
 use crate::task::Task;
 
@@ -321,6 +321,16 @@ impl TaskFile {
                     .ok_or_else(|| format!("object {:?} has no `place.{variant}` for variant {variant}", object.name))?;
                 if [region.x, region.y, region.yaw_deg].iter().any(|[lo, hi]| lo > hi || !lo.is_finite() || !hi.is_finite()) {
                     return Err(format!("object {:?}: `place.{variant}` has a range whose ends are not finite and ordered", object.name));
+                }
+            }
+            for model in std::iter::once(&object.model).chain(object.instances.iter().map(|i| &i.model)) {
+                if let ObjectModel::Compound { hinge: Some(Hinge { range_deg: Some([low, high]), .. }), .. } = model {
+                    if !(low.is_finite() && high.is_finite() && *low <= 0.0 && 0.0 <= *high && low < high) {
+                        return Err(format!(
+                            "object {:?}: `hinge.range_deg` [{low}, {high}] must be finite, ordered and hold 0 (where the part starts)",
+                            object.name
+                        ));
+                    }
                 }
             }
             if let Some(extra) = object.place.keys().find(|v| !self.variants.contains(v)) {
@@ -784,6 +794,23 @@ mod tests {
         assert_ne!(renamed, mugs);
         let err = TaskFile::from_toml_str(&renamed, "my.task.toml").unwrap_err();
         assert!(err.contains("red_round") && err.contains("\"mug\""), "{err}");
+    }
+
+    #[test]
+    fn a_hinge_range_must_hold_where_the_part_starts() {
+        let coffee = include_str!("../tasks/coffee_preparation.task.toml");
+        let file = TaskFile::from_toml_str(coffee, "coffee_preparation").unwrap_or_else(|e| panic!("{e}"));
+        let range = |model: &ObjectModel| match model {
+            ObjectModel::Compound { hinge: Some(h), .. } => h.range_deg,
+            _ => None,
+        };
+        assert_eq!(file.objects.iter().find_map(|o| range(&o.model)), Some([-100.0, 0.0]), "the lid opens by 100 deg");
+        for bad in ["[-100.0, -5.0]", "[0.0, -100.0]", "[-100.0, nan]"] {
+            let broken = coffee.replacen("range_deg = [-100.0, 0.0]", &format!("range_deg = {bad}"), 1);
+            assert_ne!(broken, coffee);
+            let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
+            assert!(err.contains("my.task.toml") && err.contains("\"machine\"") && err.contains("hinge.range_deg"), "{bad}: {err}");
+        }
     }
 
     #[test]
