@@ -324,13 +324,13 @@ impl TaskFile {
                 }
             }
             for model in std::iter::once(&object.model).chain(object.instances.iter().map(|i| &i.model)) {
-                if let ObjectModel::Compound { hinge: Some(Hinge { range_deg: Some([low, high]), .. }), .. } = model {
-                    if !(low.is_finite() && high.is_finite() && *low <= 0.0 && 0.0 <= *high && low < high) {
-                        return Err(format!(
-                            "object {:?}: `hinge.range_deg` [{low}, {high}] must be finite, ordered and hold 0 (where the part starts)",
-                            object.name
-                        ));
-                    }
+                if let ObjectModel::Compound { hinge: Some(Hinge { range_deg: Some([low, high]), .. }), .. } = model
+                    && !(low.is_finite() && high.is_finite() && *low <= 0.0 && 0.0 <= *high && low < high)
+                {
+                    return Err(format!(
+                        "object {:?}: `hinge.range_deg` [{low}, {high}] must be finite, ordered and hold 0 (where the part starts)",
+                        object.name
+                    ));
                 }
             }
             if let Some(extra) = object.place.keys().find(|v| !self.variants.contains(v)) {
