@@ -34,9 +34,6 @@ pub struct Observed {
     pub images: BTreeMap<String, ImageStream>,
     /// The episode's scene XML.
     pub model_xml: Option<String>,
-    /// The episode's object instance (object transfer variants); the pipeline fills it in from
-    /// the environment's [`mimicgen_engine::Environment::object_instance`].
-    pub object_instance: Option<String>,
 }
 
 /// What a run was asked to make; a resumed run must describe the same dataset.
@@ -533,7 +530,7 @@ impl Pipeline {
                 .scene()
                 .xml_with_fixed_objects(instance_xml.as_deref().unwrap_or(&self.scene_xml), &initial)
                 .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;
-            Ok(Observed { obs, images, model_xml: Some(xml), object_instance: None })
+            Ok(Observed { obs, images, model_xml: Some(xml) })
         };
         self.run_on(&mut envs, observe, cancel, on_event)
     }
@@ -572,11 +569,8 @@ impl Pipeline {
         // episode drew.
         let finish = |env: &mut E, attempt: &Attempt| -> Result<(Option<Observed>, Option<String>), EngineError> {
             let instance = env.object_instance();
-            if !attempt.success && !keep_failed {
-                return Ok((None, instance));
-            }
-            let observed = observe(env, attempt)?;
-            Ok((Some(Observed { object_instance: instance.clone(), ..observed }), instance))
+            let observed = if attempt.success || keep_failed { Some(observe(env, attempt)?) } else { None };
+            Ok((observed, instance))
         };
         let started = Instant::now();
         let mut write_error: Option<PipelineError> = None;
@@ -599,7 +593,8 @@ impl Pipeline {
                     None
                 };
                 let outcome = match (target, payload) {
-                    (Some((w, success)), Some(Observed { obs, images, model_xml, object_instance })) => {
+                    (Some((w, success)), Some(Observed { obs, images, model_xml })) => {
+                        let object_instance = instance.clone();
                         let demo = w.append(&DemoData { images, object_instance, ..DemoData::from_attempt(&attempt, obs, model_xml) })?;
                         if success { Outcome::Written { demo } } else { Outcome::KeptFailed { demo } }
                     }
