@@ -88,6 +88,9 @@ Examples:
         /// Start a run of this many attempts on the generate screen (to out/app_run.hdf5, replaced).
         #[arg(long, value_name = "ATTEMPTS")]
         run: Option<usize>,
+        /// With --run: the task variant (see `mimicgen tasks`; default the source demos').
+        #[arg(long, requires = "run")]
+        variant: Option<String>,
         /// With --run: the arm (see `mimicgen tasks`; default the source demos').
         #[arg(long, requires = "run")]
         robot: Option<String>,
@@ -373,7 +376,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             generate::demos(&args)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::App { file, screen, demo, step, try_it, run, robot, cameras, attempt, screenshot } => {
+        Command::App { file, screen, demo, step, try_it, run, variant, robot, cameras, attempt, screenshot } => {
             let file = match file {
                 Some(f) => f,
                 None => mimicgen_pipeline::bundled::source_demos("stack")?,
@@ -383,8 +386,19 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 ScreenArg::Preview => mimicgen_gui::Screen::Preview,
                 ScreenArg::Generate => mimicgen_gui::Screen::Generate,
             };
-            let options =
-                mimicgen_gui::RunOptions { file: Some(file), screen, demo, step, try_it, run, robot, cameras, attempt, screenshot };
+            let options = mimicgen_gui::RunOptions {
+                file: Some(file),
+                screen,
+                demo,
+                step,
+                try_it,
+                run,
+                variant,
+                robot,
+                cameras,
+                attempt,
+                screenshot,
+            };
             mimicgen_gui::run(options).map_err(|e| {
                 anyhow::anyhow!("cannot open the app's window ({e}); without a display, use the batch commands (`mimicgen generate`, `mimicgen annotate`)")
             })?;

@@ -39,6 +39,8 @@ pub struct RunOptions {
     /// Start a run of this many attempts (to `out/app_run.hdf5`, replacing it) on the generate
     /// screen.
     pub run: Option<usize>,
+    /// With `run`: the task variant (`None`: the source file's).
+    pub variant: Option<String>,
     /// The run's arm (`ur5e`; the source demos' when `None`).
     pub robot: Option<String>,
     /// Render robomimic's two cameras into the run's dataset.
@@ -79,6 +81,7 @@ impl Window {
             steps.push(Command::SetRunForm(Box::new(model::RunForm {
                 attempts,
                 overwrite: true,
+                variant: options.variant.clone(),
                 robot: options.robot.clone(),
                 cameras: options.cameras.then(model::CameraConfig::default),
                 ..model::RunForm::default()
