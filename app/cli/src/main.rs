@@ -12,6 +12,7 @@ use mimicgen_io::{DemoReader, DemoSource as _, ReadOptions};
 mod annotate;
 mod bench_app;
 mod bench_io;
+mod bench_render;
 mod bench_sim;
 mod coverage;
 mod exit;
@@ -133,6 +134,8 @@ Examples:
     Replay(replay::ReplayArgs),
     /// Measure generation against bare physics stepping and across worker counts.
     BenchSim(bench_sim::BenchSimArgs),
+    /// Milliseconds per camera frame, drawn several ways, and whether they give the same pixels.
+    BenchRender(bench_render::BenchRenderArgs),
     /// Measure the app's frame time with a file loaded, and the time until it is browsable.
     BenchApp(bench_app::BenchAppArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
@@ -426,6 +429,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Replay(args) => {
             replay::run(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::BenchRender(args) => {
+            bench_render::run(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::BenchSim(args) => {

@@ -78,3 +78,30 @@ pub fn render(
     writer.finish()?;
     Ok(names.len())
 }
+
+/// One demo of `input` ready to be drawn again: the demo's own scene (`model_file`), its task and
+/// its stored states (`mimicgen bench-render`).
+pub type DemoToRender = (Arc<Scene>, Arc<dyn mimicgen_sim::Task>, mimicgen_engine::Rows);
+
+/// Reads [`DemoToRender`] for `demo` of `input` (`task` when `env_args` do not name it).
+///
+/// # Errors
+/// [`PipelineError`] naming the file and field: unreadable input, unknown task or demo, a demo
+/// without `states` or `model_file`, a scene that does not compile.
+pub fn demo_to_render(input: &Path, demo: &str, task: Option<&str>) -> Result<DemoToRender, PipelineError> {
+    let file = input.display().to_string();
+    let reader = DemoReader::open_with(input, ReadOptions::default())?;
+    let task = crate::prepare::task_of(task, reader.env_args_json(), &file)?;
+    if !reader.demo_names().iter().any(|n| n == demo) {
+        return Err(PipelineError::input(file, "--demo", format!("no demo {demo:?} (the file has {})", reader.demo_names().join(", "))));
+    }
+    let group: Group = reader.load_demo(demo)?.into_owned();
+    let xml = group
+        .attrs
+        .get("model_file")
+        .and_then(|a| a.as_str())
+        .ok_or_else(|| PipelineError::input(file.clone(), format!("data/{demo}"), "has no model_file attribute"))?;
+    let scene = Arc::new(Scene::from_model_file(xml, &format!("{file}: data/{demo}/model_file"), task.as_ref())?);
+    let states = crate::prepare::rows(&group, "states", &file, demo)?;
+    Ok((scene, task, states))
+}

@@ -13,8 +13,9 @@ use std::sync::Arc;
 
 pub use mimicgen_engine::image::{ImageStream, Pixels};
 use mujoco_rs::prelude::*;
-use mujoco_rs::renderer::MjRenderer;
 
+use crate::offscreen::Offscreen;
+pub use crate::offscreen::RenderOptions;
 use crate::{Scene, SimError};
 
 /// The largest image side rendered (the offscreen buffer is made the image's size).
@@ -29,14 +30,16 @@ pub struct Cameras {
     config: CameraConfig,
     ids: Vec<usize>,
     origin: String,
+    how: RenderOptions,
 }
 
 /// One thread's renderer and the data it renders from.
 struct ThreadRenderer {
     model: *const MjModel,
     size: (usize, usize, bool),
+    how: RenderOptions,
     data: MjData<Arc<MjModel>>,
-    renderer: MjRenderer,
+    renderer: Offscreen,
 }
 
 thread_local! {
@@ -66,9 +69,10 @@ impl Cameras {
         if config.names.is_empty() {
             return Err(SimError::Render { file: origin, reason: "no camera named (e.g. agentview,robot0_eye_in_hand)".to_owned() });
         }
-        // The offscreen buffer at the image size: MuJoCo clears and resolves all of it every frame,
-        // which on a software renderer costs more than drawing an 84 x 84 image.
-        let xml = with_visual(&crate::compose::with_arena(&scene.xml, "32M"), config.width, config.height, config.fast);
+        // The offscreen buffer holds every camera's image side by side and no more: MuJoCo
+        // resolves all of it every frame.
+        let buffer_width = config.width.saturating_mul(config.names.len());
+        let xml = with_visual(&crate::compose::with_arena(&scene.xml, "32M"), buffer_width, config.height, config.fast);
         let model = crate::scene::compile_mjcf(&xml).map_err(|reason| SimError::Compile { file: origin.clone(), reason })?;
         let ncam = usize::try_from(model.ffi().ncam).unwrap_or_default();
         let names: Vec<String> = (0..ncam).filter_map(|i| model.id_to_name(MjtObjBase::mjOBJ_CAMERA, i).map(str::to_owned)).collect();
@@ -83,16 +87,26 @@ impl Cameras {
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
-        if config.width == 0 || config.height == 0 || config.width > MAX_SIZE || config.height > MAX_SIZE {
+        if config.width == 0 || config.height == 0 || buffer_width > MAX_SIZE || config.height > MAX_SIZE {
             return Err(SimError::Render {
                 file: origin,
                 reason: format!(
-                    "camera size {}x{} (height x width) must be between 1x1 and {MAX_SIZE}x{MAX_SIZE}",
-                    config.height, config.width
+                    "camera size {}x{} (height x width) must be between 1x1 and {MAX_SIZE}x{MAX_SIZE}, the {} cameras' \
+                     images side by side at most {MAX_SIZE} wide",
+                    config.height,
+                    config.width,
+                    config.names.len()
                 ),
             });
         }
-        Ok(Self { model: Arc::new(model), config, ids, origin })
+        Ok(Self { model: Arc::new(model), config, ids, origin, how: RenderOptions::default() })
+    }
+
+    /// These cameras drawn another way (benchmarks: `mimicgen bench-render`).
+    #[must_use]
+    pub fn with_render_options(mut self, how: RenderOptions) -> Self {
+        self.how = how;
+        self
     }
 
     /// The configuration rendered.
@@ -145,39 +159,28 @@ impl Cameras {
         RENDERER.with_borrow_mut(|slot| {
             let size = (self.config.width, self.config.height, self.config.depth);
             let key = Arc::as_ptr(&self.model);
-            if !slot.as_ref().is_some_and(|r| r.model == key && r.size == size) {
+            if !slot.as_ref().is_some_and(|r| r.model == key && r.size == size && r.how == self.how) {
                 *slot = None; // free the old context before making a new one
                 // robosuite's offscreen renderer: MuJoCo's default options with the collision
                 // geoms (group 0) hidden, the visual ones (group 1) shown.
                 let mut opts = MjvOption::default();
                 opts.geomgroup[0] = 0;
                 opts.geomgroup[1] = 1;
-                let renderer = MjRenderer::builder()
-                    .opts(opts)
-                    .width(u32::try_from(size.0).unwrap_or(u32::MAX))
-                    .height(u32::try_from(size.1).unwrap_or(u32::MAX))
-                    .rgb(true)
-                    .depth(size.2)
-                    .build(&self.model)
+                let renderer = Offscreen::new(&self.model, opts, (size.0, size.1), self.ids.len(), self.how)
                     .map_err(|e| render_error(&self.origin, "making the offscreen renderer", &e))?;
-                *slot = Some(ThreadRenderer { model: key, size, data: MjData::new(Arc::clone(&self.model)), renderer });
+                *slot = Some(ThreadRenderer { model: key, size, how: self.how, data: MjData::new(Arc::clone(&self.model)), renderer });
             }
             let Some(r) = slot.as_mut() else { return Ok(()) };
             copy_kinematic_state(physics, &mut r.data).map_err(|reason| SimError::State { file: self.origin.clone(), reason })?;
             r.data.forward_kinematics();
-            for (name, &id) in self.config.names.iter().zip(&self.ids) {
-                r.renderer.set_camera(MjvCamera::new_fixed(id));
-                r.renderer.sync_data(&mut r.data).map_err(|e| render_error(&self.origin, "updating the scene", &e))?;
-                r.renderer.render().map_err(|e| render_error(&self.origin, "rendering", &e))?;
-                if let (Some(rgb), Some(ImageStream { pixels: Pixels::Rgb(out), .. })) =
-                    (r.renderer.rgb_flat(), streams.get_mut(&format!("{name}_image")))
-                {
-                    out.extend_from_slice(rgb);
+            let frame =
+                r.renderer.render(&mut r.data, &self.ids, self.config.depth).map_err(|e| render_error(&self.origin, "rendering", &e))?;
+            for (i, name) in self.config.names.iter().enumerate() {
+                if let Some(ImageStream { pixels: Pixels::Rgb(out), .. }) = streams.get_mut(&format!("{name}_image")) {
+                    frame.rgb_into(i, out);
                 }
-                if let (Some(depth), Some(ImageStream { pixels: Pixels::Depth(out), .. })) =
-                    (r.renderer.depth_flat(), streams.get_mut(&format!("{name}_depth")))
-                {
-                    out.extend(depth.iter().map(|&metres| depth_buffer_value(metres, &self.model)));
+                if let Some(ImageStream { pixels: Pixels::Depth(out), .. }) = streams.get_mut(&format!("{name}_depth")) {
+                    frame.depth_into(i, out);
                 }
             }
             Ok(())
@@ -198,13 +201,6 @@ fn with_visual(xml: &str, width: usize, height: usize, fast: bool) -> String {
         Some(at) => format!("{}<visual>{global}</visual>{}", &xml[..at], &xml[at..]),
         None => xml.to_owned(),
     }
-}
-
-/// The renderer's depth in metres back to the OpenGL depth-buffer value robosuite returns.
-fn depth_buffer_value(metres: f32, model: &MjModel) -> f32 {
-    let extent = model.stat().extent as f32;
-    let (near, far) = (model.vis().map.znear * extent, model.vis().map.zfar * extent);
-    if metres <= 0.0 { 0.0 } else { ((1.0 - near / metres) / (1.0 - near / far)).clamp(0.0, 1.0) }
 }
 
 /// Copies joint positions and mocap poses (all rendering reads) between two data of models with

@@ -14,6 +14,8 @@ pub mod compose;
 pub mod env;
 pub mod geometry;
 pub mod legacy_contacts;
+pub mod model_cache;
+mod offscreen;
 pub mod osc;
 pub mod registry;
 pub mod robot;

@@ -94,8 +94,11 @@ impl Scene {
         let model = compile_mjcf(&physics_xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?;
         let section = if crate::legacy_contacts::enabled() { crate::legacy_contacts::contact_section(&model) } else { None };
         let model = match section {
-            Some(section) => compile_mjcf(&crate::compose::with_section(&physics_xml, &section))
-                .map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?,
+            Some(section) => {
+                drop(model); // one compiled scene in memory at a time
+                compile_mjcf(&crate::compose::with_section(&physics_xml, &section))
+                    .map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?
+            }
             None => model,
         };
         let mut to_mocap = Vec::new();
@@ -320,14 +323,29 @@ impl Scene {
     }
 }
 
+/// Compiles an MJCF string, or loads the model it compiled to before (see [`crate::model_cache`]).
+///
+/// # Errors
+/// MuJoCo's message.
+pub fn compile_mjcf(xml: &str) -> Result<MjModel, String> {
+    crate::model_cache::load_or_compile(xml, compile_uncached)
+}
+
 /// Compiles an MJCF string. MuJoCo 3 refuses meshes whose volume is too small to give an inertia
 /// (some of Sawyer's visual meshes), which MuJoCo 2.3, robosuite 1.4.1's, accepted: each mesh it
 /// names so is given shell inertia, one at a time, and the scene compiled again (only that mesh
 /// changes; the XML written to datasets is left as it was).
 ///
+/// MuJoCo's own cache of processed meshes is turned off: it kept about 80 MB of them alive for
+/// the rest of the run, for the next compile, which the model cache makes rare.
+///
 /// # Errors
 /// MuJoCo's message.
-pub fn compile_mjcf(xml: &str) -> Result<MjModel, String> {
+pub(crate) fn compile_uncached(xml: &str) -> Result<MjModel, String> {
+    static NO_ASSET_CACHE: std::sync::Once = std::sync::Once::new();
+    NO_ASSET_CACHE.call_once(|| {
+        MjCache::current().set_capacity(0);
+    });
     const TOO_SMALL: &str = "mesh volume is too small: ";
     let mut xml = std::borrow::Cow::Borrowed(xml);
     for _ in 0..64 {
