@@ -21,10 +21,10 @@ Renders every stored state of the demo from its cameras (default agentview and t
 camera image) and the difference from the first way's pixels (PSNR; inf = identical):
   mujoco     one camera per render and read-back, every geom: MuJoCo's renderer as robosuite uses it
   tiled      every camera side by side in one buffer, one read-back per state
-  culled     tiled, and the geoms a camera cannot see left out (what `generate --cameras` does)
-  no-msaa    culled without multisampling (`--camera-fast`)
-  no-reflect culled without the floor's reflection (a probe: pixels differ)
-Then the `culled` way on 1 and on 2 threads at once (one renderer each), frames per second.
+  reflection tiled, and the geoms a camera cannot see left out (`--cameras --camera-reflection`)
+  default    that without the floor's 1 % reflection (`--cameras`)
+  fast       that without multisampling (`--cameras --camera-fast`)
+Then one way (--threads-way) on 1 and on 2 threads at once (one renderer each), frames per second.
 scripts/bench_render.py runs this beside robosuite rendering the same states.")]
 pub struct BenchRenderArgs {
     /// A dataset with `states` and `model_file` per demo (e.g. from `mimicgen generate`).
@@ -41,6 +41,9 @@ pub struct BenchRenderArgs {
     /// Draw each way this many times (alternating) and report the fastest.
     #[arg(long, default_value_t = 3)]
     rounds: usize,
+    /// The way timed on 1 and 2 threads at once.
+    #[arg(long, default_value = "default", value_parser = ["mujoco", "tiled", "reflection", "default", "fast"])]
+    threads_way: String,
     /// Task, when `env_args` does not name one of ours.
     #[arg(long)]
     task: Option<String>,
@@ -55,9 +58,9 @@ struct Way {
 const WAYS: [Way; 5] = [
     Way { name: "mujoco", fast: false, how: RenderOptions { tile: false, cull: false, reflection: true } },
     Way { name: "tiled", fast: false, how: RenderOptions { tile: true, cull: false, reflection: true } },
-    Way { name: "culled", fast: false, how: RenderOptions { tile: true, cull: true, reflection: true } },
-    Way { name: "no-msaa", fast: true, how: RenderOptions { tile: true, cull: true, reflection: true } },
-    Way { name: "no-reflect", fast: false, how: RenderOptions { tile: true, cull: true, reflection: false } },
+    Way { name: "reflection", fast: false, how: RenderOptions { tile: true, cull: true, reflection: true } },
+    Way { name: "default", fast: false, how: RenderOptions { tile: true, cull: true, reflection: false } },
+    Way { name: "fast", fast: true, how: RenderOptions { tile: true, cull: true, reflection: false } },
 ];
 
 /// Every state of `states` drawn by `cameras` in a fresh environment; returns the images and the
@@ -108,7 +111,14 @@ fn difference(a: &[ImageStream], b: &[ImageStream]) -> serde_json::Value {
 #[allow(clippy::cast_precision_loss)]
 pub fn run(args: &BenchRenderArgs) -> anyhow::Result<()> {
     let (scene, task, states) = mimicgen_pipeline::render::demo_to_render(&args.file, &args.demo, args.task.as_deref())?;
-    let config = |fast: bool| CameraConfig { names: args.cameras.clone(), height: args.size, width: args.size, depth: false, fast };
+    let config = |fast: bool| CameraConfig {
+        names: args.cameras.clone(),
+        height: args.size,
+        width: args.size,
+        depth: false,
+        fast,
+        reflection: true,
+    };
     let rigs =
         WAYS.iter().map(|w| Ok(Cameras::new(&scene, config(w.fast))?.with_render_options(w.how))).collect::<anyhow::Result<Vec<_>>>()?;
     let frames = (states.len() * args.cameras.len()) as f64;
@@ -134,12 +144,12 @@ pub fn run(args: &BenchRenderArgs) -> anyhow::Result<()> {
             )
         })
         .collect();
-    // The product's way on one thread and on two at once, each with its own renderer.
-    let culled = &rigs[2];
-    let one = draw(&scene, &task, &states, culled, None)?.1;
+    // One way on one thread and on two at once, each with its own renderer.
+    let timed = &rigs[WAYS.iter().position(|w| w.name == args.threads_way).unwrap_or(3)];
+    let one = draw(&scene, &task, &states, timed, None)?.1;
     let barrier = Barrier::new(2);
     let seconds = std::thread::scope(|s| {
-        let runs: Vec<_> = (0..2).map(|_| s.spawn(|| draw(&scene, &task, &states, culled, Some(&barrier)))).collect();
+        let runs: Vec<_> = (0..2).map(|_| s.spawn(|| draw(&scene, &task, &states, timed, Some(&barrier)))).collect();
         runs.into_iter()
             .map(|r| r.join().map_err(|_| anyhow::anyhow!("a render thread panicked"))?.map(|(_, t)| t))
             .collect::<anyhow::Result<Vec<f64>>>()
@@ -154,6 +164,7 @@ pub fn run(args: &BenchRenderArgs) -> anyhow::Result<()> {
         "lp_num_threads": std::env::var("LP_NUM_THREADS").ok(),
         "ways": ways,
         "threads": {
+            "way": args.threads_way,
             "frames_per_s_1": frames / one,
             "frames_per_s_2": 2.0 * frames / two,
             "speedup_2_vs_1": 2.0 * one / two,

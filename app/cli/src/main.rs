@@ -136,6 +136,10 @@ Examples:
     BenchSim(bench_sim::BenchSimArgs),
     /// Milliseconds per camera frame, drawn several ways, and whether they give the same pixels.
     BenchRender(bench_render::BenchRenderArgs),
+    /// Compile the MJCF on stdin into the model cache (`$MIMICGEN_CACHE/models`); run by this
+    /// program itself so that MuJoCo's compiler memory is a child's, not the run's.
+    #[command(hide = true)]
+    CompileModel,
     /// Measure the app's frame time with a file loaded, and the time until it is browsable.
     BenchApp(bench_app::BenchAppArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
@@ -259,6 +263,9 @@ pub(crate) fn check_output(out: &std::path::Path, input: Option<&std::path::Path
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Ok(me) = std::env::current_exe() {
+        mimicgen_sim::model_cache::compile_in_child(me);
+    }
     match run(cli) {
         Ok(code) => code,
         Err(e) => {
@@ -429,6 +436,12 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Replay(args) => {
             replay::run(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::CompileModel => {
+            let mut xml = String::new();
+            std::io::Read::read_to_string(&mut std::io::stdin(), &mut xml).context("reading the MJCF from stdin")?;
+            mimicgen_sim::model_cache::store_compiled(&xml).map_err(|e| anyhow::anyhow!("compiling the scene: {e}"))?;
             Ok(ExitCode::SUCCESS)
         }
         Command::BenchRender(args) => {

@@ -520,7 +520,7 @@ fn render_adds_camera_observations_to_a_dataset_and_keeps_the_rest() {
     let input = dir.path().join("in.hdf5");
     mimicgen_io::write_tree(&input, &file.root).unwrap();
     let out = dir.path().join("out.hdf5");
-    let cameras = CameraConfig { names: vec!["agentview".into()], height: 16, width: 16, depth: false, fast: true };
+    let cameras = CameraConfig { names: vec!["agentview".into()], height: 16, width: 16, depth: false, fast: true, reflection: false };
     let mut progress = Vec::new();
     assert_eq!(mimicgen_pipeline::render::render(&input, &out, &cameras, None, false, |d, t| progress.push((d, t))).unwrap(), 2);
     assert_eq!(progress, [(1, 2), (2, 2)]);

@@ -17,11 +17,23 @@ pub struct CameraConfig {
     /// from robosuite's images (which use MuJoCo's default 4x multisampling).
     #[serde(default)]
     pub fast: bool,
+    /// Mirror the scene in the floor as robosuite does (its floor reflects 1 %): robosuite's
+    /// pixels exactly, at about three times the cost on a software renderer. Off, the floor's
+    /// pixels differ by a few levels (BENCHMARKS.md, "Where a frame's time goes").
+    #[serde(default)]
+    pub reflection: bool,
 }
 
 impl Default for CameraConfig {
     /// robomimic's image datasets: `agentview` and the wrist camera at 84 x 84, no depth.
     fn default() -> Self {
-        Self { names: vec!["agentview".into(), "robot0_eye_in_hand".into()], height: 84, width: 84, depth: false, fast: false }
+        Self {
+            names: vec!["agentview".into(), "robot0_eye_in_hand".into()],
+            height: 84,
+            width: 84,
+            depth: false,
+            fast: false,
+            reflection: false,
+        }
     }
 }

@@ -141,6 +141,7 @@ impl RunConfig {
             (*resume, "--resume"),
             (cameras.as_ref().is_some_and(|c| c.depth), "--camera-depth"),
             (cameras.as_ref().is_some_and(|c| c.fast), "--camera-fast"),
+            (cameras.as_ref().is_some_and(|c| c.reflection), "--camera-reflection"),
         ] {
             if on {
                 args.push(flag.to_owned());

@@ -99,7 +99,8 @@ impl Cameras {
                 ),
             });
         }
-        Ok(Self { model: Arc::new(model), config, ids, origin, how: RenderOptions::default() })
+        let how = RenderOptions { reflection: config.reflection, ..RenderOptions::default() };
+        Ok(Self { model: Arc::new(model), config, ids, origin, how })
     }
 
     /// These cameras drawn another way (benchmarks: `mimicgen bench-render`).

@@ -48,6 +48,42 @@ pub(crate) fn load_or_compile(xml: &str, compile: impl FnOnce(&str) -> Result<Mj
     load_or_compile_in(&crate::assets::cache_dir().join("models"), xml, compile)
 }
 
+/// How a scene is compiled in another process, when one is set (see [`compile_in_child`]).
+static CHILD: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+
+/// Compile scenes missing from the cache in a child process: `program compile-model`, which reads
+/// the MJCF on stdin and stores the model in the cache ([`store_compiled`]). MuJoCo's compiler
+/// uses about 300 MB for robosuite's scenes (meshes, bounding-volume trees) and this process would
+/// keep most of it; the child gives it back when it exits. The command-line program sets itself.
+/// Without it, or when the child fails, scenes compile in this process as before.
+pub fn compile_in_child(program: PathBuf) {
+    let _ = CHILD.set(program);
+}
+
+/// Compiles `xml` and stores the model in the cache (what `mimicgen compile-model` runs).
+///
+/// # Errors
+/// MuJoCo's message, or why the model could not be stored.
+pub fn store_compiled(xml: &str) -> Result<(), String> {
+    let path = path_in(&crate::assets::cache_dir().join("models"), xml);
+    let model = crate::scene::compile_uncached(xml)?;
+    store(&model, &path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Runs the child compiler on `xml`; true when it stored the model.
+fn compiled_by_child(xml: &str) -> bool {
+    let Some(program) = CHILD.get() else { return false };
+    let child = std::process::Command::new(program)
+        .arg("compile-model")
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn();
+    let Ok(mut child) = child else { return false };
+    let fed = child.stdin.take().is_some_and(|mut stdin| stdin.write_all(xml.as_bytes()).is_ok());
+    child.wait().is_ok_and(|status| status.success()) && fed
+}
+
 /// [`load_or_compile`] with the cache in `dir`.
 ///
 /// # Errors
@@ -56,6 +92,11 @@ pub(crate) fn load_or_compile_in(dir: &Path, xml: &str, compile: impl FnOnce(&st
     let path = path_in(dir, xml);
     if let Some(model) = load(&path) {
         return Ok(model);
+    }
+    if dir == crate::assets::cache_dir().join("models") && compiled_by_child(xml) {
+        if let Some(model) = load(&path) {
+            return Ok(model);
+        }
     }
     let model = compile(xml)?;
     // Best effort: a cache that cannot be written costs the next run a compile, nothing more.
