@@ -2,7 +2,8 @@
 # One-time (idempotent) setup of everything the build and tests need beyond cargo:
 #   - Debian: libhdf5-dev (the HDF5 C library our dataset crate links), pkg-config, and EGL with
 #     Mesa's software renderer (libegl1, libegl-mesa0, libgl1-mesa-dri, libgl1: MuJoCo renders
-#     camera observations offscreen through them, no display or GPU needed); with --viewer
+#     camera observations offscreen through them, no display or GPU needed), iproute2 (`ip netns`:
+#     scripts/test_ray_hosts.sh makes two hosts from network namespaces); with --viewer
 #     also libudev-dev (linked by the Rerun viewer the app embeds with its `viewer` feature)
 #   - Python: a virtual environment with the pinned packages in scripts/requirements.txt
 # Everything lands in $MIMICGEN_CACHE (default ~/.cache/mimicgen), outside the clone, so a fresh
@@ -13,7 +14,8 @@ cache="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}"
 mkdir -p "$cache"
 
 debian_packages=(libhdf5-dev=1.10.8+repack1-1 pkg-config
-  libegl1=1.6.0-1 libegl-mesa0=22.3.6-1+deb12u2 libgl1-mesa-dri=22.3.6-1+deb12u2 libgl1=1.6.0-1)
+  libegl1=1.6.0-1 libegl-mesa0=22.3.6-1+deb12u2 libgl1-mesa-dri=22.3.6-1+deb12u2 libgl1=1.6.0-1
+  iproute2=6.1.0-3)
 viewer_packages=(libudev-dev=252.39-1~deb12u2)
 [ "${1:-}" = "--viewer" ] && debian_packages+=("${viewer_packages[@]}")
 missing=()

@@ -2,7 +2,8 @@
 # The Python package's tests (part of scripts/test.sh): build the wheel with maturin into
 # $CARGO_TARGET_DIR/wheels (libmujoco and libhdf5 bundled by `--auditwheel repair`), install it into
 # a fresh virtual environment with the pinned test requirements, and run pytest (no test
-# collected, pytest's exit code 5, fails the run like any other failure).
+# collected, pytest's exit code 5, fails the run like any other failure), then
+# scripts/test_ray_hosts.sh with that environment (Ray across two hosts; needs root).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 export MIMICGEN_CACHE="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}"
@@ -28,5 +29,6 @@ trap 'rm -rf "$work"' EXIT
 python3 -m venv "$work/venv"
 "$work/venv/bin/pip" install -q --disable-pip-version-check "$wheel" -r app/python/requirements-test.txt
 # From the tests' folder, so `import mimicgen_rs` is the installed wheel, not the source tree.
-cd app/python/tests
-"$work/venv/bin/python" -m pytest -q -p no:cacheprovider .
+(cd app/python/tests && "$work/venv/bin/python" -m pytest -q -p no:cacheprovider .)
+# Ray across two hosts (network namespaces, a worker node killed mid-run); needs root.
+bash scripts/test_ray_hosts.sh "$work/venv/bin/python"

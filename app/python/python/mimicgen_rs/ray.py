@@ -8,7 +8,11 @@ outputs gathered to the driver and merged into the dataset one process makes wit
 On a multi-node cluster: every node needs the wheel installed (``pip install mimicgen_rs-*.whl``,
 or ``ray.init(runtime_env={"pip": [...]})``) and the ``source`` file (when given) at the same
 path; the shards' files come back to the driver through Ray's object store, so no shared file
-system is needed, and the driver writes the merged dataset.
+system is needed, and the driver writes the merged dataset. A shard whose machine dies silently
+is retried once the driver's gRPC keepalive gives up on it: set
+``RAY_grpc_client_keepalive_time_ms`` and ``RAY_grpc_client_keepalive_timeout_ms`` for the
+driver and the nodes (Ray's defaults add up to 7 minutes; scripts/test_ray_hosts.sh tests this
+across two hosts).
 """
 
 from __future__ import annotations
@@ -21,16 +25,19 @@ from typing import Any, Dict, List, Optional
 
 import mimicgen_rs
 
-def _run_shard(part: int, count: int, kwargs: Dict[str, Any]) -> Dict[str, bytes]:
-    """Runs one shard in a scratch directory; returns its files by name."""
+def _run_shard(part: int, count: int, kwargs: Dict[str, Any]) -> Dict[str, Any]:
+    """Runs one shard in a scratch directory; returns its files by name (``files``), the address
+    of the node it ran on (``node``) and the shard's own run time (``wall_time_s``)."""
+    import ray
+
     with tempfile.TemporaryDirectory(prefix=f"mimicgen_shard{part}_") as scratch:
         out = os.path.join(scratch, f"shard_{part}.hdf5")
-        mimicgen_rs.generate(out, shard=(part, count), overwrite=True, **kwargs).wait()
+        report = mimicgen_rs.generate(out, shard=(part, count), overwrite=True, **kwargs).wait()
         files = {}
         for name in os.listdir(scratch):
             with open(os.path.join(scratch, name), "rb") as f:
                 files[name] = f.read()
-        return files
+        return {"files": files, "node": ray.util.get_node_ip_address(), "wall_time_s": report["wall_time_s"]}
 
 
 def generate(
@@ -46,7 +53,9 @@ def generate(
 
     Each task makes shard ``i/shards`` with 1 worker thread (Ray schedules one per CPU); a task
     whose worker dies is retried up to ``max_retries`` times, from scratch, which gives the same
-    files. Returns the merged run's report (the same counts as a single process's).
+    files. Returns the merged run's report (the same counts as a single process's), plus
+    ``shards``: by shard, the address of the node whose try made its files (``node``) and that
+    try's own run time (``wall_time_s``).
     """
     import ray
 
@@ -61,19 +70,19 @@ def generate(
     task = ray.remote(max_retries=max_retries, num_cpus=1)(_run_shard)
     pending = {task.remote(i, shards, kwargs): i for i in range(shards)}
     started = time.monotonic()
-    results: Dict[int, Dict[str, bytes]] = {}
+    results: Dict[int, Dict[str, Any]] = {}
     while pending:
         done, _ = ray.wait(list(pending), num_returns=1)
         for ref in done:
             part = pending.pop(ref)
             results[part] = ray.get(ref)
             if progress:
-                print(f"mimicgen_rs.ray: shard {part}/{shards} done ({len(results)} of {shards}, {time.monotonic() - started:.1f} s)", file=sys.stderr)
+                print(f"mimicgen_rs.ray: shard {part}/{shards} done on {results[part]['node']} ({len(results)} of {shards}, {time.monotonic() - started:.1f} s)", file=sys.stderr)
     gathered = os.path.join(os.path.dirname(os.path.abspath(out)) or ".", f".{os.path.basename(out)}.shards")
     os.makedirs(gathered, exist_ok=True)
     paths: List[str] = []
     for part in range(shards):
-        for name, data in results[part].items():
+        for name, data in results[part]["files"].items():
             with open(os.path.join(gathered, name), "wb") as f:
                 f.write(data)
         paths.append(os.path.join(gathered, f"shard_{part}.hdf5"))
@@ -81,6 +90,7 @@ def generate(
     for name in os.listdir(gathered):
         os.remove(os.path.join(gathered, name))
     os.rmdir(gathered)
+    report["shards"] = [{"node": results[part]["node"], "wall_time_s": results[part]["wall_time_s"]} for part in range(shards)]
     return report
 
 
