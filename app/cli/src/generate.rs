@@ -521,7 +521,7 @@ mod tests {
                 width: 160,
                 depth: true,
                 fast: true,
-                reflection: false,
+                reflection: true,
             }),
             robot: Some("ur5e".into()),
         }

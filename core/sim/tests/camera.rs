@@ -79,7 +79,7 @@ fn bad_camera_requests_name_what_is_wrong() {
 
 /// Every state of a stretch of arm motion, drawn the three ways `RenderOptions` allows: MuJoCo's
 /// own (a camera per render and read-back, every geom), the cameras side by side in one buffer, and
-/// that with the geoms a camera cannot see left out (the default).
+/// that with the geoms a camera cannot see left out; and the default, without the floor's reflection.
 #[test]
 fn drawing_side_by_side_and_culled_keeps_the_pixels() {
     use mimicgen_sim::camera::RenderOptions;
@@ -90,23 +90,37 @@ fn drawing_side_by_side_and_culled_keeps_the_pixels() {
         Cameras::new(&scene, config.clone()).unwrap().with_render_options(RenderOptions { tile, cull, reflection: true })
     };
     let (mujoco, tiled, culled) = (way(false, false), way(true, false), way(true, true));
-    let mut frames = [Vec::new(), Vec::new(), Vec::new()];
+    // The default: no floor reflection (a deliberate difference from robosuite, BENCHMARKS.md).
+    let default = Cameras::new(&scene, config.clone()).unwrap();
+    let mut frames: [BTreeMap<String, Vec<u8>>; 4] = Default::default();
     for step in 0..24 {
         // Down, sideways and turning: the wrist camera sweeps the table, the arm crosses frames.
         let a = (f64::from(step) * 0.4).sin();
         env.step(&[0.3 * a, -0.6, -0.5, 0.0, 0.0, 0.4 * a, if step < 12 { -1.0 } else { 1.0 }]).unwrap();
-        for (rig, out) in [&mujoco, &tiled, &culled].into_iter().zip(frames.iter_mut()) {
+        for (rig, out) in [&mujoco, &tiled, &culled, &default].into_iter().zip(frames.iter_mut()) {
             let streams = capture(rig, &env);
             for key in rig.keys() {
-                out.extend(rgb(&streams, &key));
+                out.entry(key.clone()).or_default().extend(rgb(&streams, &key));
             }
         }
     }
+    let all = |i: usize| -> Vec<u8> { frames[i].values().flatten().copied().collect() };
     // Leaving out what a camera cannot see changes nothing, to the bit.
-    assert!(frames[1] == frames[2], "culling changed {} values", frames[1].iter().zip(&frames[2]).filter(|(a, b)| a != b).count());
+    assert!(frames[1] == frames[2], "culling changed {} values", all(1).iter().zip(&all(2)).filter(|(a, b)| a != b).count());
     // Side by side, a few edge samples round differently (the buffer is wider): at most a few
     // levels, on a few values in ten thousand.
-    let differ: Vec<u8> = frames[0].iter().zip(&frames[1]).map(|(a, b)| a.abs_diff(*b)).filter(|&d| d > 0).collect();
+    let (mujoco_all, tiled_all) = (all(0), all(1));
+    let differ: Vec<u8> = mujoco_all.iter().zip(&tiled_all).map(|(a, b)| a.abs_diff(*b)).filter(|&d| d > 0).collect();
     let max = differ.iter().copied().max().unwrap_or(0);
-    assert!(max <= 8 && differ.len() * 1000 < frames[0].len(), "{} of {} values differ, by up to {max}", differ.len(), frames[0].len());
+    assert!(max <= 8 && differ.len() * 1000 < mujoco_all.len(), "{} of {} values differ, by up to {max}", differ.len(), mujoco_all.len());
+    // Without the floor's 1 % reflection only the floor differs: by a few levels in robomimic's
+    // two cameras (frontview, low over the floor, sees more of it and differs more).
+    for key in ["agentview_image", "robot0_eye_in_hand_image"] {
+        let (with, without) = (&frames[0][key], &frames[3][key]);
+        let mse = with.iter().zip(without).map(|(a, b)| (f64::from(*a) - f64::from(*b)).powi(2)).sum::<f64>() / with.len() as f64;
+        let max = with.iter().zip(without).map(|(a, b)| a.abs_diff(*b)).max().unwrap_or(0);
+        let psnr = 10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10();
+        assert!(psnr > 40.0 && max <= 24, "{key} without the reflection: {psnr:.1} dB, up to {max} levels");
+    }
+    assert!(frames[0]["frontview_image"] != frames[3]["frontview_image"], "the default drew the reflection");
 }
