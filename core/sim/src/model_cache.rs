@@ -93,10 +93,11 @@ pub(crate) fn load_or_compile_in(dir: &Path, xml: &str, compile: impl FnOnce(&st
     if let Some(model) = load(&path) {
         return Ok(model);
     }
-    if dir == crate::assets::cache_dir().join("models") && compiled_by_child(xml) {
-        if let Some(model) = load(&path) {
-            return Ok(model);
-        }
+    if dir == crate::assets::cache_dir().join("models")
+        && compiled_by_child(xml)
+        && let Some(model) = load(&path)
+    {
+        return Ok(model);
     }
     let model = compile(xml)?;
     // Best effort: a cache that cannot be written costs the next run a compile, nothing more.
