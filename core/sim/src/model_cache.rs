@@ -45,7 +45,7 @@ pub(crate) fn load_or_compile(xml: &str, compile: impl FnOnce(&str) -> Result<Mj
     if std::env::var_os("MIMICGEN_MODEL_CACHE").is_some_and(|v| v == "0") {
         return compile(xml);
     }
-    load_or_compile_in(&crate::assets::cache_dir().join("models"), xml, compile)
+    load_or_compile_in(&crate::assets::cache_dir().join("models"), xml, CHILD.get().is_some(), compile)
 }
 
 /// How a scene is compiled in another process, when one is set (see [`compile_in_child`]).
@@ -84,16 +84,22 @@ fn compiled_by_child(xml: &str) -> bool {
     child.wait().is_ok_and(|status| status.success()) && fed
 }
 
-/// [`load_or_compile`] with the cache in `dir`.
+/// [`load_or_compile`] with the cache in `dir`; `via_child`: on a miss, ask the child compiler
+/// first (it stores into the default cache, so only with that `dir`).
 ///
 /// # Errors
 /// What `compile` returns.
-pub(crate) fn load_or_compile_in(dir: &Path, xml: &str, compile: impl FnOnce(&str) -> Result<MjModel, String>) -> Result<MjModel, String> {
+pub(crate) fn load_or_compile_in(
+    dir: &Path,
+    xml: &str,
+    via_child: bool,
+    compile: impl FnOnce(&str) -> Result<MjModel, String>,
+) -> Result<MjModel, String> {
     let path = path_in(dir, xml);
     if let Some(model) = load(&path) {
         return Ok(model);
     }
-    if dir == crate::assets::cache_dir().join("models")
+    if via_child
         && compiled_by_child(xml)
         && let Some(model) = load(&path)
     {
@@ -180,10 +186,10 @@ mod tests {
         let xml = crate::compose::with_arena(&crate::compose::without_image_textures(&scene.xml), "32M");
         let dir = std::env::temp_dir().join(format!("mimicgen_model_cache_same_{}", std::process::id()));
         let compiled = crate::scene::compile_uncached(&xml).unwrap_or_else(|e| panic!("{e}"));
-        let first = load_or_compile_in(&dir, &xml, crate::scene::compile_uncached).unwrap_or_else(|e| panic!("{e}"));
+        let first = load_or_compile_in(&dir, &xml, false, crate::scene::compile_uncached).unwrap_or_else(|e| panic!("{e}"));
         assert!(path_in(&dir, &xml).exists(), "the compiled model was kept");
         let cached =
-            load_or_compile_in(&dir, &xml, |_| Err("compiled again instead of loaded".to_owned())).unwrap_or_else(|e| panic!("{e}"));
+            load_or_compile_in(&dir, &xml, false, |_| Err("compiled again instead of loaded".to_owned())).unwrap_or_else(|e| panic!("{e}"));
         std::fs::remove_dir_all(&dir).unwrap_or_else(|e| panic!("{e}"));
         let mjb = |m: &MjModel| {
             let mut bytes = vec![0u8; m.size()];
