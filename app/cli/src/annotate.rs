@@ -1,6 +1,7 @@
 //! `mimicgen annotate`: subtask ends for source demos, proposed from the recording or typed by
 //! hand, written where MimicGen reads them.
 
+use crate::exit::outln;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -83,10 +84,10 @@ pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
             ends.insert(demo.demo.clone(), demo.proposals.iter().map(|p| p.end).collect());
         }
         if !args.json {
-            println!("{} ({} steps){}", demo.demo, demo.len, if typed.is_some() { ": ends typed with --ends" } else { "" });
+            outln!("{} ({} steps){}", demo.demo, demo.len, if typed.is_some() { ": ends typed with --ends" } else { "" });
             for (i, p) in demo.proposals.iter().enumerate() {
                 let stored = demo.signal_ends.as_ref().and_then(|e| e.get(i));
-                println!(
+                outln!(
                     "  subtask {} ends at step {} (confidence {:.1}){}: {}",
                     p.subtask,
                     p.end - 1,
@@ -111,9 +112,9 @@ pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
         })
     });
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&serde_json::json!({"demos": found.demos, "distance_to_stored_signals": summary}))?);
+        outln!("{}", serde_json::to_string_pretty(&serde_json::json!({"demos": found.demos, "distance_to_stored_signals": summary}))?);
     } else if let Some(s) = &summary {
-        println!(
+        outln!(
             "against the stored signals: {} boundaries, median {} steps off, 90th percentile {}, worst {}, {:.0} % within 5 steps",
             s["boundaries"],
             s["median_steps"],

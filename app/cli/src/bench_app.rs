@@ -2,6 +2,7 @@
 //! raster) with a file loaded, and the time until a file is browsable. Frames run headless on an
 //! egui context at 1280x800, as the window would run them.
 
+use crate::exit::outln;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -238,6 +239,6 @@ pub fn run(args: &BenchAppArgs) -> anyhow::Result<()> {
         "preview": summary(preview),
         "preview_vertices_per_frame": preview_vertices,
     });
-    println!("{}", serde_json::to_string_pretty(&report)?);
+    outln!("{}", serde_json::to_string_pretty(&report)?);
     Ok(())
 }

@@ -1,5 +1,6 @@
 //! `mimicgen bench-io`: time and peak memory of writing and reading a synthetic dataset.
 
+use crate::exit::outln;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -90,10 +91,10 @@ pub fn run(demos: usize, steps: usize, dir: Option<PathBuf>) -> anyhow::Result<(
     let read_secs = start.elapsed().as_secs_f64();
     let read_peak = peak_rss_mib().unwrap_or(f64::NAN);
     let sources_len = sources.demos.len();
-    println!("bench-io: {demos} demos x {steps} steps, file {:.1} MB ({})", bytes as f64 / 1e6, path.display());
-    println!("  write (stream, gzip obs):       {write_secs:.2} s, peak RSS {write_peak:.0} MiB (process start {before:.0} MiB)");
-    println!("  read (streaming, demo by demo):   {stream_secs:.2} s, peak RSS {stream_peak:.0} MiB");
-    println!(
+    outln!("bench-io: {demos} demos x {steps} steps, file {:.1} MB ({})", bytes as f64 / 1e6, path.display());
+    outln!("  write (stream, gzip obs):       {write_secs:.2} s, peak RSS {write_peak:.0} MiB (process start {before:.0} MiB)");
+    outln!("  read (streaming, demo by demo):   {stream_secs:.2} s, peak RSS {stream_peak:.0} MiB");
+    outln!(
         "  read (whole file) + to engine:  {open_secs:.2} s + {:.2} s, peak RSS {read_peak:.0} MiB{}",
         read_secs - open_secs,
         if resettable { "" } else { " (peak not resettable: includes the write phase)" }

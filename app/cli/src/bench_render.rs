@@ -1,6 +1,7 @@
 //! `mimicgen bench-render`: what a camera frame costs, drawn several ways, and whether the ways
 //! give the same pixels.
 
+use crate::exit::outln;
 use std::path::PathBuf;
 use std::sync::{Arc, Barrier};
 use std::time::Instant;
@@ -170,6 +171,6 @@ pub fn run(args: &BenchRenderArgs) -> anyhow::Result<()> {
             "speedup_2_vs_1": 2.0 * one / two,
         },
     });
-    println!("{}", serde_json::to_string_pretty(&json)?);
+    outln!("{}", serde_json::to_string_pretty(&json)?);
     Ok(())
 }

@@ -1,5 +1,6 @@
 //! `mimicgen bench-sim`: what generation costs on the MuJoCo backend, as ratios measured in one run.
 
+use crate::exit::outln;
 use std::ops::ControlFlow;
 use std::path::Path;
 use std::sync::Arc;
@@ -206,6 +207,6 @@ pub fn run(args: &BenchSimArgs) -> anyhow::Result<()> {
         "cameras": cameras,
         "peak_rss_mib": peak_rss_mib(),
     });
-    println!("{}", serde_json::to_string_pretty(&report)?);
+    outln!("{}", serde_json::to_string_pretty(&report)?);
     Ok(())
 }

@@ -1,5 +1,6 @@
 //! `mimicgen coverage`: the paper's support-coverage analysis of a dataset's initial scenes.
 
+use crate::exit::outln;
 use std::path::PathBuf;
 
 use mimicgen_engine::coverage::Coordinate;
@@ -41,11 +42,11 @@ pub fn run(args: &CoverageArgs) -> anyhow::Result<()> {
     let found = mimicgen_pipeline::coverage::dataset_coverage(&args.file, args.task.as_deref(), args.variant.as_deref(), args.bins)?;
     let (task, variant, c) = (found.task.as_str(), found.variant.as_str(), &found.coverage);
     if args.json {
-        println!("{}", serde_json::to_string_pretty(c)?);
+        outln!("{}", serde_json::to_string_pretty(c)?);
         return Ok(());
     }
-    println!("{file}: {} initial scenes, bins over the reset region of {task} {variant}", c.scenes);
-    println!(
+    outln!("{file}: {} initial scenes, bins over the reset region of {task} {variant}", c.scenes);
+    outln!(
         "support coverage: {:.1} % ({} of {} joint bins, {} bins per dimension)",
         100.0 * c.support_coverage(),
         c.joint_bins_hit,
@@ -57,16 +58,16 @@ pub fn run(args: &CoverageArgs) -> anyhow::Result<()> {
     let widest = c.histograms.iter().flatten().copied().max().unwrap_or(1);
     for (d, hist) in c.dimensions.iter().zip(&c.histograms) {
         let unit = if d.coordinate == Coordinate::Yaw { "rad" } else { "m" };
-        println!("  {} {:?} [{:.3}, {:.3}] {unit}", d.object, d.coordinate, d.low, d.high);
+        outln!("  {} {:?} [{:.3}, {:.3}] {unit}", d.object, d.coordinate, d.low, d.high);
         for (i, n) in hist.iter().enumerate() {
-            println!("    bin {i}: {n:>6} {}", bar(*n, widest));
+            outln!("    bin {i}: {n:>6} {}", bar(*n, widest));
         }
     }
     if !found.instances.is_empty() {
-        println!("  object instances (demos each):");
+        outln!("  object instances (demos each):");
         let most = found.instances.values().copied().max().unwrap_or(1);
         for (label, n) in &found.instances {
-            println!("    {label:<20} {n:>6} {}", bar(*n, most));
+            outln!("    {label:<20} {n:>6} {}", bar(*n, most));
         }
     }
     Ok(())

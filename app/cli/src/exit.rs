@@ -35,6 +35,31 @@ macro_rules! usage {
 }
 pub(crate) use usage;
 
+/// `println!` for a command's output: an error instead of a panic when stdout is gone (`mimicgen
+/// tasks | head -1`), which [`closed_pipe`] lets `main` end quietly on, as `cat` and ripgrep do.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)?
+    }};
+}
+pub(crate) use outln;
+
+/// `print!` for a command's output; see [`outln`].
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        write!(std::io::stdout().lock(), $($arg)*)?
+    }};
+}
+pub(crate) use out;
+
+/// Whether `e` is a write to a closed stdout (the reader of a pipe left): the command ends
+/// quietly with status 0, its output having gone where it was asked to.
+pub fn closed_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|cause| cause.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe))
+}
+
 /// 2 when a typed error in `e`'s chain says the user's input is at fault, else 1.
 pub fn code(e: &anyhow::Error) -> u8 {
     let user = e.chain().find_map(|cause| {
@@ -76,8 +101,16 @@ pub fn message(e: &anyhow::Error) -> String {
             .filter(|e| matches!(e, mimicgen_io::IoError::Exists { .. }))
             .map(|_| FrontEnd::Cli.output_exists_advice(false))
     });
+    // Each cause once: many errors already print their source in their own message.
+    let mut text = e.to_string();
+    for cause in e.chain().skip(1) {
+        let cause = cause.to_string();
+        if !text.contains(&cause) {
+            text = format!("{text}: {cause}");
+        }
+    }
     match advice {
-        Some(advice) => format!("{e:#}; {advice}"),
-        None => format!("{e:#}"),
+        Some(advice) => format!("{text}; {advice}"),
+        None => text,
     }
 }

@@ -1,6 +1,7 @@
 //! `mimicgen generate` and `mimicgen demos`: run the engine on the MuJoCo backend and write
 //! robomimic datasets.
 
+use crate::exit::outln;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -232,6 +233,14 @@ fn default_workers() -> usize {
 }
 
 impl GenerateArgs {
+    /// Whether this run renders images with a worker on every core. Without a GPU, Mesa's
+    /// llvmpipe rasterizes on threads of its own, one per core: with every core already running
+    /// a worker they only compete, and two workers draw 25 % more frames without them
+    /// (BENCHMARKS.md, "Where a frame's time goes").
+    pub fn renders_on_every_core(&self) -> bool {
+        self.cameras.cameras.is_some() && self.workers >= default_workers()
+    }
+
     fn run_config(&self) -> RunConfig {
         RunConfig {
             task: self.task.clone(),
@@ -332,7 +341,7 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
     if let Some(v) = viz {
         v.finish().context("flushing the Rerun recording")?;
     }
-    println!("{}", serde_json::to_string_pretty(&report)?);
+    outln!("{}", serde_json::to_string_pretty(&report)?);
     eprintln!(
         "{} of {} attempts succeeded ({:.1}%) in {:.1} s; dataset {}, report {}",
         report.successes,

@@ -4,8 +4,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
+use exit::{out, outln};
 use clap::{Parser, Subcommand};
-use mimicgen_engine::TaskSpec;
 use mimicgen_io::info::DatasetInfo;
 use mimicgen_io::{DemoReader, DemoSource as _, ReadOptions};
 
@@ -263,11 +263,22 @@ pub(crate) fn check_output(out: &std::path::Path, input: Option<&std::path::Path
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Command::Generate(args) = &cli.command
+        && args.renders_on_every_core()
+        && std::env::var_os("LP_NUM_THREADS").is_none()
+    {
+        #[allow(unsafe_code)]
+        // SAFETY: no other thread has started yet, so none reads the environment meanwhile.
+        unsafe {
+            std::env::set_var("LP_NUM_THREADS", "0");
+        }
+    }
     if let Ok(me) = std::env::current_exe() {
         mimicgen_sim::model_cache::compile_in_child(me);
     }
     match run(cli) {
         Ok(code) => code,
+        Err(e) if exit::closed_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", exit::message(&e));
             ExitCode::from(exit::code(&e))
@@ -278,10 +289,10 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Spec { command: SpecCommand::Check { file } } => {
-            let spec = TaskSpec::load(&file).with_context(|| format!("loading {}", file.display()))?;
-            println!("{}: task {:?}, {} subtasks", file.display(), spec.name, spec.subtasks.len());
+            let spec = mimicgen_pipeline::check_spec_file(&file)?;
+            outln!("{}: task {:?}, {} subtasks", file.display(), spec.name, spec.subtasks.len());
             for (i, s) in spec.subtasks.iter().enumerate() {
-                println!(
+                outln!(
                     "  subtask {i}: relative to {:<8} ends on {:<10} offsets {:<10} selection {} , noise {}, interp {} + fixed {}",
                     s.object_ref.as_deref().unwrap_or("world"),
                     s.term_signal.as_deref().unwrap_or("demo end"),
@@ -293,7 +304,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 );
             }
             let g = &spec.generation;
-            println!(
+            outln!(
                 "  generation: {} {}, per-subtask selection {}, interpolate from last target {}, seed {}",
                 g.num_trials,
                 if g.guarantee { "successes" } else { "attempts" },
@@ -304,17 +315,17 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Spec { command: SpecCommand::Convert { file } } => {
-            let spec = TaskSpec::load(&file).with_context(|| format!("loading {}", file.display()))?;
-            print!("{}", spec.to_toml_string()?);
+            let spec = mimicgen_pipeline::check_spec_file(&file)?;
+            out!("{}", spec.to_toml_string()?);
             Ok(ExitCode::SUCCESS)
         }
         Command::Info { file, json, recover } => {
             let ds = DemoReader::open_with(&file, ReadOptions { recover })?;
             let info = DatasetInfo::of(&ds)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&info)?);
+                outln!("{}", serde_json::to_string_pretty(&info)?);
             } else {
-                print_info(&info);
+                print_info(&info)?;
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -323,9 +334,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             if let Some(mcap) = mcap {
                 check_output(&mcap, Some(&file), overwrite)?;
                 let summary = mimicgen_io::mcap_export::export(&ds, &mcap)?;
-                println!("{}: {} demos, {} steps at 20 Hz", mcap.display(), summary.demos, summary.steps);
+                outln!("{}: {} demos, {} steps at 20 Hz", mcap.display(), summary.demos, summary.steps);
                 for (topic, n) in &summary.messages {
-                    println!("  {topic:<24} {n} messages");
+                    outln!("  {topic:<24} {n} messages");
                 }
             }
             if let Some(out) = lerobot {
@@ -337,7 +348,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 drop(ds);
                 let summary = mimicgen_pipeline::lerobot::export(&file, &out, &request, |done, _| bar.set_position(done as u64))?;
                 bar.finish_and_clear();
-                println!(
+                outln!(
                     "{}: LeRobot {} dataset, {} episodes, {} frames at 20 fps",
                     summary.out,
                     mimicgen_io::lerobot::CODEBASE_VERSION,
@@ -345,10 +356,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                     summary.frames
                 );
                 let state: Vec<String> = summary.state.iter().map(|(k, n)| format!("{k} ({n})")).collect();
-                println!("  observation.state: {}", state.join(" + "));
-                println!("  task: {:?}", summary.task);
+                outln!("  observation.state: {}", state.join(" + "));
+                outln!("  task: {:?}", summary.task);
                 for video in &summary.videos {
-                    println!("  {video}: H.264 video");
+                    outln!("  {video}: H.264 video");
                 }
             }
             Ok(ExitCode::SUCCESS)
@@ -363,7 +374,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 bar.set_position(done as u64);
             })?;
             bar.finish_and_clear();
-            println!("{}", serde_json::to_string_pretty(&report)?);
+            outln!("{}", serde_json::to_string_pretty(&report)?);
             eprintln!(
                 "merged {} shards: {} of {} attempts succeeded ({:.1} %) -> {}",
                 shards.len(),
@@ -462,14 +473,14 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Tasks => {
             for t in mimicgen_sim::registry::tasks() {
-                println!("{:<21} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
+                outln!("{:<21} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
             }
             for b in mimicgen_sim::registry::broken() {
-                println!("{:<21} BROKEN: {}", b.name, b.error);
+                outln!("{:<21} BROKEN: {}", b.name, b.error);
             }
-            println!();
+            outln!();
             for r in mimicgen_sim::robot::ROBOTS {
-                println!(
+                outln!(
                     "robot {:<7} robosuite's {} with its default gripper (generate --robot {}): {}",
                     r.name, r.robosuite_name, r.name, r.status
                 );
@@ -484,29 +495,29 @@ fn fmt_list(v: &[f64]) -> String {
     format!("[{}]", parts.join(", "))
 }
 
-fn print_info(info: &DatasetInfo) {
+fn print_info(info: &DatasetInfo) -> anyhow::Result<()> {
     let l = &info.lengths;
-    println!("{}", info.file);
+    outln!("{}", info.file);
     let total = info.total_attr.map_or_else(String::new, |t| format!(" (data/total says {t})"));
-    println!("  demos {}, samples {}{total}", info.num_demos, info.num_samples);
-    println!("  lengths: mean {:.1}, std {:.1}, min {}, max {}", l.mean, l.std, l.min, l.max);
-    println!(
+    outln!("  demos {}, samples {}{total}", info.num_demos, info.num_samples);
+    outln!("  lengths: mean {:.1}, std {:.1}, min {}, max {}", l.mean, l.std, l.min, l.max);
+    outln!(
         "  env: {}, controller {}",
         info.env_name.as_deref().unwrap_or("(no env_args)"),
         info.controller_type.as_deref().unwrap_or("(unknown)")
     );
-    println!("  actions: {} dims, min {}, max {}", info.action_dim, fmt_list(&info.action_min), fmt_list(&info.action_max));
+    outln!("  actions: {} dims, min {}, max {}", info.action_dim, fmt_list(&info.action_min), fmt_list(&info.action_max));
     if info.obs.is_empty() {
-        println!("  obs: (none)");
+        outln!("  obs: (none)");
     }
     for (key, shape) in &info.obs {
         let dtype = info.obs_dtypes.get(key).map(String::as_str).unwrap_or_default();
-        println!("  obs/{key}: {shape:?}{}", if dtype == "float64" || dtype.is_empty() { String::new() } else { format!(" {dtype}") });
+        outln!("  obs/{key}: {shape:?}{}", if dtype == "float64" || dtype.is_empty() { String::new() } else { format!(" {dtype}") });
     }
-    println!("  objects: {}", if info.objects.is_empty() { "(none)".to_owned() } else { info.objects.join(", ") });
+    outln!("  objects: {}", if info.objects.is_empty() { "(none)".to_owned() } else { info.objects.join(", ") });
     for (name, s) in &info.signals {
         let f = &s.first_on_step;
-        println!(
+        outln!(
             "  signal {name}: first 0->1 at step min {}, mean {:.1}, max {} ({} of {} demos){}",
             f.min,
             f.mean,
@@ -517,16 +528,17 @@ fn print_info(info: &DatasetInfo) {
         );
     }
     if info.filter_keys.is_empty() {
-        println!("  filter keys: (none)");
+        outln!("  filter keys: (none)");
     }
     for (key, n) in &info.filter_keys {
-        println!("  filter key {key}: {n} demos");
+        outln!("  filter key {key}: {n} demos");
     }
     if info.report.is_mimicgen_source() {
-        println!("  MimicGen source: yes (datagen_info complete)");
+        outln!("  MimicGen source: yes (datagen_info complete)");
     } else {
-        println!("  MimicGen source: no: {}", info.report);
+        outln!("  MimicGen source: no: {}", info.report);
     }
+    Ok(())
 }
 
 /// The app's screens, as `--screen` names them.

@@ -1,6 +1,7 @@
 //! `mimicgen replay`: a dataset's demos replayed in our simulator, step by step (the half of
 //! `scripts/compare_physics.py` that runs here).
 
+use crate::exit::outln;
 use std::path::PathBuf;
 
 use mimicgen_pipeline::replay::{self, ReplayMode};
@@ -77,10 +78,10 @@ pub fn run(args: &ReplayArgs) -> anyhow::Result<()> {
             (None, None) => "no success".to_owned(),
         };
         let recorded = t.recorded_failure.as_ref().map(|f| format!(" [generated: failed, {f}]")).unwrap_or_default();
-        println!("{}: {} steps, {outcome}{recorded}", t.demo, t.steps.len() - 1);
+        outln!("{}: {} steps, {outcome}{recorded}", t.demo, t.steps.len() - 1);
     }
     let successes = traces.iter().filter(|t| t.success).count();
-    println!(
+    outln!(
         "replay ({}): {successes} of {} succeeded",
         if matches!(mode, ReplayMode::Targets) { "targets" } else { "actions" },
         traces.len()

@@ -5,6 +5,14 @@ use std::path::PathBuf;
 
 use mimicgen_server::{ServeOptions, Server};
 
+/// A line for the person who started the server; a closed stdout does not stop the server.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
 /// The app in a browser, for machines without a display (a server, a cluster node over SSH).
 #[derive(clap::Args)]
 #[command(after_help = "\
@@ -67,13 +75,13 @@ pub fn run(args: ServeArgs) -> Result<(), mimicgen_server::ServerError> {
     };
     let server = Server::bind(options)?;
     let url = server.url();
-    println!("mimicgen serve: open {url}");
+    say!("mimicgen serve: open {url}");
     if !server.local_addr().ip().is_loopback() {
-        println!("  (the token in it is checked on every request; anyone with the URL can use the app)");
+        say!("  (the token in it is checked on every request; anyone with the URL can use the app)");
     }
-    println!("  from another machine: ssh -L {0}:localhost:{0} <this host>, then open the URL there", server.local_addr().port());
+    say!("  from another machine: ssh -L {0}:localhost:{0} <this host>, then open the URL there", server.local_addr().port());
     if !server.has_viewer() {
-        println!("  no 3D view on this server");
+        say!("  no 3D view on this server");
     }
     server.run();
     Ok(())

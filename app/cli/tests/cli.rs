@@ -32,6 +32,56 @@ fn spec_check_names_the_bad_field() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+#[test]
+fn a_spec_naming_an_unknown_object_is_blamed_once_by_file_line_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad_spec.toml");
+    let stack = std::fs::read_to_string(repo_path("core/sim/tasks/stack.toml")).unwrap();
+    let line = stack.lines().position(|l| l.trim() == "object_ref = \"cubeA\"").unwrap() + 1;
+    std::fs::write(&bad, stack.replace("object_ref = \"cubeA\"", "object_ref = \"nope\"")).unwrap();
+    let out = dir.path().join("out.hdf5");
+    let generate = mimicgen()
+        .args(["generate", "--num-demos", "1", "--workers", "1", "--config"])
+        .arg(&bad)
+        .arg("--out")
+        .arg(&out)
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .output()
+        .unwrap();
+    let check = mimicgen().args(["spec", "check"]).arg(&bad).output().unwrap();
+    for (command, run) in [("generate", generate), ("spec check", check)] {
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{command}: {err}");
+        assert!(err.contains(&format!("bad_spec.toml:{line}")), "{command} names the spec file and line: {err}");
+        assert!(err.contains("subtask[0].object_ref") && err.contains("\"nope\""), "{command}: {err}");
+        assert!(err.contains("\"cubeA\", \"cubeB\""), "{command} says which objects exist: {err}");
+        assert_eq!(err.matches("does not exist").count(), 1, "{command} says it once: {err}");
+        assert!(!err.contains("source.hdf5"), "{command} blames the spec, not the sources: {err}");
+    }
+    assert!(!out.exists());
+}
+
+#[test]
+fn every_command_ends_quietly_when_its_reader_has_gone() {
+    let json = repo_path("core/engine/tests/data/config_D0.json");
+    let source = repo_path("core/sim/data/stack_D0_source.hdf5");
+    let commands: [&[&std::ffi::OsStr]; 4] = [
+        &["tasks".as_ref()],
+        &["spec".as_ref(), "convert".as_ref(), json.as_os_str()],
+        &["spec".as_ref(), "check".as_ref(), json.as_os_str()],
+        &["info".as_ref(), source.as_os_str()],
+    ];
+    for args in commands {
+        // A pipe whose reader is closed before the command starts: its first write fails.
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let out = mimicgen().args(args).stdout(writer).env("HDF5_USE_FILE_LOCKING", "FALSE").output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
+        assert!(err.is_empty(), "{args:?} says nothing: {err}");
+    }
+}
+
 fn repo_path(relative: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(relative)
 }

@@ -422,6 +422,42 @@ impl TaskSpec {
     }
 }
 
+/// The 1-based line of field `field` (`subtask[1].object_ref`, as errors name fields) in a spec's
+/// text: our TOML (`[[subtask]]` tables) or a MimicGen experiment JSON (`"subtask_2": {...}`).
+/// `None` when the text does not spell it out on a line of its own.
+#[must_use]
+pub fn field_line(text: &str, field: &str) -> Option<usize> {
+    let (index, key) = field.strip_prefix("subtask[")?.split_once("].")?;
+    let index: usize = index.parse().ok()?;
+    let lines = text.lines().enumerate();
+    if text.trim_start().starts_with('{') {
+        let table = format!("\"subtask_{}\"", index + 1);
+        let quoted = format!("\"{key}\"");
+        let mut inside = false;
+        for (n, line) in lines {
+            if line.contains("\"subtask_") {
+                inside = line.contains(&table);
+            }
+            if inside && line.contains(&quoted) {
+                return Some(n + 1);
+            }
+        }
+        return None;
+    }
+    let mut table: Option<usize> = None;
+    let mut subtasks = 0;
+    for (n, line) in lines {
+        let line = line.trim();
+        if line.starts_with('[') {
+            table = (line.trim_start_matches('[').trim_end_matches(']').trim() == "subtask" && line.starts_with("[[")).then_some(subtasks);
+            subtasks += usize::from(table.is_some());
+        } else if table == Some(index) && line.split_once('=').is_some_and(|(k, _)| k.trim().trim_matches('"') == key) {
+            return Some(n + 1);
+        }
+    }
+    None
+}
+
 /// A TOML error as `file:line`, the dotted field (`subtask[1].object_ref`) and the message.
 fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> EngineError {
     let Some(span) = e.span() else {
@@ -572,4 +608,20 @@ mod tests {
         let err = spec.check_names(&["cubeA".into(), "cubeB".into()], &["touch".into()]).unwrap_err().to_string();
         assert!(err.contains("subtask[0].term_signal") && err.contains("grasp"), "{err}");
     }
+
+    #[test]
+    fn a_field_is_found_on_its_line_in_toml_and_json() {
+        let toml = "name = \"stack\"\n[generation]\nseed = 1\n\n[[subtask]]\nobject_ref = \"cubeA\"\n\n[[subtask]]\nselection = { strategy = \"random\" }\nobject_ref = \"nope\"\n";
+        assert_eq!(field_line(toml, "subtask[0].object_ref"), Some(6));
+        assert_eq!(field_line(toml, "subtask[1].object_ref"), Some(10));
+        assert_eq!(field_line(toml, "subtask[1].term_signal"), None);
+        assert_eq!(field_line(toml, "subtask[2].object_ref"), None);
+        assert_eq!(field_line(toml, "generation.seed"), None);
+        let json = "{\n  \"task\": {\"task_spec\": {\n    \"subtask_1\": {\n      \"object_ref\": \"cubeA\"\n    },\n    \"subtask_2\": {\n      \"object_ref\": \"nope\"\n    }\n  }}\n}\n";
+        assert_eq!(field_line(json, "subtask[0].object_ref"), Some(4));
+        assert_eq!(field_line(json, "subtask[1].object_ref"), Some(7));
+        assert_eq!(field_line(json, "subtask[2].object_ref"), None);
+        assert_eq!(field_line(&json.replace("\"object_ref\": \"cubeA\"", "\"nn_k\": 3"), "subtask[0].object_ref"), None);
+    }
+
 }

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use mimicgen_engine::TaskSpec;
+use mimicgen_engine::{EngineError, SourceDataset, TaskSpec};
 use mimicgen_sim::{Scene, Task, registry};
 
 use crate::{CameraConfig, PipelineError, RunConfig};
@@ -16,6 +16,8 @@ pub(crate) struct Resolved {
     pub variant: String,
     /// The spec with the run's fields over it (`num_demos`, `seed`, `--action-noise`, ...).
     pub spec: TaskSpec,
+    /// The spec's file (`None`: the task's bundled spec).
+    pub spec_file: Option<PathBuf>,
     pub source_path: PathBuf,
     /// The source file, checked to be recorded with the controller generation drives.
     pub dataset: mimicgen_io::RobomimicDataset,
@@ -74,7 +76,47 @@ pub(crate) fn resolve(config: &RunConfig) -> Result<Resolved, PipelineError> {
         }
     };
     check_controller(dataset.env_args(), &source_path)?;
-    Ok(Resolved { task, variant, spec, source_path, dataset })
+    Ok(Resolved { task, variant, spec, spec_file: config.config.clone(), source_path, dataset })
+}
+
+/// Checks that the objects and signals `spec` names exist in `sources`. An unknown one is the
+/// spec's mistake, so the error names the spec's file and line (`spec_file`; `None` for `task`'s
+/// bundled spec), the field, and the names that exist.
+///
+/// # Errors
+/// [`PipelineError::Engine`] wrapping [`EngineError::UnknownName`].
+pub(crate) fn check_spec_names(spec: &TaskSpec, spec_file: Option<&Path>, task: &str, sources: &SourceDataset) -> Result<(), PipelineError> {
+    spec.check_names(&sources.object_names(), &sources.signal_names()).map_err(|e| {
+        let label = match spec_file {
+            Some(path) => {
+                let line = match &e {
+                    EngineError::UnknownName { field, .. } => {
+                        std::fs::read_to_string(path).ok().and_then(|text| mimicgen_engine::spec::field_line(&text, field))
+                    }
+                    _ => None,
+                };
+                line.map_or_else(|| path.display().to_string(), |line| format!("{}:{line}", path.display()))
+            }
+            None => format!("the bundled spec of {task}"),
+        };
+        PipelineError::engine(label, e)
+    })
+}
+
+/// Loads the spec in `path` and, when it is for one of our tasks, checks the objects and signals
+/// it names against that task's bundled source demos (`mimicgen spec check`).
+///
+/// # Errors
+/// [`PipelineError`] naming the file, line and field at fault.
+pub fn check_spec_file(path: &Path) -> Result<TaskSpec, PipelineError> {
+    let origin = path.display().to_string();
+    let spec = TaskSpec::load(path).map_err(|e| PipelineError::engine(origin, e))?;
+    if registry::default_spec_toml(&spec.name).is_some() {
+        let sources = crate::bundled::source_demos(&spec.name)?;
+        let dataset = mimicgen_io::RobomimicDataset::open(&sources)?.to_source_dataset(&spec.source)?;
+        check_spec_names(&spec, Some(path), &spec.name, &dataset)?;
+    }
+    Ok(spec)
 }
 
 /// The `env_args` a run's outputs carry: the sources' (their controller settings) naming the

@@ -29,6 +29,7 @@
 pub mod annotate;
 pub mod bundled;
 mod config;
+pub use config::check_spec_file;
 pub mod coverage;
 mod error;
 pub mod lerobot;

@@ -279,7 +279,7 @@ impl Pipeline {
         {
             return Err(PipelineError::input("", "--valid-fraction", format!("must be between 0 and 1, got {f}")));
         }
-        let Resolved { task, variant, spec, source_path, dataset } = resolve(config)?;
+        let Resolved { task, variant, spec, spec_file, source_path, dataset } = resolve(config)?;
         let source_label = source_path.display().to_string();
         let mut sources = dataset.to_source_dataset(&spec.source)?;
         drop(dataset);
@@ -325,6 +325,7 @@ impl Pipeline {
         };
         let scene_xml = mimicgen_sim::assets::portable_asset_paths(&xml);
         let env_args = output_env_args(sources.env_args.as_deref(), task.as_ref(), &variant, &scene, config.cameras.as_ref());
+        crate::config::check_spec_names(&spec, spec_file.as_deref(), task.name(), &sources)?;
         let generator = Generator::new(spec.clone(), sources).map_err(|e| PipelineError::engine(source_label.clone(), e))?;
         let bytes = std::fs::read(&source_path).map_err(|e| PipelineError::Fs { file: source_label.clone(), reason: e.to_string() })?;
         let description = RunDescription {
