@@ -32,12 +32,18 @@ fn declared() -> BTreeMap<String, Vec<String>> {
             let manifest: toml::Table =
                 std::fs::read_to_string(repo().join(member.as_str().unwrap()).join("Cargo.toml")).unwrap().parse().unwrap();
             let name = manifest["package"]["name"].as_str().unwrap().to_owned();
-            let mut deps: Vec<String> = manifest
-                .get("dependencies")
-                .and_then(toml::Value::as_table)
-                .map(|t| t.keys().filter(|k| k.starts_with("mimicgen-")).cloned().collect())
-                .unwrap_or_default();
+            // `[dependencies]` and every `[target.'cfg(..)'.dependencies]`.
+            let mut tables: Vec<&toml::Value> = manifest.get("dependencies").into_iter().collect();
+            if let Some(targets) = manifest.get("target").and_then(toml::Value::as_table) {
+                tables.extend(targets.values().filter_map(|t| t.get("dependencies")));
+            }
+            let mut deps: Vec<String> = tables
+                .iter()
+                .filter_map(|t| t.as_table())
+                .flat_map(|t| t.keys().filter(|k| k.starts_with("mimicgen-")).cloned())
+                .collect();
             deps.sort();
+            deps.dedup();
             (name, deps)
         })
         .collect()
