@@ -37,11 +37,8 @@ fn declared() -> BTreeMap<String, Vec<String>> {
             if let Some(targets) = manifest.get("target").and_then(toml::Value::as_table) {
                 tables.extend(targets.values().filter_map(|t| t.get("dependencies")));
             }
-            let mut deps: Vec<String> = tables
-                .iter()
-                .filter_map(|t| t.as_table())
-                .flat_map(|t| t.keys().filter(|k| k.starts_with("mimicgen-")).cloned())
-                .collect();
+            let mut deps: Vec<String> =
+                tables.iter().filter_map(|t| t.as_table()).flat_map(|t| t.keys().filter(|k| k.starts_with("mimicgen-")).cloned()).collect();
             deps.sort();
             deps.dedup();
             (name, deps)

@@ -4,8 +4,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
-use exit::{out, outln};
 use clap::{Parser, Subcommand};
+use exit::{out, outln};
 use mimicgen_io::info::DatasetInfo;
 use mimicgen_io::{DemoReader, DemoSource as _, ReadOptions};
 
@@ -482,7 +482,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             for r in mimicgen_sim::robot::ROBOTS {
                 outln!(
                     "robot {:<7} robosuite's {} with its default gripper (generate --robot {}): {}",
-                    r.name, r.robosuite_name, r.name, r.status
+                    r.name,
+                    r.robosuite_name,
+                    r.name,
+                    r.status
                 );
             }
             Ok(ExitCode::SUCCESS)

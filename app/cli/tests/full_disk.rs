@@ -67,7 +67,9 @@ fn a_full_disk_stops_the_run_and_resume_finishes_it() {
     let disk = match Tmpfs::mount("1m") {
         Ok(disk) => disk,
         Err(why) => {
-            eprintln!("\n*** SKIPPED a_full_disk_stops_the_run_and_resume_finishes_it: cannot mount a tmpfs ({why}); run as root to test a full disk ***\n");
+            eprintln!(
+                "\n*** SKIPPED a_full_disk_stops_the_run_and_resume_finishes_it: cannot mount a tmpfs ({why}); run as root to test a full disk ***\n"
+            );
             return;
         }
     };

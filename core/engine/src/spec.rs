@@ -623,5 +623,4 @@ mod tests {
         assert_eq!(field_line(json, "subtask[2].object_ref"), None);
         assert_eq!(field_line(&json.replace("\"object_ref\": \"cubeA\"", "\"nn_k\": 3"), "subtask[0].object_ref"), None);
     }
-
 }

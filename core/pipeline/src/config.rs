@@ -85,7 +85,12 @@ pub(crate) fn resolve(config: &RunConfig) -> Result<Resolved, PipelineError> {
 ///
 /// # Errors
 /// [`PipelineError::Engine`] wrapping [`EngineError::UnknownName`].
-pub(crate) fn check_spec_names(spec: &TaskSpec, spec_file: Option<&Path>, task: &str, sources: &SourceDataset) -> Result<(), PipelineError> {
+pub(crate) fn check_spec_names(
+    spec: &TaskSpec,
+    spec_file: Option<&Path>,
+    task: &str,
+    sources: &SourceDataset,
+) -> Result<(), PipelineError> {
     spec.check_names(&sources.object_names(), &sources.signal_names()).map_err(|e| {
         let label = match spec_file {
             Some(path) => {
