@@ -1,0 +1,412 @@
+//! How one attempt runs: the generator plans every subtask (source choice, transform,
+//! interpolation) and executes it step by step with noise in an [`Environment`].
+
+use std::collections::BTreeMap;
+
+use rand::Rng;
+use rand_distr::StandardNormal;
+
+use super::attempt_rng;
+use super::records::{Attempt, Failure, FailureReason, SubtaskPlan, Trajectory};
+use crate::EngineError;
+use crate::action::POSE_ACTION_DIM;
+use crate::demo::SourceDataset;
+use crate::env::{EnvError, Environment};
+use crate::pose::Pose;
+use crate::segment::{Segmentation, Span};
+use crate::select::{SceneContext, pick_source, source_distances};
+use crate::spec::TaskSpec;
+use crate::transform::{Waypoint, WaypointKind, subtask_waypoints, transform_segment};
+
+/// A task spec bound to a parsed source dataset, ready to run attempts.
+#[derive(Debug, Clone)]
+pub struct Generator {
+    spec: TaskSpec,
+    dataset: SourceDataset,
+    segmentation: Segmentation,
+}
+
+impl Generator {
+    /// Validates the dataset, checks the spec's names against it and parses the segments.
+    ///
+    /// # Errors
+    /// Any validation, naming or segmentation error, naming the demo and field.
+    pub fn new(spec: TaskSpec, dataset: SourceDataset) -> Result<Self, EngineError> {
+        spec.check("task spec")?;
+        dataset.validate()?;
+        spec.check_names(&dataset.object_names(), &dataset.signal_names())?;
+        let segmentation = Segmentation::new(&dataset.demos, &spec)?;
+        Ok(Self { spec, dataset, segmentation })
+    }
+
+    /// The same generator with hand-set subtask ends (exclusive, one per subtask but the last)
+    /// for the demos `ends` names, in place of their signals.
+    ///
+    /// # Errors
+    /// [`EngineError::UnknownName`] for a demo that does not exist, [`EngineError::Segmentation`]
+    /// for ends that do not fit the demo.
+    pub fn with_subtask_ends(&self, ends: &BTreeMap<String, Vec<usize>>) -> Result<Self, EngineError> {
+        let mut dataset = self.dataset.clone();
+        for (name, demo_ends) in ends {
+            let demo = dataset.demos.iter_mut().find(|d| &d.name == name).ok_or_else(|| EngineError::UnknownName {
+                field: "subtask ends".to_owned(),
+                name: name.clone(),
+                available: self.dataset.demos.iter().map(|d| d.name.clone()).collect(),
+            })?;
+            demo.manual_subtask_ends = Some(demo_ends.clone());
+        }
+        let segmentation = Segmentation::new(&dataset.demos, &self.spec)?;
+        Ok(Self { spec: self.spec.clone(), dataset, segmentation })
+    }
+
+    /// The same generator drawing from run seed `seed`.
+    #[must_use]
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.spec.generation.seed = seed;
+        self
+    }
+
+    /// The task spec.
+    #[must_use]
+    pub fn spec(&self) -> &TaskSpec {
+        &self.spec
+    }
+
+    /// The source dataset.
+    #[must_use]
+    pub fn dataset(&self) -> &SourceDataset {
+        &self.dataset
+    }
+
+    /// The nominal segmentation.
+    #[must_use]
+    pub fn segmentation(&self) -> &Segmentation {
+        &self.segmentation
+    }
+
+    /// Runs attempt `index`: samples a scene, then for every subtask selects, transforms,
+    /// interpolates and executes a source segment.
+    ///
+    /// # Errors
+    /// Only [`EnvError::Fatal`] problems; a failed attempt is an `Ok` record with `success == false`.
+    pub fn attempt<E: Environment + ?Sized>(&self, env: &mut E, index: u64) -> Result<Attempt, EngineError> {
+        self.attempt_with(env, index, &Overrides::default())
+    }
+
+    /// [`Generator::attempt`] with what `overrides` forces: the source demo of some subtasks, and
+    /// objects moved after the reset. Every random number is still drawn, so the segment offsets
+    /// and the action noise (and the scene, but for the moved objects) are those of attempt
+    /// `index` of a run: with no overrides this is that attempt exactly.
+    ///
+    /// # Errors
+    /// As [`Generator::attempt`], and [`EngineError::Config`] for a source past the last demo or
+    /// [`EngineError::Env`] for an object the scene does not have.
+    pub fn attempt_with<E: Environment + ?Sized>(&self, env: &mut E, index: u64, overrides: &Overrides) -> Result<Attempt, EngineError> {
+        let sources = &overrides.sources;
+        self.check_overrides(sources)?;
+        let settings = &self.spec.generation;
+        let mut rng = attempt_rng(settings.seed, index);
+        let fatal = |e: EnvError| EngineError::Env { attempt: index, source: e };
+        let unstable = |e: EnvError, subtask: usize| match e {
+            EnvError::Unstable { reason } => Ok(Failure { subtask, reason: FailureReason::Unstable { reason } }),
+            other => Err(fatal(other)),
+        };
+        let mut attempt = Attempt {
+            index,
+            seed: settings.seed,
+            success: false,
+            failure: None,
+            src_demo_per_subtask: Vec::new(),
+            initial_object_poses: BTreeMap::new(),
+            initial_state: Vec::new(),
+            plans: Vec::new(),
+            trajectory: Trajectory::new(0, env.action_dim()),
+        };
+        if let Err(e) = env.reset(&mut rng) {
+            attempt.failure = Some(unstable(e, 0)?);
+            return Ok(attempt);
+        }
+        env.place_objects(&overrides.object_poses).map_err(fatal)?;
+        attempt.initial_object_poses = env.object_poses();
+        attempt.initial_state = env.state();
+        attempt.trajectory = Trajectory::new(attempt.initial_state.len(), env.action_dim());
+        let spans = self.segmentation.draw_spans(&mut rng);
+        let mut selected: Option<usize> = None;
+        let mut last_target: Option<Pose> = None;
+        for (subtask_index, subtask) in self.spec.subtasks.iter().enumerate() {
+            let here = PlanInput {
+                subtask: subtask_index,
+                world_from_eef: env.eef_pose(),
+                objects: env.object_poses(),
+                last_target,
+                selected,
+                forced: sources.get(subtask_index).copied().flatten(),
+            };
+            let (plan, waypoints) = self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
+            selected = Some(plan.src_demo);
+            last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);
+            attempt.src_demo_per_subtask.push(plan.src_demo);
+            let labels = StepLabels { src_demo: plan.src_demo, subtask: subtask_index, kind: WaypointKind::Transformed };
+            attempt.plans.push(SubtaskPlan { first_step: attempt.trajectory.len(), ..plan });
+            let mut signal_seen = false;
+            let signal = if subtask_index + 1 < self.spec.subtasks.len() { subtask.term_signal.as_deref() } else { None };
+            for (waypoint, kind) in &waypoints {
+                let signals = match execute_step(env, waypoint, StepLabels { kind: *kind, ..labels }, &mut attempt.trajectory, &mut rng) {
+                    Ok(signals) => signals,
+                    Err(e) => {
+                        attempt.failure = Some(unstable(e, subtask_index)?);
+                        return Ok(attempt);
+                    }
+                };
+                signal_seen |= signal.is_some_and(|s| signals.get(s).is_some_and(|&v| v != 0));
+                attempt.success |= env.is_success();
+            }
+            if let Some(name) = signal {
+                signal_seen |= env.subtask_term_signals().get(name).is_some_and(|&v| v != 0);
+                if !signal_seen && attempt.failure.is_none() {
+                    attempt.failure =
+                        Some(Failure { subtask: subtask_index, reason: FailureReason::SignalNeverOn { signal: name.to_owned() } });
+                    if settings.early_abort && !attempt.success {
+                        return Ok(attempt);
+                    }
+                }
+            }
+        }
+        if attempt.success {
+            attempt.failure = None;
+        } else if attempt.failure.is_none() {
+            let reason = FailureReason::TaskNotAchieved { unmet: env.unmet_success() };
+            attempt.failure = Some(Failure { subtask: self.spec.subtasks.len() - 1, reason });
+        }
+        Ok(attempt)
+    }
+
+    /// Plans attempt `index` without executing it: samples its scene (the same as the attempt's,
+    /// with the objects `overrides` moves moved) and, for every subtask, ranks and picks the source
+    /// demo (or takes the one `overrides` forces), transforms
+    /// its segment into the scene and bridges to it. Objects are taken to stay where the scene put
+    /// them and each subtask to start where the previous one's last target is, so later subtasks
+    /// are what the attempt would plan if execution went as planned (with per-subtask random
+    /// selection the attempt may pick differently, since execution draws noise in between).
+    ///
+    /// # Errors
+    /// As [`Generator::attempt_with`]; a scene the simulator rejects is [`EngineError::Env`].
+    pub fn plan<E: Environment + ?Sized>(&self, env: &mut E, index: u64, overrides: &Overrides) -> Result<Plan, EngineError> {
+        let sources = &overrides.sources;
+        self.check_overrides(sources)?;
+        let mut rng = attempt_rng(self.spec.generation.seed, index);
+        let fatal = |e: EnvError| EngineError::Env { attempt: index, source: e };
+        env.reset(&mut rng).map_err(fatal)?;
+        env.place_objects(&overrides.object_poses).map_err(fatal)?;
+        let objects = env.object_poses();
+        let world_from_eef = env.eef_pose();
+        let spans = self.segmentation.draw_spans(&mut rng);
+        let mut plan =
+            Plan { index, world_from_eef, initial_object_poses: objects.clone(), initial_state: env.state(), subtasks: Vec::new() };
+        let (mut selected, mut last_target) = (None, None);
+        for subtask in 0..self.spec.subtasks.len() {
+            let here = PlanInput {
+                subtask,
+                world_from_eef: last_target.unwrap_or(world_from_eef),
+                objects: objects.clone(),
+                last_target,
+                selected,
+                forced: sources.get(subtask).copied().flatten(),
+            };
+            let (mut planned, waypoints) =
+                self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
+            planned.first_step = plan.subtasks.iter().map(|s| s.waypoints.len()).sum();
+            selected = Some(planned.src_demo);
+            last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);
+            plan.subtasks.push(planned);
+        }
+        Ok(plan)
+    }
+
+    fn check_overrides(&self, sources: &[Option<usize>]) -> Result<(), EngineError> {
+        let num = self.dataset.demos.len();
+        match sources.iter().enumerate().find_map(|(k, s)| s.filter(|&d| d >= num).map(|d| (k, d))) {
+            Some((k, d)) => Err(EngineError::Config {
+                file: String::new(),
+                field: format!("sources[{k}]"),
+                reason: format!("source demo {d} does not exist (the dataset has {num})"),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Selects, transforms and bridges one subtask's segment (the part of an attempt before
+    /// execution). Draws the selection's random numbers even when the source is forced.
+    fn plan_subtask<R: Rng + ?Sized>(
+        &self,
+        here: &PlanInput,
+        spans: &[Vec<Span>],
+        rng: &mut R,
+    ) -> Result<(SubtaskPlan, Vec<(Waypoint, WaypointKind)>), String> {
+        let settings = &self.spec.generation;
+        let subtask = &self.spec.subtasks[here.subtask];
+        let is_first = here.subtask == 0;
+        let demos = &self.dataset.demos;
+        let world_from_obj_new = match &subtask.object_ref {
+            Some(name) => Some(*here.objects.get(name).ok_or_else(|| {
+                format!(
+                    "environment reports no pose for object {name:?} (subtask {}); it has {:?}",
+                    here.subtask,
+                    here.objects.keys().collect::<Vec<_>>()
+                )
+            })?),
+            None => None,
+        };
+        let (demo_index, distances) = match here.selected {
+            Some(d) if !settings.select_src_per_subtask => (d, None),
+            _ => {
+                let scene = SceneContext { world_from_eef: &here.world_from_eef, world_from_obj: world_from_obj_new.as_ref() };
+                let distances = source_distances(&subtask.selection, demos, spans, here.subtask, subtask.object_ref.as_deref(), scene);
+                (pick_source(&subtask.selection, distances.as_deref(), demos.len(), rng), distances)
+            }
+        };
+        let demo_index = here.forced.unwrap_or(demo_index);
+        let demo = &demos[demo_index];
+        let (start, end) = spans[demo_index][here.subtask];
+        let mut source_poses = Vec::with_capacity(end - start + 1);
+        let mut gripper: Vec<Vec<f64>> = Vec::with_capacity(end - start + 1);
+        if is_first || settings.transform_first_robot_pose {
+            source_poses.push(demo.eef_poses[start]);
+            gripper.push(demo.gripper_actions.row(start).to_vec());
+        }
+        source_poses.extend_from_slice(&demo.target_poses[start..end]);
+        gripper.extend((start..end).map(|t| demo.gripper_actions.row(t).to_vec()));
+        let world_from_obj_src = subtask.object_ref.as_ref().map(|name| demo.object_poses[name][start]);
+        let transformed = match (&world_from_obj_new, &world_from_obj_src) {
+            (Some(new), Some(src)) => transform_segment(new, src, &source_poses),
+            _ => source_poses.clone(),
+        };
+        let interp_start = match here.last_target {
+            Some(pose) if settings.interpolate_from_last_target_pose && !is_first => pose,
+            _ => here.world_from_eef,
+        };
+        let interp_noise = if subtask.apply_noise_during_interpolation { subtask.action_noise } else { 0.0 };
+        let waypoints = subtask_waypoints(
+            &interp_start,
+            &transformed,
+            &gripper,
+            subtask.num_interpolation_steps,
+            subtask.num_fixed_steps,
+            subtask.action_noise,
+            interp_noise,
+        );
+        let plan = SubtaskPlan {
+            src_demo: demo_index,
+            src_span: (start, end),
+            source_distances: distances,
+            source_poses,
+            world_from_obj_src,
+            world_from_obj_new,
+            transformed_poses: transformed,
+            waypoints: waypoints.iter().map(|(w, k)| (w.pose, *k)).collect(),
+            first_step: 0,
+        };
+        Ok((plan, waypoints))
+    }
+}
+
+/// What a caller forces in a planned or executed attempt; everything else is drawn as a run
+/// draws it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    /// The source demo of subtask `k` where `sources[k]` is `Some` (the selection picks otherwise).
+    pub sources: Vec<Option<usize>>,
+    /// Objects moved after the reset (the others stay where the reset put them).
+    pub object_poses: BTreeMap<String, Pose>,
+}
+
+/// Where one subtask is planned from.
+struct PlanInput {
+    subtask: usize,
+    world_from_eef: Pose,
+    objects: BTreeMap<String, Pose>,
+    last_target: Option<Pose>,
+    /// The source demo of the previous subtask.
+    selected: Option<usize>,
+    /// A source demo the caller chose.
+    forced: Option<usize>,
+}
+
+/// An attempt planned but not executed ([`Generator::plan`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// The attempt index (its random stream).
+    pub index: u64,
+    /// `world_from_eef` in the sampled scene before the first action.
+    pub world_from_eef: Pose,
+    /// Object poses of the sampled scene.
+    pub initial_object_poses: BTreeMap<String, Pose>,
+    /// The simulator state of the sampled scene (to draw it).
+    pub initial_state: Vec<f64>,
+    /// Per-subtask plans; `first_step` counts planned waypoints.
+    pub subtasks: Vec<SubtaskPlan>,
+}
+
+/// Labels attached to every recorded step.
+#[derive(Debug, Clone, Copy)]
+pub struct StepLabels {
+    /// Source demo the step came from.
+    pub src_demo: usize,
+    /// Subtask the step belongs to.
+    pub subtask: usize,
+    /// Interpolation or transformed segment.
+    pub kind: WaypointKind,
+}
+
+/// Converts a waypoint to an action (with the waypoint's noise, clipped to `[-1, 1]`), records the
+/// step in `traj` as MimicGen records `datagen_info`, and applies it. Returns the signals recorded
+/// before the action.
+///
+/// # Errors
+/// The environment's error from stepping, or [`EnvError::Fatal`] if the gripper widths disagree.
+pub fn execute_step<E: Environment + ?Sized, R: Rng + ?Sized>(
+    env: &mut E,
+    waypoint: &Waypoint,
+    labels: StepLabels,
+    traj: &mut Trajectory,
+    rng: &mut R,
+) -> Result<BTreeMap<String, i64>, EnvError> {
+    let mut pose_action = env.target_pose_to_action(&waypoint.pose);
+    if waypoint.noise > 0.0 {
+        for a in &mut pose_action {
+            let z: f64 = rng.sample(StandardNormal);
+            *a = (*a + waypoint.noise * z).clamp(-1.0, 1.0);
+        }
+    }
+    let mut action = Vec::with_capacity(POSE_ACTION_DIM + waypoint.gripper.len());
+    action.extend_from_slice(&pose_action);
+    action.extend_from_slice(&waypoint.gripper);
+    if action.len() != env.action_dim() {
+        return Err(EnvError::Fatal {
+            reason: format!(
+                "source gripper actions have {} values but the environment's actions have {} gripper values",
+                waypoint.gripper.len(),
+                env.action_dim() - POSE_ACTION_DIM.min(env.action_dim())
+            ),
+        });
+    }
+    let state = env.state();
+    let shape = |e: EngineError| EnvError::Fatal { reason: e.to_string() };
+    traj.states.push(&state).map_err(shape)?;
+    traj.actions.push(&action).map_err(shape)?;
+    traj.gripper_actions.push(&waypoint.gripper).map_err(shape)?;
+    traj.eef_poses.push(env.eef_pose());
+    traj.target_poses.push(env.action_to_target_pose(&action));
+    for (name, pose) in env.object_poses() {
+        traj.object_poses.entry(name).or_default().push(pose);
+    }
+    let signals = env.subtask_term_signals();
+    for (name, value) in &signals {
+        traj.subtask_term_signals.entry(name.clone()).or_default().push(*value);
+    }
+    traj.src_demo_labels.push(labels.src_demo);
+    traj.subtask_labels.push(labels.subtask);
+    traj.kinds.push(labels.kind);
+    env.step(&action)?;
+    Ok(signals)
+}
