@@ -30,6 +30,7 @@ pub mod demo;
 pub mod demonstrator;
 pub mod detect;
 pub mod env;
+pub mod fingerprint;
 pub mod generate;
 pub mod image;
 pub mod kinematic;

@@ -124,7 +124,7 @@ pub fn cached_prepared_path(input: &Path) -> PathBuf {
         meta.as_ref().map_or(0, std::fs::Metadata::len),
         meta.and_then(|m| m.modified().ok())
     );
-    let hash = stamp.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    let hash = mimicgen_engine::fingerprint::fnv1a_hex(stamp.as_bytes());
     let stem = input.file_stem().map_or_else(|| "dataset".into(), |s| s.to_string_lossy().into_owned());
-    mimicgen_sim::assets::cache_dir().join("prepared").join(format!("{stem}-{hash:016x}.hdf5"))
+    mimicgen_sim::assets::cache_dir().join("prepared").join(format!("{stem}-{hash}.hdf5"))
 }

@@ -140,11 +140,6 @@ impl std::fmt::Debug for Pipeline {
     }
 }
 
-fn fnv1a(bytes: &[u8]) -> String {
-    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
-    format!("{hash:016x}")
-}
-
 /// A shard's attempt log: a JSON line per decided attempt, flushed after each (before the
 /// dataset's progress, so the log never lags behind it).
 struct AttemptLog {
@@ -332,7 +327,7 @@ impl Pipeline {
             task: task.name().to_owned(),
             variant: variant.clone(),
             source: source_label,
-            source_fingerprint: fnv1a(&bytes),
+            source_fingerprint: mimicgen_engine::fingerprint::fnv1a_hex(&bytes),
             spec,
             valid_fraction: config.valid_fraction,
             shard: config.shard,

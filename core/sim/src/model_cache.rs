@@ -33,8 +33,8 @@ fn path_in(dir: &Path, xml: &str) -> PathBuf {
 /// Two 64-bit FNV-1a hashes with different offsets: a 128-bit key, collisions out of reach for a
 /// cache of a few hundred files.
 fn hash128(bytes: &[u8]) -> String {
-    let fnv = |basis: u64| bytes.iter().fold(basis, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
-    format!("{:016x}{:016x}", fnv(0xcbf2_9ce4_8422_2325), fnv(0x8422_2325_cbf2_9ce4 ^ bytes.len() as u64))
+    use mimicgen_engine::fingerprint::{FNV_OFFSET_BASIS, fnv1a};
+    format!("{:016x}{:016x}", fnv1a(bytes, FNV_OFFSET_BASIS), fnv1a(bytes, 0x8422_2325_cbf2_9ce4 ^ bytes.len() as u64))
 }
 
 /// The model `xml` compiles to: from the cache when it is there, else `compile(xml)`, then kept.
