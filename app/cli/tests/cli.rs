@@ -29,6 +29,7 @@ fn spec_check_names_the_bad_field() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bad.toml") && err.contains("subtask[0].selection.nn_k"), "{err}");
+    assert_eq!(err.matches("bad.toml").count(), 1, "the file is named once: {err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

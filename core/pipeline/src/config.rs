@@ -31,7 +31,8 @@ pub(crate) struct Resolved {
 /// [`PipelineError`] naming the flag or file at fault.
 pub(crate) fn resolve(config: &RunConfig) -> Result<Resolved, PipelineError> {
     let spec_from_file = match &config.config {
-        Some(path) => Some(TaskSpec::load(path).map_err(|e| PipelineError::engine(path.display().to_string(), e))?),
+        // The loader's errors name the file (and line) themselves.
+        Some(path) => Some(TaskSpec::load(path).map_err(|e| PipelineError::engine("", e))?),
         None => None,
     };
     let source_file = match &config.source {
@@ -114,8 +115,8 @@ pub(crate) fn check_spec_names(
 /// # Errors
 /// [`PipelineError`] naming the file, line and field at fault.
 pub fn check_spec_file(path: &Path) -> Result<TaskSpec, PipelineError> {
-    let origin = path.display().to_string();
-    let spec = TaskSpec::load(path).map_err(|e| PipelineError::engine(origin, e))?;
+    // The loader's errors name the file (and line) themselves.
+    let spec = TaskSpec::load(path).map_err(|e| PipelineError::engine("", e))?;
     if registry::default_spec_toml(&spec.name).is_some() {
         let sources = crate::bundled::source_demos(&spec.name)?;
         let dataset = mimicgen_io::RobomimicDataset::open(&sources)?.to_source_dataset(&spec.source)?;

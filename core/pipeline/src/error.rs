@@ -29,9 +29,10 @@ pub enum PipelineError {
         resumable: bool,
     },
     /// The engine rejected the inputs or a simulator failed for good; `file` names the input.
-    #[error("{file}: {source}")]
+    #[error("{}{source}", if file.is_empty() { String::new() } else { format!("{file}: ") })]
     Engine {
-        /// The input concerned (the source demos or the spec), or the run.
+        /// The input concerned (the source demos or the spec), or the run; empty when the
+        /// engine's error names it itself.
         file: String,
         /// The engine's error.
         source: EngineError,
