@@ -1,11 +1,12 @@
 //! `mimicgen annotate`: subtask ends for source demos, proposed from the recording or typed by
 //! hand, written where MimicGen reads them.
 
-use crate::exit::outln;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use mimicgen_pipeline::annotate;
+
+use crate::exit::outln;
 
 /// Arguments of `mimicgen annotate`.
 #[derive(clap::Args, Debug)]

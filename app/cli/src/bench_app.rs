@@ -2,7 +2,6 @@
 //! raster) with a file loaded, and the time until a file is browsable. Frames run headless on an
 //! egui context at 1280x800, as the window would run them.
 
-use crate::exit::outln;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -10,6 +9,8 @@ use anyhow::bail;
 use mimicgen_gui::egui;
 use mimicgen_gui::{Command, MimicgenApp, Screen};
 use serde_json::json;
+
+use crate::exit::outln;
 
 /// Arguments of `mimicgen bench-app`.
 #[derive(clap::Args, Debug)]

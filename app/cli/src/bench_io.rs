@@ -1,6 +1,5 @@
 //! `mimicgen bench-io`: time and peak memory of writing and reading a synthetic dataset.
 
-use crate::exit::outln;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -12,6 +11,8 @@ use mimicgen_engine::spec::SourceSelection;
 use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, DemoReader, DemoSource as _, ReadOptions, RobomimicDataset, WriterOptions};
 
 use mimicgen_pipeline::memory::{peak_rss_mib, reset_peak_rss};
+
+use crate::exit::outln;
 
 #[allow(clippy::cast_precision_loss)]
 fn synthetic_demo(d: usize, steps: usize) -> anyhow::Result<DemoData> {

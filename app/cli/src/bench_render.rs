@@ -1,13 +1,14 @@
 //! `mimicgen bench-render`: what a camera frame costs, drawn several ways, and whether the ways
 //! give the same pixels.
 
-use crate::exit::outln;
 use std::path::PathBuf;
 use std::sync::{Arc, Barrier};
 use std::time::Instant;
 
 use mimicgen_sim::camera::{CameraConfig, Cameras, ImageStream, Pixels, RenderOptions};
 use mimicgen_sim::{Scene, SimEnv, Task};
+
+use crate::exit::outln;
 
 /// Arguments of `mimicgen bench-render`.
 #[derive(clap::Args, Debug)]

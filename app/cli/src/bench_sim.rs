@@ -1,6 +1,5 @@
 //! `mimicgen bench-sim`: what generation costs on the MuJoCo backend, as ratios measured in one run.
 
-use crate::exit::outln;
 use std::ops::ControlFlow;
 use std::path::Path;
 use std::sync::Arc;
@@ -14,6 +13,8 @@ use mimicgen_pipeline::memory::{peak_rss_mib, reset_peak_rss};
 use mimicgen_pipeline::{Pipeline, Report, RunConfig};
 use mimicgen_sim::SimEnv;
 use serde_json::json;
+
+use crate::exit::outln;
 
 /// Arguments of `mimicgen bench-sim`.
 #[derive(clap::Args, Debug)]

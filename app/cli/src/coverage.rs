@@ -1,9 +1,10 @@
 //! `mimicgen coverage`: the paper's support-coverage analysis of a dataset's initial scenes.
 
-use crate::exit::outln;
 use std::path::PathBuf;
 
 use mimicgen_engine::coverage::Coordinate;
+
+use crate::exit::outln;
 
 /// Arguments of `mimicgen coverage`.
 #[derive(clap::Args, Debug)]

@@ -1,7 +1,6 @@
 //! `mimicgen generate` and `mimicgen demos`: run the engine on the MuJoCo backend and write
 //! robomimic datasets.
 
-use crate::exit::outln;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -15,6 +14,8 @@ use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, WriterOptions};
 use mimicgen_pipeline::{Event, OffsetRange, Pipeline, RunConfig, Scoped, SpecOverrides};
 use mimicgen_sim::{Scene, SimEnv, registry};
 use rand::SeedableRng as _;
+
+use crate::exit::outln;
 
 /// Arguments of `mimicgen generate`.
 #[derive(clap::Args, Debug)]

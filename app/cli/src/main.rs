@@ -315,7 +315,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Spec { command: SpecCommand::Convert { file } } => {
-            let spec = mimicgen_pipeline::check_spec_file(&file)?;
+            // The loader's errors name the file and line themselves.
+            let spec = mimicgen_engine::TaskSpec::load(&file)?;
             out!("{}", spec.to_toml_string()?);
             Ok(ExitCode::SUCCESS)
         }

@@ -1,10 +1,11 @@
 //! `mimicgen replay`: a dataset's demos replayed in our simulator, step by step (the half of
 //! `scripts/compare_physics.py` that runs here).
 
-use crate::exit::outln;
 use std::path::PathBuf;
 
 use mimicgen_pipeline::replay::{self, ReplayMode};
+
+use crate::exit::outln;
 
 /// How `--mode` drives the arm.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
