@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use rand::RngCore;
 
 use crate::pose::Pose;
+use crate::transit::TransitSpace;
 
 /// Why an environment call failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -88,6 +89,20 @@ pub trait Environment {
             Some(name) => Err(EnvError::Fatal { reason: format!("this environment cannot place objects (asked to move {name:?})") }),
             None => Ok(()),
         }
+    }
+
+    /// The configuration space for planning a transit from the present state: the robot's joints,
+    /// collisions as the simulator sees them, with what the gripper holds carried along.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] when the environment cannot plan (the default).
+    fn transit_space(&mut self) -> Result<Box<dyn TransitSpace + '_>, EnvError> {
+        Err(EnvError::Fatal { reason: "this environment cannot plan transit (use transit = \"interpolate\")".to_owned() })
+    }
+
+    /// How many contacts the robot, or what it holds, makes with the scene's obstacles now.
+    fn obstacle_contacts(&self) -> usize {
+        0
     }
 
     /// Restores a state returned by [`Environment::state`].

@@ -19,6 +19,7 @@ use crate::demonstrator::PickPlaceScript;
 use crate::env::{EnvError, Environment};
 use crate::pose::{Pose, Rot, Vec3, pose_from_parts, quat_from_wxyz, quat_to_wxyz};
 use crate::spec::{GenerationSettings, SelectionStrategy, SubtaskSpec, TaskSpec};
+use crate::transit::TransitSpace;
 
 /// Half the edge of both cubes (m).
 pub const CUBE_HALF_M: f64 = 0.02;
@@ -41,7 +42,24 @@ pub struct PickPlace {
     cube_a: Pose,
     cube_b: Pose,
     eef_from_held: Option<Pose>,
+    /// A vertical post between the cubes, drawn per episode ([`PickPlace::with_post`]).
+    post: Option<Post>,
 }
+
+/// A vertical post of radius `radius_m` rising from the table to `top_z`, at `(x, y)`; touching it
+/// spoils the attempt (the task then fails).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Post {
+    radius_m: f64,
+    top_z: f64,
+    x: f64,
+    y: f64,
+    touched: bool,
+}
+
+/// Radius (m) of the sphere round the grip point, and round a held cube, that must miss the post.
+const GRIPPER_RADIUS_M: f64 = 0.01;
+const HELD_RADIUS_M: f64 = CUBE_HALF_M * 1.732_050_807_568_877_2;
 
 impl PickPlace {
     /// An environment that samples both cubes in a square of half-width `half_range_m` around the
@@ -56,7 +74,30 @@ impl PickPlace {
             cube_a: Pose::identity(),
             cube_b: Pose::identity(),
             eef_from_held: None,
+            post: None,
         }
+    }
+
+    /// The same environment with a post of radius `radius_m` standing on the table up to
+    /// `height_m` above it, half-way between the cubes at every reset (cubes are then drawn at
+    /// least 0.2 m apart). Carrying the red cube straight over a tall post hits it; a planned
+    /// transit goes round.
+    #[must_use]
+    pub fn with_post(mut self, radius_m: f64, height_m: f64) -> Self {
+        self.post = Some(Post { radius_m, top_z: TABLE_Z_M + height_m, x: 0.0, y: 0.0, touched: false });
+        self
+    }
+
+    /// Whether a sphere of `radius` at `point` overlaps the post.
+    fn hits_post(&self, point: &Vec3, radius: f64) -> bool {
+        self.post
+            .is_some_and(|p| point.z - radius < p.top_z && (point.xy() - nalgebra::Vector2::new(p.x, p.y)).norm() < p.radius_m + radius)
+    }
+
+    /// Whether the gripper at `world_from_eef`, and the cube it holds, overlap the post.
+    fn collides_at(&self, world_from_eef: &Pose) -> bool {
+        self.hits_post(&world_from_eef.translation.vector, GRIPPER_RADIUS_M)
+            || self.eef_from_held.is_some_and(|held| self.hits_post(&(world_from_eef * held).translation.vector, HELD_RADIUS_M))
     }
 
     fn release(&mut self) {
@@ -96,8 +137,13 @@ impl Environment for PickPlace {
         // Rejection-sample cubeB so the cubes never interpenetrate (a generous 3 half-edges apart).
         for _ in 0..1000 {
             self.cube_b = sample(rng);
-            if (self.cube_b.translation.vector - self.cube_a.translation.vector).xy().norm() > 3.0 * CUBE_HALF_M * std::f64::consts::SQRT_2
-            {
+            let apart = (self.cube_b.translation.vector - self.cube_a.translation.vector).xy().norm();
+            let needed = if self.post.is_some() { 0.2 } else { 3.0 * CUBE_HALF_M * std::f64::consts::SQRT_2 };
+            if apart > needed {
+                if let Some(post) = &mut self.post {
+                    let mid = (self.cube_a.translation.vector + self.cube_b.translation.vector) / 2.0;
+                    (post.x, post.y, post.touched) = (mid.x, mid.y, false);
+                }
                 self.world_from_eef = home_pose();
                 self.gripper_closed = false;
                 self.eef_from_held = None;
@@ -132,7 +178,18 @@ impl Environment for PickPlace {
 
     fn is_success(&self) -> bool {
         let offset = self.cube_a.translation.vector - self.cube_b.translation.vector;
-        self.eef_from_held.is_none() && offset.xy().norm() < PLACE_TOLERANCE_M && (offset.z - 2.0 * CUBE_HALF_M).abs() < 1e-6
+        self.eef_from_held.is_none()
+            && offset.xy().norm() < PLACE_TOLERANCE_M
+            && (offset.z - 2.0 * CUBE_HALF_M).abs() < 1e-6
+            && !self.post.is_some_and(|p| p.touched)
+    }
+
+    fn obstacle_contacts(&self) -> usize {
+        usize::from(self.collides_at(&self.world_from_eef))
+    }
+
+    fn transit_space(&mut self) -> Result<Box<dyn TransitSpace + '_>, EnvError> {
+        Ok(Box::new(FreeGripper { env: self }))
     }
 
     fn target_pose_to_action(&self, world_from_target: &Pose) -> [f64; 6] {
@@ -155,7 +212,21 @@ impl Environment for PickPlace {
         if action.len() != 7 || action.iter().any(|a| !a.is_finite()) {
             return Err(EnvError::Unstable { reason: format!("action {action:?} is not 7 finite numbers") });
         }
+        let from = self.world_from_eef;
         self.world_from_eef = self.action_to_target_pose(action);
+        // The motion is checked at 1 cm spacing, so a fast step cannot jump the post.
+        let travel = (self.world_from_eef.translation.vector - from.translation.vector).norm();
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // a small positive count
+        let checks = (travel / 0.01).ceil().max(1.0) as usize;
+        for k in 1..=checks {
+            #[allow(clippy::cast_precision_loss)] // a small count
+            let p = from.translation.vector.lerp(&self.world_from_eef.translation.vector, k as f64 / checks as f64);
+            if self.collides_at(&pose_from_parts(p, self.world_from_eef.rotation))
+                && let Some(post) = &mut self.post
+            {
+                post.touched = true;
+            }
+        }
         let close = action[6] > 0.0;
         if close
             && !self.gripper_closed
@@ -194,6 +265,52 @@ impl Environment for PickPlace {
         self.cube_b = read_pose(&state[15..22]);
         self.eef_from_held = (state[22] > 0.5).then(|| read_pose(&state[23..30]));
         Ok(())
+    }
+}
+
+/// The kinematic environment's configuration space: the grip point's position and the gripper's
+/// yaw (it always points down), limited to the space above the table.
+struct FreeGripper<'a> {
+    env: &'a PickPlace,
+}
+
+impl FreeGripper<'_> {
+    fn pose(q: &[f64]) -> Pose {
+        let down = Rot::from_axis_angle(&Vec3::x_axis(), std::f64::consts::PI);
+        pose_from_parts(Vec3::new(q[0], q[1], q[2]), Rot::from_axis_angle(&Vec3::z_axis(), q[3]) * down)
+    }
+
+    fn yaw(pose: &Pose) -> f64 {
+        let x = pose.rotation * Vec3::x();
+        x.y.atan2(x.x)
+    }
+}
+
+impl TransitSpace for FreeGripper<'_> {
+    fn joint_limits(&self) -> Vec<[f64; 2]> {
+        vec![[-0.4, 0.4], [-0.4, 0.4], [TABLE_Z_M + 0.01, TABLE_Z_M + 0.5], [-2.0 * std::f64::consts::PI, 2.0 * std::f64::consts::PI]]
+    }
+
+    fn joints(&self) -> Vec<f64> {
+        let t = self.env.world_from_eef.translation.vector;
+        vec![t.x, t.y, t.z, Self::yaw(&self.env.world_from_eef)]
+    }
+
+    fn is_free(&mut self, q: &[f64]) -> bool {
+        !self.env.collides_at(&Self::pose(q))
+    }
+
+    fn eef_pose_at(&mut self, q: &[f64]) -> Pose {
+        Self::pose(q)
+    }
+
+    fn inverse_kinematics(&mut self, world_from_eef: &Pose, seed: &[f64]) -> Option<Vec<f64>> {
+        let t = world_from_eef.translation.vector;
+        // The yaw nearest the seed's, of the two turns the limits allow.
+        let yaw = Self::yaw(world_from_eef);
+        let turn = 2.0 * std::f64::consts::PI;
+        let yaw = yaw + turn * ((seed.get(3).copied().unwrap_or(0.0) - yaw) / turn).round();
+        Some(vec![t.x, t.y, t.z, yaw])
     }
 }
 
@@ -255,6 +372,8 @@ pub fn pick_place_spec(num_trials: usize, seed: u64) -> TaskSpec {
         num_interpolation_steps: 5,
         num_fixed_steps: 0,
         apply_noise_during_interpolation: false,
+        transit: crate::spec::Transit::Interpolate,
+        approach_m: 0.1,
     };
     TaskSpec {
         name: "kinematic_pick_place".to_owned(),

@@ -39,6 +39,7 @@ pub mod segment;
 pub mod select;
 pub mod spec;
 pub mod transform;
+pub mod transit;
 
 #[cfg(test)]
 pub(crate) mod testing;

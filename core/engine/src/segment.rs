@@ -15,7 +15,7 @@ use rand::Rng;
 
 use crate::EngineError;
 use crate::demo::SourceDemo;
-use crate::spec::TaskSpec;
+use crate::spec::{TaskSpec, Transit};
 
 /// Half-open step range `[start, end)` of one subtask in one demo.
 pub type Span = (usize, usize);
@@ -40,6 +40,9 @@ pub struct Segmentation {
     /// `ends[d][i]`: nominal end step of subtask `i` in demo `d` (the last equals the demo length).
     ends: Vec<Vec<usize>>,
     offsets: Vec<(i64, i64)>,
+    /// `approaches[d][i]`: where the approach to subtask `i`'s object begins in demo `d`, for the
+    /// subtasks whose transit is planned (the segment starts there, not at the previous end).
+    approaches: Vec<Vec<Option<usize>>>,
 }
 
 impl Segmentation {
@@ -57,6 +60,7 @@ impl Segmentation {
             .map(|(i, s)| if i + 1 == num { (0, 0) } else { s.term_offset_range.unwrap_or((0, 0)) })
             .collect();
         let mut ends = Vec::with_capacity(demos.len());
+        let mut approaches = Vec::with_capacity(demos.len());
         for demo in demos {
             let fail = |subtask: usize, reason: String| EngineError::Segmentation { demo: demo.name.clone(), subtask, reason };
             let mut demo_ends = Vec::with_capacity(num);
@@ -96,9 +100,17 @@ impl Segmentation {
                 }
                 start_latest = end_latest;
             }
+            approaches.push(approach_starts(demo, spec, &demo_ends, &offsets));
             ends.push(demo_ends);
         }
-        Ok(Self { ends, offsets })
+        Ok(Self { ends, offsets, approaches })
+    }
+
+    /// Where the approach to each planned subtask's object begins in demo `d` (`None` for
+    /// interpolated subtasks): the segment of such a subtask is replayed from there.
+    #[must_use]
+    pub fn approach_starts(&self, d: usize) -> &[Option<usize>] {
+        &self.approaches[d]
     }
 
     /// Number of demos.
@@ -114,10 +126,12 @@ impl Segmentation {
     }
 
     /// Spans of every demo with freshly drawn boundary offsets (one draw per demo per subtask).
+    /// A planned subtask's span starts at its approach (when that is later than the previous end).
     pub fn draw_spans<R: Rng + ?Sized>(&self, rng: &mut R) -> Vec<Vec<Span>> {
         self.ends
             .iter()
-            .map(|ends| {
+            .zip(&self.approaches)
+            .map(|(ends, approaches)| {
                 let shifted: Vec<usize> = ends
                     .iter()
                     .zip(&self.offsets)
@@ -127,10 +141,47 @@ impl Segmentation {
                         usize::try_from(i64::try_from(end).unwrap_or(i64::MAX) + offset).unwrap_or(end)
                     })
                     .collect();
-                spans_from_ends(&shifted)
+                let mut spans = spans_from_ends(&shifted);
+                for (span, approach) in spans.iter_mut().zip(approaches) {
+                    if let Some(a) = approach {
+                        span.0 = span.0.max(*a).min(span.1.saturating_sub(1));
+                    }
+                }
+                spans
             })
             .collect()
     }
+}
+
+/// Fewest steps a planned subtask's segment keeps after its approach start.
+const MIN_APPROACH_STEPS: usize = 2;
+
+/// The approach start of every subtask of `demo` whose transit is planned: the first step at which
+/// the end effector comes within `approach_m` of the subtask's object (it starts where the
+/// previous subtask ended when it is that close already), and at least two steps before the
+/// subtask's earliest end.
+fn approach_starts(demo: &SourceDemo, spec: &TaskSpec, ends: &[usize], offsets: &[(i64, i64)]) -> Vec<Option<usize>> {
+    let mut prev_end = 0;
+    spec.subtasks
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let (start, end) = (prev_end, ends[i]);
+            prev_end = end;
+            if s.transit != Transit::Plan {
+                return None;
+            }
+            let poses = demo.object_poses.get(s.object_ref.as_deref()?)?;
+            let latest_start =
+                usize::try_from(i64::try_from(end).unwrap_or(i64::MAX) + offsets[i].0).unwrap_or(end).saturating_sub(MIN_APPROACH_STEPS);
+            let near = |t: usize| match (demo.eef_poses.get(t), poses.get(t)) {
+                (Some(eef), Some(obj)) => (eef.translation.vector - obj.translation.vector).norm() <= s.approach_m,
+                _ => false,
+            };
+            let approach = (start..end).find(|&t| near(t)).unwrap_or(start);
+            Some(approach.min(latest_start).max(start))
+        })
+        .collect()
 }
 
 fn spans_from_ends(ends: &[usize]) -> Vec<Span> {
@@ -163,6 +214,8 @@ mod tests {
             num_interpolation_steps: 0,
             num_fixed_steps: 0,
             apply_noise_during_interpolation: false,
+            transit: crate::spec::Transit::Interpolate,
+            approach_m: 0.1,
         };
         TaskSpec {
             name: "t".into(),

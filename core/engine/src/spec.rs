@@ -104,6 +104,58 @@ pub struct SubtaskSpec {
     /// Whether the interpolation segment's actions get noise too.
     #[serde(default)]
     pub apply_noise_during_interpolation: bool,
+    /// How the robot gets to the segment: MimicGen's interpolation, or a planned collision-free
+    /// path (SkillGen) to a segment that starts where the approach to the object begins.
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub transit: Transit,
+    /// With planned transit, the segment starts where the end effector first comes within this
+    /// distance (m) of the object: the approach is replayed, the way there is planned.
+    #[serde(default = "default_approach", skip_serializing_if = "is_default_approach")]
+    pub approach_m: f64,
+}
+
+/// How the robot gets from where it is to the first pose of a subtask's segment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Transit {
+    /// A straight interpolation in pose (MimicGen).
+    #[default]
+    Interpolate,
+    /// A collision-free path planned in joint space ([`crate::transit`]; SkillGen).
+    Plan,
+}
+
+impl Transit {
+    /// The word the CLI and files use.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Interpolate => "interpolate",
+            Self::Plan => "plan",
+        }
+    }
+}
+
+impl std::str::FromStr for Transit {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "interpolate" => Ok(Self::Interpolate),
+            "plan" => Ok(Self::Plan),
+            other => Err(format!("transit is \"interpolate\" or \"plan\", not {other:?}")),
+        }
+    }
+}
+
+fn is_default<T: Default + PartialEq>(value: &T) -> bool {
+    *value == T::default()
+}
+fn default_approach() -> f64 {
+    0.1
+}
+#[allow(clippy::trivially_copy_pass_by_ref)] // serde's skip_serializing_if passes a reference
+fn is_default_approach(value: &f64) -> bool {
+    (*value - default_approach()).abs() < f64::EPSILON
 }
 
 fn default_selection() -> SelectionStrategy {
@@ -141,6 +193,9 @@ pub struct GenerationSettings {
     /// End an attempt as soon as a subtask's segment has run without its end signal turning on,
     /// instead of executing the remaining subtasks first (the reference always runs them all).
     pub early_abort: bool,
+    /// The planner of subtasks whose transit is planned.
+    #[serde(skip_serializing_if = "is_default")]
+    pub planner: crate::transit::PlannerSettings,
 }
 
 impl Default for GenerationSettings {
@@ -156,6 +211,7 @@ impl Default for GenerationSettings {
             interpolate_from_last_target_pose: true,
             seed: 1,
             early_abort: false,
+            planner: crate::transit::PlannerSettings::default(),
         }
     }
 }
@@ -295,6 +351,8 @@ impl TaskSpec {
                 num_interpolation_steps: sub.num_interpolation_steps,
                 num_fixed_steps: sub.num_fixed_steps,
                 apply_noise_during_interpolation: sub.apply_noise_during_interpolation,
+                transit: Transit::Interpolate,
+                approach_m: default_approach(),
             });
         }
         let g = json.experiment.generation;
@@ -368,6 +426,12 @@ impl TaskSpec {
                 && lo > hi
             {
                 return err(field("term_offset_range"), format!("[{lo}, {hi}] is empty"));
+            }
+            if !(s.approach_m.is_finite() && s.approach_m > 0.0) {
+                return err(field("approach_m"), format!("{} is not a positive distance", s.approach_m));
+            }
+            if s.transit == Transit::Plan && s.object_ref.is_none() {
+                return err(field("transit"), "planned transit needs an object_ref (the approach is measured from it)".to_owned());
             }
             if !(s.action_noise.is_finite() && s.action_noise >= 0.0) {
                 return err(field("action_noise"), format!("{} is not a non-negative number", s.action_noise));

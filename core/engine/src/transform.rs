@@ -46,6 +46,8 @@ pub enum WaypointKind {
     Interpolation,
     /// Part of the transformed source segment.
     Transformed,
+    /// Part of a planned collision-free transit ([`crate::transit`]).
+    Transit,
 }
 
 /// Builds the waypoints of one subtask as MimicGen does: `num_interp` interpolated poses from

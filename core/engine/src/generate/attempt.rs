@@ -15,8 +15,9 @@ use crate::env::{EnvError, Environment};
 use crate::pose::Pose;
 use crate::segment::{Segmentation, Span};
 use crate::select::{SceneContext, pick_source, source_distances};
-use crate::spec::TaskSpec;
+use crate::spec::{TaskSpec, Transit};
 use crate::transform::{Waypoint, WaypointKind, subtask_waypoints, transform_segment};
+use crate::transit::plan_transit;
 
 /// A task spec bound to a parsed source dataset, ready to run attempts.
 #[derive(Debug, Clone)]
@@ -121,6 +122,7 @@ impl Generator {
             initial_state: Vec::new(),
             plans: Vec::new(),
             trajectory: Trajectory::new(0, env.action_dim()),
+            obstacle_contact_steps: 0,
         };
         if let Err(e) = env.reset(&mut rng) {
             attempt.failure = Some(unstable(e, 0)?);
@@ -142,7 +144,17 @@ impl Generator {
                 selected,
                 forced: sources.get(subtask_index).copied().flatten(),
             };
-            let (plan, waypoints) = self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
+            let (mut plan, mut waypoints) =
+                self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
+            if subtask.transit == Transit::Plan {
+                let planned = self.bridge_by_plan(env, subtask_index, &mut plan, &mut waypoints, &mut rng).map_err(fatal)?;
+                if let Err(reason) = planned {
+                    attempt.src_demo_per_subtask.push(plan.src_demo);
+                    attempt.plans.push(SubtaskPlan { first_step: attempt.trajectory.len(), ..plan });
+                    attempt.failure = Some(Failure { subtask: subtask_index, reason });
+                    return Ok(attempt);
+                }
+            }
             selected = Some(plan.src_demo);
             last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);
             attempt.src_demo_per_subtask.push(plan.src_demo);
@@ -160,6 +172,9 @@ impl Generator {
                 };
                 signal_seen |= signal.is_some_and(|s| signals.get(s).is_some_and(|&v| v != 0));
                 attempt.success |= env.is_success();
+                if env.obstacle_contacts() > 0 {
+                    attempt.obstacle_contact_steps += 1;
+                }
             }
             if let Some(name) = signal {
                 signal_seen |= env.subtask_term_signals().get(name).is_some_and(|&v| v != 0);
@@ -213,14 +228,51 @@ impl Generator {
                 selected,
                 forced: sources.get(subtask).copied().flatten(),
             };
-            let (mut planned, waypoints) =
+            let (mut planned, mut waypoints) =
                 self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
+            if subtask == 0 && self.spec.subtasks[0].transit == Transit::Plan {
+                // Only the first transit can be planned ahead: the robot's joints at a later
+                // subtask's start are known once the attempt gets there.
+                let _ = self.bridge_by_plan(env, subtask, &mut planned, &mut waypoints, &mut rng).map_err(fatal)?;
+            }
             planned.first_step = plan.subtasks.iter().map(|s| s.waypoints.len()).sum();
             selected = Some(planned.src_demo);
             last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);
             plan.subtasks.push(planned);
         }
         Ok(plan)
+    }
+
+    /// Plans a collision-free transit from the robot's present state to the segment's first pose
+    /// and puts it before the segment (in `waypoints` and `plan`). `Ok(Err(reason))` when no path
+    /// was found (the attempt fails with that reason); `Err` only when the environment cannot plan.
+    fn bridge_by_plan<E: Environment + ?Sized, R: Rng + ?Sized>(
+        &self,
+        env: &mut E,
+        subtask: usize,
+        plan: &mut SubtaskPlan,
+        waypoints: &mut Vec<(Waypoint, WaypointKind)>,
+        rng: &mut R,
+    ) -> Result<Result<(), FailureReason>, EnvError> {
+        let Some((goal, _)) = waypoints.first().cloned() else { return Ok(Ok(())) };
+        let spec = &self.spec.subtasks[subtask];
+        let planned = plan_transit(env.transit_space()?.as_mut(), &goal.pose, &self.spec.generation.planner, rng);
+        let path = match planned {
+            Ok(path) => path,
+            Err(e) => {
+                plan.transit = Some(e.stats());
+                return Ok(Err(FailureReason::NoTransitPath { samples: e.stats().samples, detail: e.to_string() }));
+            }
+        };
+        plan.transit = Some(path.stats);
+        let noise = if spec.apply_noise_during_interpolation { spec.action_noise } else { 0.0 };
+        // The path's last pose is the goal, which the segment's first waypoint repeats.
+        let bridge = path.poses[..path.poses.len().saturating_sub(1)]
+            .iter()
+            .map(|pose| (Waypoint { pose: *pose, gripper: goal.gripper.clone(), noise }, WaypointKind::Transit));
+        waypoints.splice(0..0, bridge);
+        plan.waypoints = waypoints.iter().map(|(w, k)| (w.pose, *k)).collect();
+        Ok(Ok(()))
     }
 
     fn check_overrides(&self, sources: &[Option<usize>]) -> Result<(), EngineError> {
@@ -286,11 +338,13 @@ impl Generator {
             _ => here.world_from_eef,
         };
         let interp_noise = if subtask.apply_noise_during_interpolation { subtask.action_noise } else { 0.0 };
+        // A planned transit replaces the interpolation (it is planned when the attempt gets here).
+        let num_interp = if subtask.transit == Transit::Plan { 0 } else { subtask.num_interpolation_steps };
         let waypoints = subtask_waypoints(
             &interp_start,
             &transformed,
             &gripper,
-            subtask.num_interpolation_steps,
+            num_interp,
             subtask.num_fixed_steps,
             subtask.action_noise,
             interp_noise,
@@ -305,6 +359,7 @@ impl Generator {
             transformed_poses: transformed,
             waypoints: waypoints.iter().map(|(w, k)| (w.pose, *k)).collect(),
             first_step: 0,
+            transit: None,
         };
         Ok((plan, waypoints))
     }

@@ -9,6 +9,7 @@ use crate::demo::{Rows, SimPayload, SourceDemo};
 use crate::pose::Pose;
 use crate::segment::Span;
 use crate::transform::WaypointKind;
+use crate::transit::TransitStats;
 
 /// Why an attempt failed.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
@@ -31,6 +32,14 @@ pub enum FailureReason {
         /// What the simulator reported.
         reason: String,
     },
+    /// Planned transit found no collision-free path to the segment.
+    NoTransitPath {
+        /// The sample budget the search spent (a count, so that the reason is the same on any
+        /// machine; the time is in the subtask's [`SubtaskPlan::transit`]).
+        samples: usize,
+        /// Why, in words (the goal unreachable, or the trees never met).
+        detail: String,
+    },
 }
 
 impl std::fmt::Display for FailureReason {
@@ -40,6 +49,7 @@ impl std::fmt::Display for FailureReason {
             Self::TaskNotAchieved { unmet: None } => write!(f, "task not achieved"),
             Self::TaskNotAchieved { unmet: Some(unmet) } => write!(f, "task not achieved: {unmet} failed"),
             Self::Unstable { reason } => write!(f, "simulation unstable: {reason}"),
+            Self::NoTransitPath { samples, detail } => write!(f, "no collision-free path found in {samples} samples: {detail}"),
         }
     }
 }
@@ -75,6 +85,8 @@ pub struct SubtaskPlan {
     pub waypoints: Vec<(Pose, WaypointKind)>,
     /// First executed step of this subtask in the attempt.
     pub first_step: usize,
+    /// What planning the transit cost, when it was planned (also when planning failed).
+    pub transit: Option<TransitStats>,
 }
 
 /// Everything recorded per executed step, step-aligned like a source demo.
@@ -163,4 +175,6 @@ pub struct Attempt {
     pub plans: Vec<SubtaskPlan>,
     /// Per-step records.
     pub trajectory: Trajectory,
+    /// Steps at which the robot, or what it held, touched an obstacle.
+    pub obstacle_contact_steps: usize,
 }
