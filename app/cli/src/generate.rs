@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use mimicgen_engine::demo::initial_object_poses;
+use mimicgen_engine::spec::Transit;
 use mimicgen_engine::{Environment as _, TaskSpec};
 use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, WriterOptions};
 use mimicgen_pipeline::{Event, OffsetRange, Pipeline, RunConfig, Scoped, SpecOverrides};
@@ -208,6 +209,16 @@ pub struct SpecArgs {
     /// Choose a source demo at every subtask (true) or once per attempt (false).
     #[arg(long, value_name = "BOOL")]
     select_src_per_subtask: Option<bool>,
+    /// How the robot gets to each segment: `interpolate` (MimicGen: a straight bridge) or `plan`
+    /// (SkillGen: a collision-free path planned in joint space to where the approach to the
+    /// object begins; the source demo's way there is not replayed). E.g. `--transit plan` on a
+    /// cluttered variant (`--task stack --variant C0`).
+    #[arg(long, value_name = "[K:]interpolate|plan")]
+    transit: Vec<Scoped<Transit>>,
+    /// With `--transit plan`: the replayed approach begins where the gripper first comes this
+    /// near (m) the subtask's object (default 0.1).
+    #[arg(long, value_name = "[K:]METRES")]
+    approach_m: Vec<Scoped<f64>>,
 }
 
 impl SpecArgs {
@@ -220,6 +231,8 @@ impl SpecArgs {
             interpolation_steps: self.interpolation_steps.clone(),
             fixed_steps: self.fixed_steps.clone(),
             select_src_per_subtask: self.select_src_per_subtask,
+            transit: self.transit.clone(),
+            approach_m: self.approach_m.clone(),
         }
     }
 }
@@ -352,6 +365,15 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
         report.output,
         pipeline.report_path().display()
     );
+    let t = &report.transit;
+    if !t.is_empty() {
+        #[allow(clippy::cast_precision_loss)] // counts are far below 2^52
+        let mean_ms = 1000.0 * t.planning_s / t.planned.max(1) as f64;
+        eprintln!(
+            "transit: {} planned ({} found no path), {mean_ms:.1} ms each on average; obstacles touched in {} of {} attempts",
+            t.planned, t.no_path, t.obstacle_attempts, report.attempts
+        );
+    }
     Ok(())
 }
 

@@ -136,6 +136,12 @@ impl Transit {
     }
 }
 
+impl std::fmt::Display for Transit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 impl std::str::FromStr for Transit {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {

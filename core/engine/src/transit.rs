@@ -38,6 +38,15 @@ pub trait TransitSpace {
     /// A configuration whose end effector is at `world_from_eef`, searched from `seed`; `None`
     /// when the search does not converge.
     fn inverse_kinematics(&mut self, world_from_eef: &Pose, seed: &[f64]) -> Option<Vec<f64>>;
+
+    /// The configuration the robot's controller would hold with its end effector where it is at
+    /// `q` (a redundant arm tracking poses settles its elbow where its posture term pulls it);
+    /// `None` when there is none. The planner grows its trees through such configurations only,
+    /// so that the arm follows the planned path when it is executed as poses. The default keeps
+    /// `q` (a robot without redundancy).
+    fn settle(&mut self, q: &[f64]) -> Option<Vec<f64>> {
+        Some(q.to_vec())
+    }
 }
 
 /// How the planner searches and how fast the planned path is executed.
@@ -61,6 +70,8 @@ pub struct PlannerSettings {
     pub max_step_turn_rad: f64,
     /// Largest joint change per control step (rad).
     pub max_step_joint_rad: f64,
+    /// Control steps the goal is held at the path's end, for the arm to catch up with it.
+    pub hold_steps: usize,
 }
 
 impl Default for PlannerSettings {
@@ -71,9 +82,10 @@ impl Default for PlannerSettings {
             check_rad: 0.03,
             shortcut_tries: 60,
             ik_tries: 12,
-            max_step_m: 0.02,
+            max_step_m: 0.015,
             max_step_turn_rad: 0.08,
             max_step_joint_rad: 0.05,
+            hold_steps: 2,
         }
     }
 }
@@ -269,7 +281,7 @@ fn rrt_connect<S: TransitSpace + ?Sized, R: Rng + ?Sized>(
     let mut trees = [Tree::new(start.clone()), Tree::new(goal)];
     let step = settings.extend_rad.max(1e-3);
     for samples in 1..=settings.max_samples {
-        let target = sample(limits, rng);
+        let Some(target) = checker.space.settle(&sample(limits, rng)) else { continue };
         let [a, b] = &mut trees;
         let new = match extend(checker, a, &target, step) {
             Extend::Trapped => {

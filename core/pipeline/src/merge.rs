@@ -215,6 +215,7 @@ pub fn merge(
         early_abort: first.early_abort,
         spec_overrides: first.spec_overrides.clone(),
         shard: None,
+        transit: mimicgen_engine::generate::TransitTotals::default(),
     };
     std::fs::write(&report_path, serde_json::to_string_pretty(&report).unwrap_or_default())
         .map_err(|e| PipelineError::Fs { file: report_path.display().to_string(), reason: e.to_string() })?;

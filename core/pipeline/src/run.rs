@@ -315,6 +315,10 @@ impl Pipeline {
             (Some(xml), Some(robot)) if !xml.contains(&format!("\"{}\"", robot.arm_joints[0])) => {
                 composed(Scene::for_task_with_robot(task.as_ref(), robot)?)
             }
+            // A variant with objects the sources' scene lacks (C0's clutter): the task's scene.
+            (Some(xml), robot) if task.objects().iter().any(|(_, body)| !xml.contains(&format!("name=\"{body}\""))) => {
+                composed(Scene::for_task_with_robot(task.as_ref(), robot.unwrap_or(&mimicgen_sim::robot::PANDA))?)
+            }
             (Some(xml), _) => (Arc::new(Scene::from_model_file(&xml, &format!("{source_label} (model_file)"), task.as_ref())?), xml),
             (None, robot) => composed(Scene::for_task_with_robot(task.as_ref(), robot.unwrap_or(&mimicgen_sim::robot::PANDA))?),
         };
@@ -666,6 +670,7 @@ impl Pipeline {
             early_abort: settings.early_abort,
             spec_overrides: self.config.spec.clone(),
             shard: self.config.shard,
+            transit: stats.transit,
         };
         let report_path = self.report_path();
         let text = serde_json::to_string_pretty(&report).unwrap_or_default();

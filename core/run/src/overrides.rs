@@ -4,6 +4,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+use mimicgen_engine::spec::Transit;
 use mimicgen_engine::{SelectionStrategy, TaskSpec};
 use serde::{Deserialize, Serialize};
 
@@ -93,12 +94,26 @@ pub struct SpecOverrides {
     pub fixed_steps: Vec<Scoped<usize>>,
     /// Choose a source demo at each subtask (else once per attempt).
     pub select_src_per_subtask: Option<bool>,
+    /// How the robot gets to each segment: `interpolate` (MimicGen) or `plan` (a collision-free
+    /// path, SkillGen).
+    pub transit: Vec<Scoped<Transit>>,
+    /// With planned transit, how near the object (m) the replayed approach begins.
+    pub approach_m: Vec<Scoped<f64>>,
 }
 
 impl SpecOverrides {
     /// The fields' names (Python's `spec` keys; the flags are these with `--` and dashes).
-    pub const FIELDS: [&str; 7] =
-        ["selection", "nn_k", "action_noise", "offset_range", "interpolation_steps", "fixed_steps", "select_src_per_subtask"];
+    pub const FIELDS: [&str; 9] = [
+        "selection",
+        "nn_k",
+        "action_noise",
+        "offset_range",
+        "interpolation_steps",
+        "fixed_steps",
+        "select_src_per_subtask",
+        "transit",
+        "approach_m",
+    ];
 
     /// Whether it changes nothing.
     #[must_use]
@@ -122,6 +137,8 @@ impl SpecOverrides {
         push(&mut args, "--offset-range", &self.offset_range);
         push(&mut args, "--interpolation-steps", &self.interpolation_steps);
         push(&mut args, "--fixed-steps", &self.fixed_steps);
+        push(&mut args, "--transit", &self.transit);
+        push(&mut args, "--approach-m", &self.approach_m);
         if let Some(on) = self.select_src_per_subtask {
             args.push("--select-src-per-subtask".to_owned());
             args.push(on.to_string());
@@ -213,6 +230,22 @@ impl SpecOverrides {
                 spec.subtasks[k].num_fixed_steps = s.value;
             }
         }
+        for s in &self.transit {
+            for k in targets("--transit", s.subtask)? {
+                if s.value == Transit::Plan && spec.subtasks[k].object_ref.is_none() {
+                    return Err(RunError::flag("--transit", format!("subtask {k} has no object_ref to approach; plan only the others")));
+                }
+                spec.subtasks[k].transit = s.value;
+            }
+        }
+        for s in &self.approach_m {
+            if !s.value.is_finite() || s.value <= 0.0 {
+                return Err(RunError::flag("--approach-m", format!("must be a positive distance in metres, got {}", s.value)));
+            }
+            for k in targets("--approach-m", s.subtask)? {
+                spec.subtasks[k].approach_m = s.value;
+            }
+        }
         if let Some(on) = self.select_src_per_subtask {
             spec.generation.select_src_per_subtask = on;
         }
@@ -252,8 +285,12 @@ mod tests {
             interpolation_steps: vec![Scoped::all(7)],
             fixed_steps: vec![Scoped { subtask: Some(1), value: 2 }],
             select_src_per_subtask: Some(true),
+            transit: vec![Scoped { subtask: Some(1), value: Transit::Plan }],
+            approach_m: vec![Scoped::all(0.08)],
         };
         overrides.apply(&mut s).unwrap();
+        assert_eq!(s.subtasks.iter().map(|t| t.transit).collect::<Vec<_>>(), [Transit::Interpolate, Transit::Plan]);
+        assert_eq!(s.subtasks.iter().map(|t| t.approach_m).collect::<Vec<_>>(), [0.08, 0.08]);
         assert!(matches!(s.subtasks[0].selection, SelectionStrategy::NearestNeighborObject { nn_k: 5, .. }));
         assert_eq!(s.subtasks[1].selection, SelectionStrategy::Random);
         assert_eq!((s.subtasks[0].action_noise, s.subtasks[1].action_noise), (0.02, 0.1));
@@ -265,6 +302,10 @@ mod tests {
         let args = overrides.to_args();
         assert_eq!(args[..4], ["--selection", "nearest_neighbor_object", "--selection", "1:random"]);
         assert!(args.windows(2).any(|w| w == ["--select-src-per-subtask", "true"]));
+        assert!(args.windows(2).any(|w| w == ["--transit", "1:plan"]));
+        let parsed: Scoped<Transit> = "1:plan".parse().unwrap();
+        assert_eq!(parsed, Scoped { subtask: Some(1), value: Transit::Plan });
+        assert!("teleport".parse::<Scoped<Transit>>().unwrap_err().contains("interpolate"));
     }
 
     #[test]
@@ -274,6 +315,8 @@ mod tests {
             (SpecOverrides { selection: vec![Scoped::all("closest".to_owned())], ..Default::default() }, "--selection"),
             (SpecOverrides { action_noise: vec![Scoped::all(f64::NAN)], ..Default::default() }, "--action-noise"),
             (SpecOverrides { offset_range: vec![Scoped::all(OffsetRange(5, 1))], ..Default::default() }, "--offset-range"),
+            (SpecOverrides { approach_m: vec![Scoped::all(-0.1)], ..Default::default() }, "--approach-m"),
+            (SpecOverrides { transit: vec![Scoped { subtask: Some(2), value: Transit::Plan }], ..Default::default() }, "--transit"),
             (
                 SpecOverrides {
                     selection: vec![Scoped::all("random".to_owned())],

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use mimicgen_engine::Shard;
+use mimicgen_engine::generate::TransitTotals;
 use serde::{Deserialize, Serialize};
 
 use crate::SpecOverrides;
@@ -121,4 +122,8 @@ pub struct Report {
     /// The share of the attempts this run made, if it was a shard.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shard: Option<Shard>,
+    /// Planned transits and obstacle contacts over the run's attempts (`--transit plan`, a
+    /// cluttered variant); left out when there were none. A merged run's report leaves them out.
+    #[serde(default, skip_serializing_if = "TransitTotals::is_empty")]
+    pub transit: TransitTotals,
 }

@@ -89,6 +89,8 @@ mod tests {
             interpolation_steps: vec![Scoped::all(5)],
             fixed_steps: vec![Scoped::all(0)],
             select_src_per_subtask: Some(true),
+            transit: vec![Scoped::all(mimicgen_engine::spec::Transit::Plan)],
+            approach_m: vec![Scoped::all(0.1)],
         };
         let flags: Vec<String> = every.to_args().into_iter().filter(|a| a.starts_with("--")).collect();
         assert_eq!(flags.len(), SpecOverrides::FIELDS.len());

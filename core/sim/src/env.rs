@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use mimicgen_engine::action::DeltaPoseScale;
 use mimicgen_engine::pose::{Pose, quat_to_wxyz};
+use mimicgen_engine::transit::TransitSpace;
 use mimicgen_engine::{EnvError, Environment};
 use mujoco_rs::prelude::*;
 use rand::{Rng as _, RngCore};
@@ -14,6 +15,7 @@ use rand_distr::{Distribution, Normal};
 use crate::osc::{Osc, OscConfig};
 use crate::scene::{Scene, pose_from_xpos_xmat};
 use crate::task::Task;
+use crate::transit::{ArmSpace, Planning, robot_geoms};
 
 /// robosuite's Panda gripper: the command moves by this much per physics step towards -1 / +1.
 const GRIPPER_SPEED: f64 = 0.01;
@@ -34,6 +36,20 @@ pub fn set_mocap_pose(data: &mut MjData<Arc<MjModel>>, mocap: usize, world_from_
     data.mocap_quat_mut()[mocap] = quat_to_wxyz(&world_from_body.rotation);
 }
 
+/// Per geom of `scene`: which side of an obstacle contact it is on (see `SimEnv::obstacle_side`).
+fn obstacle_sides(scene: &Scene, task: &dyn Task) -> Vec<Option<bool>> {
+    let mut sides: Vec<Option<bool>> = robot_geoms(scene).into_iter().map(|robot| robot.then_some(false)).collect();
+    let obstacles = task.obstacles();
+    for (i, object) in scene.objects.iter().enumerate() {
+        for &g in &object.geoms {
+            if let Some(side) = sides.get_mut(g) {
+                *side = Some(obstacles.contains(&i));
+            }
+        }
+    }
+    sides
+}
+
 /// One robosuite-like environment: a scene, its MuJoCo data, the controller and the task.
 pub struct SimEnv {
     scene: Arc<Scene>,
@@ -46,6 +62,11 @@ pub struct SimEnv {
     /// The object instances resets draw among (`(label, scene)`), and the one in use.
     instances: Vec<(String, Arc<Scene>)>,
     instance: usize,
+    /// The planning model for transits, made at the first one.
+    planning: Option<Planning>,
+    /// Per geom: `Some(true)` an obstacle's, `Some(false)` the robot's or a task object's, `None`
+    /// anything else (the table, the walls).
+    obstacle_side: Vec<Option<bool>>,
 }
 
 impl std::fmt::Debug for SimEnv {
@@ -61,7 +82,20 @@ impl SimEnv {
         let data = MjData::new(Arc::clone(&scene.model));
         let nv = usize::try_from(scene.model.ffi().nv).unwrap_or_default();
         let osc = Osc::new(OscConfig::default(), scene.robot.model.init_qpos.to_vec(), nv);
-        Self { scene, task, data, osc, gripper_command: [0.0; 2], warnings_seen: 0, control_log: None, instances: Vec::new(), instance: 0 }
+        let obstacle_side = obstacle_sides(&scene, task.as_ref());
+        Self {
+            scene,
+            task,
+            data,
+            osc,
+            gripper_command: [0.0; 2],
+            warnings_seen: 0,
+            control_log: None,
+            instances: Vec::new(),
+            instance: 0,
+            planning: None,
+            obstacle_side,
+        }
     }
 
     /// This environment drawing one of `instances` (`(label, scene)`, from
@@ -85,6 +119,7 @@ impl SimEnv {
             if !Arc::ptr_eq(scene, &self.scene) {
                 self.scene = Arc::clone(scene);
                 self.data = MjData::new(Arc::clone(&self.scene.model));
+                self.obstacle_side = obstacle_sides(&self.scene, self.task.as_ref());
             }
             self.instance = k;
         }
@@ -119,6 +154,17 @@ impl SimEnv {
     pub fn hold_posture_here(&mut self) {
         let qpos = self.data.qpos();
         self.osc.initial_joint = self.scene.robot.arm_qpos.iter().map(|&i| qpos[i]).collect();
+    }
+
+    /// The arm's configuration space from the present state, carrying the objects the gripper
+    /// grasps (what planned transit plans in).
+    pub fn arm_space(&mut self) -> ArmSpace<'_> {
+        let held: Vec<usize> = (0..self.scene.objects.len()).filter(|&i| self.is_grasping(i)).collect();
+        if !self.planning.as_ref().is_some_and(|p| p.is_for(&self.scene)) {
+            self.planning = None;
+        }
+        let planning = self.planning.get_or_insert_with(|| Planning::new(&self.scene));
+        ArmSpace::new(&self.scene, planning, &self.data, &held, &self.osc.initial_joint)
     }
 
     /// The indices of the contacts between a geom of `a` and a geom of `b`.
@@ -459,6 +505,15 @@ impl Environment for SimEnv {
         }
         self.data.forward();
         Ok(())
+    }
+
+    fn transit_space(&mut self) -> Result<Box<dyn TransitSpace + '_>, EnvError> {
+        Ok(Box::new(self.arm_space()))
+    }
+
+    fn obstacle_contacts(&self) -> usize {
+        let side = |g: i32| usize::try_from(g).ok().and_then(|g| self.obstacle_side.get(g).copied().flatten());
+        self.data.contact().iter().filter(|c| matches!((side(c.geom[0]), side(c.geom[1])), (Some(a), Some(b)) if a != b)).count()
     }
 
     fn state(&self) -> Vec<f64> {

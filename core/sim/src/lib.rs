@@ -22,6 +22,7 @@ pub mod robot;
 pub mod scene;
 pub mod task;
 pub mod task_file;
+pub mod transit;
 
 pub use env::SimEnv;
 pub use geometry::{GeomPoser, Part, Shape, VisibleGeom};

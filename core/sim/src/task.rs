@@ -54,4 +54,8 @@ pub trait Task: Send + Sync {
     fn table_top_z(&self) -> f64 {
         BASE_TABLE_TOP_Z
     }
+    /// Indices of the objects that are obstacles (clutter the robot should not touch).
+    fn obstacles(&self) -> Vec<usize> {
+        Vec::new()
+    }
 }

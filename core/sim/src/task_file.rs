@@ -98,6 +98,13 @@ pub struct ObjectDef {
     /// transfer: O1 an unseen mug, O2 one of twelve drawn per episode).
     #[serde(default, rename = "instance")]
     pub instances: Vec<Instance>,
+    /// The variants the object is in (empty: all of them): clutter only some variants have.
+    #[serde(default)]
+    pub variants: Vec<String>,
+    /// Whether it is an obstacle: clutter the robot and what it carries should not touch, counted
+    /// per attempt and avoided by planned transit.
+    #[serde(default)]
+    pub obstacle: bool,
 }
 
 /// An object that stands in for a task's object in some variants: same name, same frame
@@ -307,6 +314,8 @@ impl TaskFile {
                 Err(format!(
                     "field `{field}` names \"eef\", which only a position may name (lifted, inside, apart, position, from_eef, to_eef, between); here name one of the objects: {objects}"
                 ))
+            } else if self.objects.iter().any(|o| o.name == name && !o.variants.is_empty()) {
+                Err(format!("field `{field}` names object {name:?}, which only some variants have (its `variants`)"))
             } else if name == "eef" || self.objects.iter().any(|o| o.name == name) {
                 Ok(())
             } else {
@@ -314,7 +323,10 @@ impl TaskFile {
             }
         };
         for object in &self.objects {
-            for variant in &self.variants {
+            if let Some(v) = object.variants.iter().find(|v| !self.variants.contains(v)) {
+                return Err(format!("object {:?}: `variants` names {v}, which the task does not have", object.name));
+            }
+            for variant in self.variants.iter().filter(|v| object.variants.is_empty() || object.variants.contains(v)) {
                 let region = object
                     .place
                     .get(variant)
@@ -361,7 +373,9 @@ impl TaskFile {
             }
         }
         for name in &self.place_order {
-            known((name, false), "place_order")?;
+            if !self.objects.iter().any(|o| &o.name == name) {
+                return Err(format!("field `place_order` names object {name:?}, which is not one of {objects}"));
+            }
         }
         if !self.place_order.is_empty() && self.place_order.len() != self.objects.len() {
             return Err("field `place_order` must list every object once".to_owned());
@@ -503,6 +517,11 @@ impl DataTask {
         let Some(variant) = file.variants.iter().find(|v| v.eq_ignore_ascii_case(&wanted)).cloned() else {
             return Err(format!("{} has variants {}, not {variant:?}", file.name, and_list(&file.variants)));
         };
+        // Objects of other variants only are not in this one's scene at all.
+        let mut file = file;
+        file.objects.retain(|o| o.variants.is_empty() || o.variants.contains(&variant));
+        let names: Vec<String> = file.objects.iter().map(|o| o.name.clone()).collect();
+        file.place_order.retain(|name| names.contains(name));
         let regions = file
             .objects
             .iter()
@@ -673,6 +692,10 @@ impl Task for DataTask {
 
     fn joints_read(&self) -> Vec<(String, String)> {
         self.file.joints_read()
+    }
+
+    fn obstacles(&self) -> Vec<usize> {
+        self.file.objects.iter().enumerate().filter_map(|(i, o)| o.obstacle.then_some(i)).collect()
     }
 
     fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {

@@ -52,7 +52,7 @@ __version__ = _native.__version__
 PathLike = Union[str, "os.PathLike[str]"]
 
 #: Spec fields a run may set over its spec's, as `mimicgen generate` takes them.
-SPEC_FIELDS = ("selection", "nn_k", "action_noise", "offset_range", "interpolation_steps", "fixed_steps")
+SPEC_FIELDS = ("selection", "nn_k", "action_noise", "offset_range", "interpolation_steps", "fixed_steps", "transit", "approach_m")
 
 
 class Environment(Protocol):

@@ -156,13 +156,20 @@ impl Generator {
                 }
             }
             selected = Some(plan.src_demo);
-            last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);
             attempt.src_demo_per_subtask.push(plan.src_demo);
             let labels = StepLabels { src_demo: plan.src_demo, subtask: subtask_index, kind: WaypointKind::Transformed };
             attempt.plans.push(SubtaskPlan { first_step: attempt.trajectory.len(), ..plan });
             let mut signal_seen = false;
             let signal = if subtask_index + 1 < self.spec.subtasks.len() { subtask.term_signal.as_deref() } else { None };
-            for (waypoint, kind) in &waypoints {
+            // After a planned transit the segment starts from the object's pose then.
+            let segment_start = waypoints.iter().position(|(_, k)| *k != WaypointKind::Transit).filter(|&i| i > 0);
+            for i in 0..waypoints.len() {
+                if Some(i) == segment_start
+                    && let Some(plan) = attempt.plans.last_mut()
+                {
+                    follow_object(env, subtask.object_ref.as_deref(), plan, &mut waypoints, i);
+                }
+                let (waypoint, kind) = &waypoints[i];
                 let signals = match execute_step(env, waypoint, StepLabels { kind: *kind, ..labels }, &mut attempt.trajectory, &mut rng) {
                     Ok(signals) => signals,
                     Err(e) => {
@@ -176,6 +183,7 @@ impl Generator {
                     attempt.obstacle_contact_steps += 1;
                 }
             }
+            last_target = waypoints.last().map(|(w, _)| w.pose).or(last_target);
             if let Some(name) = signal {
                 signal_seen |= env.subtask_term_signals().get(name).is_some_and(|&v| v != 0);
                 if !signal_seen && attempt.failure.is_none() {
@@ -266,10 +274,14 @@ impl Generator {
         };
         plan.transit = Some(path.stats);
         let noise = if spec.apply_noise_during_interpolation { spec.action_noise } else { 0.0 };
-        // The path's last pose is the goal, which the segment's first waypoint repeats.
-        let bridge = path.poses[..path.poses.len().saturating_sub(1)]
+        // The path ends at the goal, held a few steps for the arm to catch up with it.
+        let hold = std::iter::repeat_n(goal.pose, self.spec.generation.planner.hold_steps);
+        let bridge = path
+            .poses
             .iter()
-            .map(|pose| (Waypoint { pose: *pose, gripper: goal.gripper.clone(), noise }, WaypointKind::Transit));
+            .copied()
+            .chain(hold)
+            .map(|pose| (Waypoint { pose, gripper: goal.gripper.clone(), noise }, WaypointKind::Transit));
         waypoints.splice(0..0, bridge);
         plan.waypoints = waypoints.iter().map(|(w, k)| (w.pose, *k)).collect();
         Ok(Ok(()))
@@ -363,6 +375,31 @@ impl Generator {
         };
         Ok((plan, waypoints))
     }
+}
+
+/// Moves the segment (its waypoints from `from` on, and `plan`'s transformed poses) with its
+/// reference object, if the object moved since the segment was transformed: it may settle while a
+/// planned transit runs (a nut dropped at the reset lands), and the segment is relative to it.
+fn follow_object<E: Environment + ?Sized>(
+    env: &E,
+    object: Option<&str>,
+    plan: &mut SubtaskPlan,
+    waypoints: &mut [(Waypoint, WaypointKind)],
+    from: usize,
+) {
+    let (Some(name), Some(planned)) = (object, plan.world_from_obj_new) else { return };
+    let Some(now) = env.object_poses().get(name).copied() else { return };
+    let moved = now * planned.inverse();
+    for (w, _) in &mut waypoints[from..] {
+        w.pose = moved * w.pose;
+    }
+    for pose in &mut plan.transformed_poses {
+        *pose = moved * *pose;
+    }
+    for (pose, _) in plan.waypoints.iter_mut().skip(from) {
+        *pose = moved * *pose;
+    }
+    plan.world_from_obj_new = Some(now);
 }
 
 /// What a caller forces in a planned or executed attempt; everything else is drawn as a run

@@ -44,6 +44,32 @@ pub struct RunStats {
     pub per_source_demo: Vec<DemoUse>,
     /// Failures by subtask and reason, sorted.
     pub failures: Vec<FailureCount>,
+    /// Planned transits and obstacle contacts (all zero in a run without either).
+    #[serde(default)]
+    pub transit: TransitTotals,
+}
+
+/// What planned transit and clutter did over a run.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct TransitTotals {
+    /// Transits planned (found or not).
+    pub planned: usize,
+    /// Of those, how many found no collision-free path.
+    pub no_path: usize,
+    /// Planning time over all of them (s).
+    pub planning_s: f64,
+    /// Attempts in which the robot, or what it held, touched an obstacle.
+    pub obstacle_attempts: usize,
+    /// Control steps with such a contact, over all attempts.
+    pub obstacle_steps: usize,
+}
+
+impl TransitTotals {
+    /// Whether nothing was planned or touched.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        *self == Self::default()
+    }
 }
 
 impl RunStats {
@@ -63,6 +89,14 @@ impl RunStats {
     /// Counts one attempt.
     pub fn record(&mut self, attempt: &Attempt) {
         self.record_outcome(attempt.success, &attempt.src_demo_per_subtask, attempt.failure.as_ref());
+        for stats in attempt.plans.iter().filter_map(|p| p.transit) {
+            self.transit.planned += 1;
+            self.transit.planning_s += stats.seconds;
+        }
+        self.transit.no_path +=
+            usize::from(attempt.failure.as_ref().is_some_and(|f| matches!(f.reason, FailureReason::NoTransitPath { .. })));
+        self.transit.obstacle_attempts += usize::from(attempt.obstacle_contact_steps > 0);
+        self.transit.obstacle_steps += attempt.obstacle_contact_steps;
     }
 
     /// Counts one attempt from its outcome: whether it succeeded, the source demo of each subtask,
