@@ -14,6 +14,7 @@ mod bench_app;
 mod bench_io;
 mod bench_render;
 mod bench_sim;
+mod bench_transit;
 mod coverage;
 mod exit;
 mod generate;
@@ -136,6 +137,9 @@ Examples:
     BenchSim(bench_sim::BenchSimArgs),
     /// Milliseconds per camera frame, drawn several ways, and whether they give the same pixels.
     BenchRender(bench_render::BenchRenderArgs),
+    /// Interpolated against planned transit on the same attempts: rates, obstacle contacts,
+    /// planning time (the cluttered C0 variants by default).
+    BenchTransit(bench_transit::BenchTransitArgs),
     /// Compile the MJCF on stdin into the model cache (`$MIMICGEN_CACHE/models`); run by this
     /// program itself so that MuJoCo's compiler memory is a child's, not the run's.
     #[command(hide = true)]
@@ -462,6 +466,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::BenchSim(args) => {
             bench_sim::run(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::BenchTransit(args) => {
+            bench_transit::run(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::BenchApp(args) => {
