@@ -218,6 +218,7 @@ fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) 
                 .collect();
             ranking.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.demo.cmp(&b.demo)));
             let bridge = s.waypoints.iter().take_while(|(_, k)| *k == WaypointKind::Interpolation).map(|(p, _)| point(p)).collect();
+            let transit = s.waypoints.iter().take_while(|(_, k)| *k == WaypointKind::Transit).map(|(p, _)| point(p)).collect();
             SubtaskPreview {
                 object: subtask.object_ref.clone(),
                 src_demo: s.src_demo,
@@ -227,6 +228,7 @@ fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) 
                 source_path: s.source_poses.iter().map(point).collect(),
                 source_object: s.world_from_obj_src.as_ref().map(point),
                 bridge,
+                transit,
                 transformed: s.transformed_poses.iter().map(point).collect(),
             }
         })

@@ -296,15 +296,19 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let spec = mimicgen_pipeline::check_spec_file(&file)?;
             outln!("{}: task {:?}, {} subtasks", file.display(), spec.name, spec.subtasks.len());
             for (i, s) in spec.subtasks.iter().enumerate() {
+                let transit = match s.transit {
+                    mimicgen_engine::spec::Transit::Interpolate => {
+                        format!("interp {} + fixed {}", s.num_interpolation_steps, s.num_fixed_steps)
+                    }
+                    mimicgen_engine::spec::Transit::Plan => format!("planned transit to {} m from the object", s.approach_m),
+                };
                 outln!(
-                    "  subtask {i}: relative to {:<8} ends on {:<10} offsets {:<10} selection {} , noise {}, interp {} + fixed {}",
+                    "  subtask {i}: relative to {:<8} ends on {:<10} offsets {:<10} selection {} , noise {}, {transit}",
                     s.object_ref.as_deref().unwrap_or("world"),
                     s.term_signal.as_deref().unwrap_or("demo end"),
                     s.term_offset_range.map_or_else(|| "-".to_owned(), |(a, b)| format!("[{a}, {b}]")),
                     s.selection.name(),
                     s.action_noise,
-                    s.num_interpolation_steps,
-                    s.num_fixed_steps
                 );
             }
             let g = &spec.generation;

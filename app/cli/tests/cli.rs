@@ -101,7 +101,7 @@ fn square_generates_end_to_end_with_each_demos_peg_in_its_model_file() {
     assert!(listing.contains("square") && listing.contains("D2"), "{listing}");
     let bad = mimicgen().args(["generate", "--task", "square", "--variant", "D3"]).output().unwrap();
     assert!(!bad.status.success());
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("D0, D1 and D2"), "{}", String::from_utf8_lossy(&bad.stderr));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("D0, D1, D2 and C0"), "{}", String::from_utf8_lossy(&bad.stderr));
 
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("square_d1.hdf5");

@@ -83,7 +83,7 @@ impl Root {
             Request::Save { source, out, ends, signal_names, overwrite } => {
                 Request::Save { source: self.resolve(&source)?, out: self.resolve(&out)?, ends, signal_names, overwrite }
             }
-            Request::Preview(r) => Request::Preview(preview(r)?),
+            Request::Preview(r) => Request::Preview(Box::new(preview(*r)?)),
             Request::SideBySide(pair) => {
                 let [a, b] = *pair;
                 Request::SideBySide(Box::new([preview(a)?, preview(b)?]))

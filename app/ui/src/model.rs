@@ -440,7 +440,7 @@ impl AppModel {
         self.preview.sources.resize(file.subtask_objects.len(), None);
         let p = &self.preview;
         self.busy = Some(format!("{} attempt {} (seed {})", if execute { "trying" } else { "planning" }, p.index, p.seed));
-        Some(Request::Preview(PreviewRequest {
+        Some(Request::Preview(Box::new(PreviewRequest {
             source: file.path.clone(),
             ends: self.ends.clone(),
             seed: p.seed,
@@ -450,7 +450,7 @@ impl AppModel {
             execute,
             variant: p.variant.clone(),
             spec: p.spec.clone(),
-        }))
+        })))
     }
 
     /// The request that executes attempt `index` of the last run as the run did (its seed, variant

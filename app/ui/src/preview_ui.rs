@@ -22,6 +22,8 @@ const PICK_RADIUS_PX: f32 = 12.0;
 
 /// Colour of the executed path (and the objects where it left them): bright on the dark theme.
 const EXECUTED: Color32 = Color32::from_rgb(235, 235, 235);
+/// Planned collision-free transit (the Rerun stream's colour for it too).
+const TRANSIT: Color32 = Color32::from_rgb(0, 206, 180);
 
 /// The controls: seed, scene, source per subtask with its ranking, "try it" and its outcome.
 pub fn controls(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>) {
@@ -179,6 +181,9 @@ pub fn view_plot(
                         .style(LineStyle::dotted_dense()),
                 );
                 plot.line(Line::new(format!("bridge {k}"), xy(&s.bridge, axes)).color(color).style(LineStyle::dashed_dense()).width(1.5));
+                if !s.transit.is_empty() {
+                    plot.line(Line::new(format!("planned transit {k}"), xy(&s.transit, axes)).color(TRANSIT).width(2.0));
+                }
                 plot.line(Line::new(format!("transformed {k}"), xy(&s.transformed, axes)).color(color).width(2.5));
                 if let Some(o) = s.source_object {
                     plot.points(
@@ -253,7 +258,7 @@ pub fn views(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands:
         ui.label("Planning the first scene...");
         return;
     };
-    ui.label("Solid: transformed segments; dashed: interpolation bridges; dotted: the source segments in their own scene; white: the executed path (after Try it), diamonds where it left the objects.");
+    ui.label("Solid: transformed segments; dashed: interpolation bridges; teal: planned collision-free transit (--transit plan); dotted: the source segments in their own scene; white: the executed path (after Try it), diamonds where it left the objects.");
     let size = egui::vec2((ui.available_width() - 12.0) / 2.0, ui.available_height() - 8.0);
     ui.horizontal(|ui| {
         ui.vertical(|ui| {

@@ -33,7 +33,7 @@ pub enum Request {
     },
     /// Plan attempt `index` of a run seeded `seed` over `source` with these ends, and with
     /// `execute` also run it in simulation ("try it").
-    Preview(PreviewRequest),
+    Preview(Box<PreviewRequest>),
     /// Execute two attempts (a failure and a success to compare), one reply with both.
     SideBySide(Box<[PreviewRequest; 2]>),
     /// Start streaming to Rerun: demo `demo` now, then every demo shown and attempt tried.
@@ -363,6 +363,10 @@ pub struct SubtaskPreview {
     pub source_object: Option<Point>,
     /// The interpolation bridge (from the previous target to the transformed segment).
     pub bridge: Vec<Point>,
+    /// The planned collision-free transit to the segment (`--transit plan`), empty otherwise; a
+    /// later subtask's is known once the attempt is tried (its start is where the robot got to).
+    #[serde(default)]
+    pub transit: Vec<Point>,
     /// The transformed segment.
     pub transformed: Vec<Point>,
 }

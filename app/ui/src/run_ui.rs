@@ -12,6 +12,7 @@ use egui_plot::{Bar, BarChart, Corner, Legend, Line, MarkerShape, Plot, PlotPoin
 use mimicgen_engine::Pose;
 use mimicgen_engine::coverage::{Coordinate, Coverage, Dimension, coverage, uniform_support_coverage};
 use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
+use mimicgen_engine::spec::Transit;
 
 use mimicgen_run::{CameraConfig, OffsetRange, Scoped, SpecOverrides};
 
@@ -268,6 +269,15 @@ fn spec_fields(ui: &mut egui::Ui, spec: &mut SpecOverrides, subtasks: usize) {
             ui.checkbox(v, "choose at every subtask");
         });
         spec.select_src_per_subtask = per_subtask;
+        let transit = optional(ui, "transit", "--transit", scoped(&spec.transit, None), Transit::Plan, |ui, v| {
+            ui.horizontal(|ui| {
+                ui.selectable_value(v, Transit::Interpolate, "interpolate");
+                ui.selectable_value(v, Transit::Plan, "plan").on_hover_text(
+                    "a collision-free path to where the approach to the object begins (SkillGen); for cluttered scenes (C0)",
+                );
+            });
+        });
+        set_scoped(&mut spec.transit, None, transit);
     });
 }
 
@@ -397,7 +407,7 @@ fn side_by_side(ui: &mut egui::Ui, run: &RunState, pair: &SideBySide, compact: b
     };
     ui.label(
         RichText::new(
-            "Solid: transformed segments (colour per subtask); dashed: interpolation bridges; dotted: the source segments in their own scene; white: the executed path, diamonds where it left the objects; brown squares: the objects at the start.",
+            "Solid: transformed segments (colour per subtask); dashed: interpolation bridges; teal: planned transit; dotted: the source segments in their own scene; white: the executed path, diamonds where it left the objects; brown squares: the objects at the start.",
         )
         .small(),
     );

@@ -18,6 +18,8 @@ const SOURCE_COLOR: [u8; 3] = [170, 170, 170];
 const TRANSFORMED_COLOR: [u8; 3] = [30, 144, 255];
 /// The interpolation segment bridging to it.
 const INTERPOLATION_COLOR: [u8; 3] = [255, 215, 0];
+/// Planned collision-free transit (`--transit plan`).
+const TRANSIT_COLOR: [u8; 3] = [0, 206, 180];
 /// Executed path of a successful attempt.
 const SUCCESS_COLOR: [u8; 3] = [50, 205, 50];
 /// Executed path of a failed attempt.
@@ -228,19 +230,25 @@ fn log_plans(
                 .with_show_labels(false),
         )
         .map_err(|e| err("transformed_segment", &e))?;
-        let mut interp: Vec<[f32; 3]> =
-            plan.waypoints.iter().filter(|(_, kind)| *kind == WaypointKind::Interpolation).map(|(p, _)| point(p)).collect();
-        if let Some((first, _)) = plan.waypoints.iter().find(|(_, kind)| *kind == WaypointKind::Transformed) {
-            interp.push(point(first));
+        let first_transformed = plan.waypoints.iter().find(|(_, kind)| *kind == WaypointKind::Transformed).map(|(p, _)| point(p));
+        for (kind, name, color, label) in [
+            (WaypointKind::Interpolation, "interpolation_segment", INTERPOLATION_COLOR, "interpolation"),
+            (WaypointKind::Transit, "transit_segment", TRANSIT_COLOR, "planned transit"),
+        ] {
+            let mut path: Vec<[f32; 3]> = plan.waypoints.iter().filter(|(_, k)| *k == kind).map(|(p, _)| point(p)).collect();
+            if path.is_empty() {
+                continue;
+            }
+            path.extend(first_transformed);
+            rec.log(
+                format!("{sub}/{name}"),
+                &rerun::LineStrips3D::new([path])
+                    .with_colors([rgb(color)])
+                    .with_labels([format!("subtask {s} {label}")])
+                    .with_show_labels(false),
+            )
+            .map_err(|e| err(name, &e))?;
         }
-        rec.log(
-            format!("{sub}/interpolation_segment"),
-            &rerun::LineStrips3D::new([interp])
-                .with_colors([rgb(INTERPOLATION_COLOR)])
-                .with_labels([format!("subtask {s} interpolation")])
-                .with_show_labels(false),
-        )
-        .map_err(|e| err("interpolation_segment", &e))?;
         let mut frames = Vec::new();
         if let Some(p) = &plan.world_from_obj_new {
             frames.push((format!("subtask {s} object (new scene)"), p));

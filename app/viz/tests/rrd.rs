@@ -25,6 +25,8 @@ fn three_attempts_read_back_with_the_viewer_cli() {
     let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/stack_D0_source.hdf5");
     let mut spec = TaskSpec::from_toml_str(registry::default_spec_toml("stack").expect("spec"), "stack").expect("parse spec");
     spec.generation.num_trials = 3;
+    // The place is reached by a planned transit: drawn in a colour of its own.
+    spec.subtasks[1].transit = mimicgen_engine::spec::Transit::Plan;
     let mut sources = mimicgen_io::read_source_dataset(&source, &SourceSelection::default()).expect("sources");
     sources.demos.truncate(2);
     let xml = sources.demos[0].sim.model_xml.clone().expect("model_file");
@@ -61,6 +63,7 @@ fn three_attempts_read_back_with_the_viewer_cli() {
         "/world/attempt/subtask_0/source_segment",
         "/world/attempt/subtask_0/transformed_segment",
         "/world/attempt/subtask_0/interpolation_segment",
+        "/world/attempt/subtask_1/transit_segment",
         "/world/attempt/subtask_1/object_frames",
         "/world/attempt/executed_path",
         "/world/attempt/eef",

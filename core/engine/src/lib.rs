@@ -5,7 +5,8 @@
 //! end-effector keeps its pose relative to the subtask's object and bridges to it with an
 //! interpolation segment ([`transform`]), executes it as noisy delta-pose actions through an
 //! [`Environment`] and keeps a structured record of every attempt ([`generate`]); plus the task
-//! spec formats ([`spec`]) and the coverage analysis ([`coverage`]).
+//! spec formats ([`spec`]), the coverage analysis ([`coverage`]) and, for cluttered scenes,
+//! SkillGen's planned collision-free transit to each segment ([`transit`]).
 //!
 //! What it does not do: no simulator, no file formats beyond its config files, no GUI, no
 //! rendering. Simulators implement [`Environment`]; [`kinematic`] is a small physics-free one used

@@ -199,7 +199,7 @@ pub fn plan_transit<S: TransitSpace + ?Sized, R: Rng + ?Sized>(
     let (path, samples) = if checker.edge_free(&start, &goal) {
         (vec![start, goal], 0)
     } else {
-        match rrt_connect(&mut checker, &limits, start, goal, settings, rng) {
+        match rrt_connect(&mut checker, &limits, &start, goal, settings, rng) {
             Ok(found) => found,
             Err(samples) => return Err(TransitError::NoPath { stats: stats(&checker, samples) }),
         }
@@ -273,12 +273,12 @@ fn extend<S: TransitSpace + ?Sized>(checker: &mut Checker<S>, tree: &mut Tree, t
 fn rrt_connect<S: TransitSpace + ?Sized, R: Rng + ?Sized>(
     checker: &mut Checker<S>,
     limits: &[[f64; 2]],
-    start: Vec<f64>,
+    start: &[f64],
     goal: Vec<f64>,
     settings: &PlannerSettings,
     rng: &mut R,
 ) -> Result<(Vec<Vec<f64>>, usize), usize> {
-    let mut trees = [Tree::new(start.clone()), Tree::new(goal)];
+    let mut trees = [Tree::new(start.to_vec()), Tree::new(goal)];
     let step = settings.extend_rad.max(1e-3);
     for samples in 1..=settings.max_samples {
         let Some(target) = checker.space.settle(&sample(limits, rng)) else { continue };
@@ -302,7 +302,7 @@ fn rrt_connect<S: TransitSpace + ?Sized, R: Rng + ?Sized>(
                     from_b.reverse();
                     from_a.extend(from_b);
                     // `a` is the start's tree or the goal's, as the swaps left it.
-                    if from_a.first() != Some(&start) {
+                    if from_a.first().map(Vec::as_slice) != Some(start) {
                         from_a.reverse();
                     }
                     return Ok((from_a, samples));
