@@ -775,7 +775,7 @@ impl Worker {
                         error: format!("{} exists: choose a new file, or tick \"replace\" to save over it", out.display()),
                     };
                 }
-                match annotate::write_signals(&source, &out, &signal_names, &ends) {
+                match annotate::write_signals(&source, &out, &signal_names, &ends, &BTreeMap::new()) {
                     Ok(()) => Reply::Saved { out, demos: ends.len() },
                     Err(e) => Reply::Failed { what: format!("saving {}", out.display()), error: e.to_string() },
                 }

@@ -16,6 +16,7 @@ Examples:
   mimicgen annotate sources.hdf5 --ends demo_0=52 --ends demo_3=60 --auto --out annotated.hdf5
   mimicgen annotate sources.hdf5 --auto                                      # just print the proposals
   mimicgen annotate core/io/tests/data/source_D0_prepared.hdf5 --auto --json  # compare with the stored signals
+  mimicgen annotate sources.hdf5 --starts demo_0=1:120 --out marked.hdf5     # where demo_0's place begins
 
 A subtask end is the last step of the subtask, as MimicGen's annotation script marks it: the
 subtask's signal is written 0 before that step and 1 from it on, into
@@ -23,7 +24,13 @@ data/<demo>/datagen_info/subtask_term_signals/<term_signal of the spec>, replaci
 signals as the reference does. --auto proposes the ends from the gripper commands, the finger
 opening and where the gripper is (no privileged signals), each with a confidence and a reason;
 a demo given with --ends keeps what you typed. The task and spec come from --task/--config, else
-from the file's env_args and the bundled spec. Without --out nothing is written.")]
+from the file's env_args and the bundled spec. Without --out nothing is written.
+
+--starts marks where a subtask's segment begins (`DEMO=K:STEP,...`, K the subtask): with planned
+transit (`generate --transit plan`) that segment is replayed from there and the robot gets there by
+a collision-free path; unmarked subtasks start where the gripper first comes `approach_m` near the
+object. Starts go in the demo's `mimicgen_subtask_starts` attribute (-1 where unmarked), which the
+reference ignores.")]
 pub struct AnnotateArgs {
     /// Source demos (MimicGen source layout, with datagen_info).
     file: PathBuf,
@@ -33,6 +40,10 @@ pub struct AnnotateArgs {
     /// `DEMO=S1,S2,...`: the last step of each subtask but the final one, for one demo.
     #[arg(long, value_name = "DEMO=STEPS")]
     ends: Vec<String>,
+    /// `DEMO=K:STEP,...`: the step where subtask K's segment begins, for one demo (planned
+    /// transit replays the segment from there).
+    #[arg(long, value_name = "DEMO=K:STEP")]
+    starts: Vec<String>,
     /// Task (see `mimicgen tasks`). Default: the file's env_args.
     #[arg(long)]
     task: Option<String>,
@@ -66,13 +77,35 @@ fn parse_ends(specs: &[String]) -> anyhow::Result<BTreeMap<String, Vec<usize>>> 
     Ok(out)
 }
 
+/// `--starts` as a start per subtask (`None` where unmarked) for each demo named.
+fn parse_starts(specs: &[String], subtasks: usize) -> anyhow::Result<BTreeMap<String, Vec<Option<usize>>>> {
+    let mut out: BTreeMap<String, Vec<Option<usize>>> = BTreeMap::new();
+    for spec in specs {
+        let Some((demo, marks)) = spec.split_once('=') else {
+            crate::exit::usage!("--starts {spec:?}: expected DEMO=K:STEP,...");
+        };
+        let starts = out.entry(demo.trim().to_owned()).or_insert_with(|| vec![None; subtasks]);
+        for mark in marks.split(',') {
+            let parsed = mark.split_once(':').and_then(|(k, s)| Some((k.trim().parse::<usize>().ok()?, s.trim().parse::<usize>().ok()?)));
+            let Some((k, step)) = parsed else {
+                crate::exit::usage!("--starts {spec:?}: {mark:?} is not SUBTASK:STEP");
+            };
+            let Some(slot) = starts.get_mut(k) else {
+                crate::exit::usage!("--starts {spec:?}: subtask {k}, but the task has {subtasks} (0 to {})", subtasks.saturating_sub(1));
+            };
+            *slot = Some(step);
+        }
+    }
+    Ok(out)
+}
+
 /// Runs `mimicgen annotate`.
 ///
 /// # Errors
 /// Unreadable input, bad --ends, or a failure to write.
 pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
-    if !args.auto && args.ends.is_empty() {
-        crate::exit::usage!("nothing to do: pass --auto, or --ends DEMO=S1,S2,... (see --help)");
+    if !args.auto && args.ends.is_empty() && args.starts.is_empty() {
+        crate::exit::usage!("nothing to do: pass --auto, --ends DEMO=S1,S2,... or --starts DEMO=K:STEP (see --help)");
     }
     if let Some(out) = &args.out {
         crate::check_output(out, Some(&args.file), args.overwrite)?;
@@ -124,9 +157,10 @@ pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
             100.0 * s["within_5_steps"].as_f64().unwrap_or_default()
         );
     }
+    let starts = parse_starts(&args.starts, found.spec.subtasks.len())?;
     if let Some(out) = &args.out {
-        annotate::write_annotations(&args.file, out, &found.spec, &ends)?;
-        eprintln!("wrote {} with the subtask ends of {} demo(s)", out.display(), ends.len());
+        annotate::write_annotations(&args.file, out, &found.spec, &ends, &starts)?;
+        eprintln!("wrote {} with the subtask ends of {} demo(s) and the segment starts of {}", out.display(), ends.len(), starts.len());
     }
     Ok(())
 }

@@ -135,7 +135,7 @@ fn annotate_writes_typed_ends_where_mimicgen_reads_them() {
     let run = mimicgen()
         .args(["annotate"])
         .arg(&source)
-        .args(["--ends", "demo_2=30", "--auto", "--out"])
+        .args(["--ends", "demo_2=30", "--starts", "demo_2=1:40", "--auto", "--out"])
         .arg(&out)
         .env("HDF5_USE_FILE_LOCKING", "FALSE")
         .output()
@@ -144,6 +144,12 @@ fn annotate_writes_typed_ends_where_mimicgen_reads_them() {
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(stdout.contains("ends typed with --ends") && stdout.contains("within 5 steps"), "{stdout}");
     let back = mimicgen_io::read_source_dataset(&out, &Default::default()).unwrap();
+    // The marked segment start, beside the ends (none marked for the grasp).
+    assert_eq!(back.demos[2].manual_subtask_starts, Some(vec![None, Some(40)]));
+    assert_eq!(back.demos[0].manual_subtask_starts, None);
+    let bad = mimicgen().args(["annotate"]).arg(&source).args(["--starts", "demo_2=4:40"]).output().unwrap();
+    assert_eq!(bad.status.code(), Some(2), "a subtask the task lacks is a usage error");
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("subtask 4"), "{}", String::from_utf8_lossy(&bad.stderr));
     let grasp = &back.demos[2].subtask_term_signals["grasp"];
     // Step 30 is the subtask's last step: the signal turns on there.
     assert_eq!((grasp[29], grasp[30]), (0, 1));

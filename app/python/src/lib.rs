@@ -263,7 +263,7 @@ fn write_subtask_ends(
     let ends: BTreeMap<String, Vec<usize>> = serde_json::from_str(ends_json).map_err(|e| error(format!("ends: {e}")))?;
     py.detach(|| {
         let found = mimicgen_pipeline::annotate::propose(&source, task.as_deref(), config.as_deref())?;
-        mimicgen_pipeline::annotate::write_annotations(&source, &out, &found.spec, &ends)
+        mimicgen_pipeline::annotate::write_annotations(&source, &out, &found.spec, &ends, &std::collections::BTreeMap::new())
     })
     .map_err(pipeline_error)
 }

@@ -128,6 +128,10 @@ pub struct SourceDemo {
     pub subtask_term_signals: BTreeMap<String, Vec<i64>>,
     /// Hand-annotated end step of every subtask but the last; overrides the signals when set.
     pub manual_subtask_ends: Option<Vec<usize>>,
+    /// Hand-marked start of each subtask's segment (`None` for a subtask without one): where
+    /// the approach to its object begins, replacing the detected one for a subtask whose transit
+    /// is planned (see [`crate::segment::Segmentation::approach_starts`]).
+    pub manual_subtask_starts: Option<Vec<Option<usize>>>,
     /// Opaque simulator data.
     pub sim: SimPayload,
 }

@@ -100,7 +100,7 @@ impl Segmentation {
                 }
                 start_latest = end_latest;
             }
-            approaches.push(approach_starts(demo, spec, &demo_ends, &offsets));
+            approaches.push(approach_starts(demo, spec, &demo_ends, &offsets).map_err(|(i, reason)| fail(i, reason))?);
             ends.push(demo_ends);
         }
         Ok(Self { ends, offsets, approaches })
@@ -156,32 +156,48 @@ impl Segmentation {
 /// Fewest steps a planned subtask's segment keeps after its approach start.
 const MIN_APPROACH_STEPS: usize = 2;
 
-/// The approach start of every subtask of `demo` whose transit is planned: the first step at which
-/// the end effector comes within `approach_m` of the subtask's object (it starts where the
-/// previous subtask ended when it is that close already), and at least two steps before the
-/// subtask's earliest end.
-fn approach_starts(demo: &SourceDemo, spec: &TaskSpec, ends: &[usize], offsets: &[(i64, i64)]) -> Vec<Option<usize>> {
+/// The approach start of every subtask of `demo` whose transit is planned: where the demo's
+/// hand-marked start says (`manual_subtask_starts`), else the first step at which the end effector
+/// comes within `approach_m` of the subtask's object (it starts where the previous subtask ended
+/// when it is that close already), and at least two steps before the subtask's earliest end.
+/// `Err((subtask, reason))` for a hand-marked start outside its subtask.
+fn approach_starts(
+    demo: &SourceDemo,
+    spec: &TaskSpec,
+    ends: &[usize],
+    offsets: &[(i64, i64)],
+) -> Result<Vec<Option<usize>>, (usize, String)> {
     let mut prev_end = 0;
-    spec.subtasks
-        .iter()
-        .enumerate()
-        .map(|(i, s)| {
-            let (start, end) = (prev_end, ends[i]);
-            prev_end = end;
-            if s.transit != Transit::Plan {
-                return None;
+    let mut out = Vec::with_capacity(spec.subtasks.len());
+    for (i, s) in spec.subtasks.iter().enumerate() {
+        let (start, end) = (prev_end, ends[i]);
+        prev_end = end;
+        if s.transit != Transit::Plan {
+            out.push(None);
+            continue;
+        }
+        let latest_start =
+            usize::try_from(i64::try_from(end).unwrap_or(i64::MAX) + offsets[i].0).unwrap_or(end).saturating_sub(MIN_APPROACH_STEPS);
+        let marked = demo.manual_subtask_starts.as_ref().and_then(|m| m.get(i).copied().flatten());
+        if let Some(m) = marked {
+            if m < start || m > latest_start {
+                return Err((i, format!("hand-marked start {m} is outside the subtask's steps {start}..={latest_start}")));
             }
-            let poses = demo.object_poses.get(s.object_ref.as_deref()?)?;
-            let latest_start =
-                usize::try_from(i64::try_from(end).unwrap_or(i64::MAX) + offsets[i].0).unwrap_or(end).saturating_sub(MIN_APPROACH_STEPS);
-            let near = |t: usize| match (demo.eef_poses.get(t), poses.get(t)) {
-                (Some(eef), Some(obj)) => (eef.translation.vector - obj.translation.vector).norm() <= s.approach_m,
-                _ => false,
-            };
-            let approach = (start..end).find(|&t| near(t)).unwrap_or(start);
-            Some(approach.min(latest_start).max(start))
-        })
-        .collect()
+            out.push(Some(m));
+            continue;
+        }
+        let Some(poses) = s.object_ref.as_deref().and_then(|o| demo.object_poses.get(o)) else {
+            out.push(None);
+            continue;
+        };
+        let near = |t: usize| match (demo.eef_poses.get(t), poses.get(t)) {
+            (Some(eef), Some(obj)) => (eef.translation.vector - obj.translation.vector).norm() <= s.approach_m,
+            _ => false,
+        };
+        let approach = (start..end).find(|&t| near(t)).unwrap_or(start);
+        out.push(Some(approach.min(latest_start).max(start)));
+    }
+    Ok(out)
 }
 
 fn spans_from_ends(ends: &[usize]) -> Vec<Span> {
@@ -201,7 +217,7 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
 
     use super::*;
-    use crate::spec::{SelectionStrategy, SubtaskSpec, TaskSpec};
+    use crate::spec::{SelectionStrategy, SubtaskSpec, TaskSpec, Transit};
     use crate::testing::demo_with_object_at;
 
     fn spec(offsets: Option<(i64, i64)>) -> TaskSpec {
@@ -270,6 +286,30 @@ mod tests {
             }
         }
         assert_eq!(ends.into_iter().collect::<Vec<_>>(), vec![3, 4, 5, 6, 7, 8]);
+    }
+
+    #[test]
+    fn planned_subtasks_start_at_the_approach_or_where_marked() {
+        let mut plan = spec(None);
+        for sub in &mut plan.subtasks {
+            sub.transit = Transit::Plan;
+            sub.approach_m = 0.035;
+        }
+        // The gripper descends 1 cm a step from 10 cm above the object: within 3.5 cm at step 7,
+        // in the second subtask; the first never comes that near and starts where it did.
+        let demo = demo_with_object_at("cube", 0.0);
+        let seg = Segmentation::new(std::slice::from_ref(&demo), &plan).unwrap();
+        assert_eq!(seg.approach_starts(0), &[Some(0), Some(7)]);
+        assert_eq!(seg.draw_spans(&mut ChaCha8Rng::seed_from_u64(0))[0], vec![(0, 5), (7, 10)]);
+        let mut marked = demo.clone();
+        marked.manual_subtask_starts = Some(vec![Some(1), None]);
+        let seg = Segmentation::new(std::slice::from_ref(&marked), &plan).unwrap();
+        assert_eq!(seg.approach_starts(0), &[Some(1), Some(7)]);
+        marked.manual_subtask_starts = Some(vec![None, Some(9)]);
+        let err = Segmentation::new(&[marked], &plan).unwrap_err().to_string();
+        assert!(err.contains("subtask 1") && err.contains("hand-marked start 9"), "{err}");
+        // Interpolated subtasks keep MimicGen's segments.
+        assert_eq!(Segmentation::new(&[demo], &spec(None)).unwrap().approach_starts(0), &[None, None]);
     }
 
     #[test]

@@ -15,6 +15,10 @@ use crate::tree::{self, Array, Dataset, Group, Node};
 
 /// Root attribute the [`crate::DatasetWriter`] sets to 0 while writing and to 1 when finished.
 pub const COMPLETE_ATTR: &str = "mimicgen_complete";
+/// Attribute of `data/<demo>`: the hand-marked start of each subtask's segment (one integer per
+/// subtask, -1 where none is marked), written by `mimicgen annotate --starts`; planned transit
+/// replays each segment from there. The reference MimicGen ignores it.
+pub const STARTS_ATTR: &str = "mimicgen_subtask_starts";
 
 /// Fields a demo needs to serve as a MimicGen source demo (paths below `data/demo_N`).
 pub const REQUIRED_FIELDS: [&str; 6] = [
@@ -327,6 +331,24 @@ pub fn source_demo_from_group(file: &str, name: &str, demo: &Group) -> Result<So
     }
     let actions = rows(file, &group, "actions", demo.dataset("actions"))?;
     let states = rows(file, &group, "states", demo.dataset("states"))?;
+    let manual_subtask_starts = match demo.attrs.get(STARTS_ATTR) {
+        None => None,
+        Some(a) => {
+            let values =
+                a.values.to_i64().ok_or_else(|| invalid(file, &group, STARTS_ATTR, "expected integers (-1 where no start is marked)"))?;
+            Some(
+                values
+                    .iter()
+                    .map(|&v| match usize::try_from(v) {
+                        Ok(step) if step < steps => Ok(Some(step)),
+                        Ok(step) => Err(invalid(file, &group, STARTS_ATTR, &format!("start {step} is past the demo's {steps} steps"))),
+                        Err(_) if v == -1 => Ok(None),
+                        Err(_) => Err(invalid(file, &group, STARTS_ATTR, &format!("{v} is neither a step nor -1"))),
+                    })
+                    .collect::<Result<Vec<_>>>()?,
+            )
+        }
+    };
     Ok(SourceDemo {
         name: name.to_owned(),
         eef_poses: poses_of("eef_pose", info, &dg_group)?,
@@ -335,6 +357,7 @@ pub fn source_demo_from_group(file: &str, name: &str, demo: &Group) -> Result<So
         object_poses,
         subtask_term_signals,
         manual_subtask_ends: None,
+        manual_subtask_starts,
         sim: SimPayload { actions, states, model_xml: demo.attrs.get("model_file").and_then(Array::as_str).map(str::to_owned) },
     })
 }

@@ -220,12 +220,19 @@ pub fn propose_streaming(
 /// Writes `input` to `out` with each demo of `ends` given the subtask-end signals of those ends
 /// (exclusive, one per subtask but the last), named by the spec's `term_signal`s. As MimicGen's
 /// annotation script does, a demo's `subtask_term_signals` group is replaced by the annotated
-/// signals. Demos not in `ends` are copied unchanged.
+/// signals. Each demo of `starts` gets its hand-marked segment starts (one per subtask, `None`
+/// where not marked) in the `mimicgen_subtask_starts` attribute. Other demos are copied unchanged.
 ///
 /// # Errors
 /// [`PipelineError::Input`] for an unknown demo, a wrong number of ends, ends out of order or
 /// out of the demo, or a spec subtask without a `term_signal`; I/O errors naming the file.
-pub fn write_annotations(input: &Path, out: &Path, spec: &TaskSpec, ends: &BTreeMap<String, Vec<usize>>) -> Result<(), PipelineError> {
+pub fn write_annotations(
+    input: &Path,
+    out: &Path,
+    spec: &TaskSpec,
+    ends: &BTreeMap<String, Vec<usize>>,
+    starts: &BTreeMap<String, Vec<Option<usize>>>,
+) -> Result<(), PipelineError> {
     let names: Vec<String> = spec
         .subtasks
         .iter()
@@ -241,16 +248,43 @@ pub fn write_annotations(input: &Path, out: &Path, spec: &TaskSpec, ends: &BTree
             })
         })
         .collect::<Result<_, _>>()?;
-    write_signals(input, out, &names, ends)
+    write_signals(input, out, &names, ends, starts)
 }
 
 /// [`write_annotations`] with the signal names given (one per subtask but the last).
 ///
 /// # Errors
 /// As [`write_annotations`].
-pub fn write_signals(input: &Path, out: &Path, names: &[String], ends: &BTreeMap<String, Vec<usize>>) -> Result<(), PipelineError> {
+pub fn write_signals(
+    input: &Path,
+    out: &Path,
+    names: &[String],
+    ends: &BTreeMap<String, Vec<usize>>,
+    starts: &BTreeMap<String, Vec<Option<usize>>>,
+) -> Result<(), PipelineError> {
     let mut file = RobomimicDataset::open(input)?;
     let label = input.display().to_string();
+    for (demo, demo_starts) in starts {
+        let (len, field) = (file.demo_len(demo), format!("data/{demo}"));
+        if demo_starts.len() != names.len() + 1 {
+            return Err(PipelineError::input(
+                label.clone(),
+                field,
+                format!("{} segment starts given, the task has {} subtasks", demo_starts.len(), names.len() + 1),
+            ));
+        }
+        if let Some(step) = demo_starts.iter().flatten().find(|&&s| s >= len) {
+            return Err(PipelineError::input(label.clone(), field, format!("segment start {step} is past the demo's {len} steps")));
+        }
+        let Some(Node::Group(data)) = file.root.members.get_mut("data") else {
+            return Err(PipelineError::input(label.clone(), "data", "missing"));
+        };
+        let Some(Node::Group(group)) = data.members.get_mut(demo) else {
+            return Err(PipelineError::input(label.clone(), field, "no such demo"));
+        };
+        let values: Vec<i64> = demo_starts.iter().map(|s| s.and_then(|s| i64::try_from(s).ok()).unwrap_or(-1)).collect();
+        group.attrs.insert(mimicgen_io::dataset::STARTS_ATTR.to_owned(), Array::i64(vec![values.len()], values));
+    }
     for (demo, demo_ends) in ends {
         let len = file.demo_len(demo);
         let field = format!("data/{demo}");

@@ -243,7 +243,7 @@ fn written_annotations_read_back_as_the_same_segments() {
     let out = dir.path().join("annotated.hdf5");
     let spec = TaskSpec::load(&data("../engine/tests/data/config_D0.json")).unwrap();
     let ends = std::collections::BTreeMap::from([("demo_0".to_owned(), vec![40]), ("demo_3".to_owned(), vec![77])]);
-    annotate::write_annotations(&source, &out, &spec, &ends).unwrap();
+    annotate::write_annotations(&source, &out, &spec, &ends, &std::collections::BTreeMap::new()).unwrap();
     let back = mimicgen_io::read_source_dataset(&out, &spec.source).unwrap();
     let segmentation = Segmentation::new(&back.demos, &spec).unwrap();
     assert_eq!(segmentation.nominal_spans(0)[0], (0, 40));
@@ -254,10 +254,58 @@ fn written_annotations_read_back_as_the_same_segments() {
     let original = mimicgen_io::read_source_dataset(&source, &spec.source).unwrap();
     assert_eq!(back.demos[1], original.demos[1]);
     // Bad ends name the demo.
-    let err = annotate::write_annotations(&source, &out, &spec, &std::collections::BTreeMap::from([("demo_0".to_owned(), vec![500])]))
-        .unwrap_err()
-        .to_string();
+    let err = annotate::write_annotations(
+        &source,
+        &out,
+        &spec,
+        &std::collections::BTreeMap::from([("demo_0".to_owned(), vec![500])]),
+        &std::collections::BTreeMap::new(),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(err.contains("demo_0") && err.contains("500"), "{err}");
+}
+
+/// Hand-marked segment starts are written beside the ends, read back, and replace the detected
+/// approach of a planned subtask; a start past the demo is refused naming the demo.
+#[test]
+fn marked_segment_starts_read_back_and_start_planned_segments() {
+    use std::collections::BTreeMap;
+
+    use mimicgen_engine::spec::Transit;
+    use mimicgen_pipeline::annotate;
+    let source = data("../io/tests/data/source_D0_prepared.hdf5");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("marked.hdf5");
+    let mut spec = TaskSpec::load(&data("../engine/tests/data/config_D0.json")).unwrap();
+    let original = mimicgen_io::read_source_dataset(&source, &spec.source).unwrap();
+    // Three steps into demo_2's place (which runs to the demo's end).
+    let (place_start, place_end) = Segmentation::new(&original.demos, &spec).unwrap().nominal_spans(2)[1];
+    let mark = place_start + 3;
+    assert!(mark + 2 < place_end);
+    let starts = BTreeMap::from([("demo_2".to_owned(), vec![None, Some(mark)])]);
+    annotate::write_annotations(&source, &out, &spec, &BTreeMap::new(), &starts).unwrap();
+    let back = mimicgen_io::read_source_dataset(&out, &spec.source).unwrap();
+    assert_eq!(back.demos[2].manual_subtask_starts, Some(vec![None, Some(mark)]));
+    assert_eq!(back.demos[1].manual_subtask_starts, None);
+    for subtask in &mut spec.subtasks {
+        subtask.transit = Transit::Plan;
+    }
+    let detected = Segmentation::new(&original.demos, &spec).unwrap();
+    let marked = Segmentation::new(&back.demos, &spec).unwrap();
+    assert_eq!(marked.approach_starts(2)[1], Some(mark));
+    assert_ne!(detected.approach_starts(2)[1], Some(mark));
+    assert_eq!(marked.approach_starts(2)[0], detected.approach_starts(2)[0]);
+    let err = annotate::write_annotations(
+        &source,
+        &out,
+        &spec,
+        &BTreeMap::new(),
+        &BTreeMap::from([("demo_0".to_owned(), vec![None, Some(5000)])]),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("demo_0") && err.contains("5000"), "{err}");
 }
 
 /// "Try it" in the app is the attempt a run makes: same seed and index, same actions step for

@@ -784,14 +784,23 @@ mod tests {
         let wrong_object = STACK.replace("grasped = \"cubeA\"", "grasped = \"cubeZ\"");
         let err = TaskFile::from_toml_str(&wrong_object, "my.task.toml").unwrap_err();
         assert!(err.contains("my.task.toml") && err.contains("signals.grasp") && err.contains("cubeZ"), "{err}");
-        let missing_variant = STACK.replace("variants = [\"D0\", \"D1\"]", "variants = [\"D0\", \"D1\", \"D2\"]");
+        let missing_variant = STACK.replace("variants = [\"D0\", \"D1\", \"C0\"]", "variants = [\"D0\", \"D1\", \"C0\", \"D2\"]");
         let err = TaskFile::from_toml_str(&missing_variant, "my.task.toml").unwrap_err();
         assert!(err.contains("place.D2"), "{err}");
         let typo = STACK.replace("above_m", "abov_m");
         let err = TaskFile::from_toml_str(&typo, "my.task.toml").unwrap_err();
         assert!(err.contains("my.task.toml") && err.contains("abov_m"), "{err}");
         let file = TaskFile::from_toml_str(STACK, "stack").unwrap_or_else(|e| panic!("{e}"));
-        assert!(DataTask::new(file, "D7").unwrap_err().contains("D0 and D1"));
+        assert!(DataTask::new(file.clone(), "D7").unwrap_err().contains("D0, D1 and C0"));
+        // The clutter is in C0's scene only, and names only variants the task has.
+        assert_eq!(DataTask::new(file.clone(), "D0").unwrap().file().objects.len(), 2);
+        assert_eq!(DataTask::new(file, "C0").unwrap().file().objects.len(), 3);
+        let unknown = STACK.replace("variants = [\"C0\"]", "variants = [\"C9\"]");
+        let err = TaskFile::from_toml_str(&unknown, "my.task.toml").unwrap_err();
+        assert!(err.contains("\"wall\"") && err.contains("C9"), "{err}");
+        let named = STACK.replace("grasped = \"cubeA\"", "grasped = \"wall\"");
+        let err = TaskFile::from_toml_str(&named, "my.task.toml").unwrap_err();
+        assert!(err.contains("only some variants"), "{err}");
     }
 
     #[test]

@@ -123,5 +123,5 @@ fn bad_scenes_name_the_file_and_what_is_missing() {
     let empty = mimicgen_sim::compose::compose_scene(&assets, &[], mimicgen_sim::compose::BASE_TABLE_TOP_Z);
     let err = Scene::compile(&empty, "empty.xml", &task.objects(), 20.0).unwrap_err().to_string();
     assert!(err.contains("empty.xml") && err.contains("cubeA_main"), "{err}");
-    assert!(registry::task("stack", "D7").err().unwrap_or_default().contains("D0 and D1"));
+    assert!(registry::task("stack", "D7").err().unwrap_or_default().contains("D0, D1 and C0"));
 }

@@ -137,6 +137,7 @@ impl Trajectory {
             object_poses: self.object_poses.clone(),
             subtask_term_signals: self.subtask_term_signals.clone(),
             manual_subtask_ends: None,
+            manual_subtask_starts: None,
             sim: SimPayload { actions: self.actions.clone(), states: self.states.clone(), model_xml: None },
         }
     }
