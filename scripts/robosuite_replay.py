@@ -77,10 +77,10 @@ ROBOSUITE_BASE = {"Square": "NutAssemblySquare"}
 
 
 def resolve_env_name(name, registered):
-    """MimicGen names task variants `Stack_D0`, `Square_D1`, ...; robosuite only has the base task."""
+    """MimicGen names task variants `Stack_D0`, `Square_D1`, ... (ours also `Stack_C0`, `MugCleanup_O1`); robosuite only has the base task."""
     if name in registered:
         return name
-    base = re.sub(r"_D\d+$", "", name)
+    base = re.sub(r"_[A-Z]\d+$", "", name)
     base = ROBOSUITE_BASE.get(base, base)
     if base in registered:
         return base
