@@ -78,6 +78,13 @@ def test_errors_are_mimicgen_errors_naming_the_file_and_field(tmp_path):
         mg.generate(tmp_path / "o.hdf5", spec={"noise": 0.1})
 
 
+def test_planned_transit_in_clutter_is_a_spec_field(tmp_path):
+    report = mg.generate(tmp_path / "c0.hdf5", task="stack", variant="C0", num_demos=2, workers=1, spec={"transit": "plan"}).wait()
+    assert report["transit"]["planned"] >= 2 and report["spec_overrides"]["transit"][0]["value"] == "plan"
+    with pytest.raises(mg.MimicgenError, match="interpolate"):
+        mg.generate(tmp_path / "o.hdf5", num_demos=1, spec={"transit": "teleport"}).wait()
+
+
 def test_an_existing_output_is_refused_in_pythons_words_and_keeps_its_bytes(small_run, tmp_path):
     out, _, _ = small_run
     before = out.read_bytes()
