@@ -16,7 +16,7 @@ Examples:
   mimicgen annotate sources.hdf5 --ends demo_0=52 --ends demo_3=60 --auto --out annotated.hdf5
   mimicgen annotate sources.hdf5 --auto                                      # just print the proposals
   mimicgen annotate core/io/tests/data/source_D0_prepared.hdf5 --auto --json  # compare with the stored signals
-  mimicgen annotate sources.hdf5 --starts demo_0=1:120 --out marked.hdf5     # where demo_0's place begins
+  mimicgen annotate sources.hdf5 --starts demo_0=1:90 --out marked.hdf5     # where demo_0's place begins
 
 A subtask end is the last step of the subtask, as MimicGen's annotation script marks it: the
 subtask's signal is written 0 before that step and 1 from it on, into
