@@ -36,10 +36,14 @@ pub fn set_mocap_pose(data: &mut MjData<Arc<MjModel>>, mocap: usize, world_from_
     data.mocap_quat_mut()[mocap] = quat_to_wxyz(&world_from_body.rotation);
 }
 
-/// Per geom of `scene`: which side of an obstacle contact it is on (see `SimEnv::obstacle_side`).
+/// Per geom of `scene`: which side of an obstacle contact it is on (see `SimEnv::obstacle_side`);
+/// empty for a task without obstacles, so that counting costs its steps nothing.
 fn obstacle_sides(scene: &Scene, task: &dyn Task) -> Vec<Option<bool>> {
-    let mut sides: Vec<Option<bool>> = robot_geoms(scene).into_iter().map(|robot| robot.then_some(false)).collect();
     let obstacles = task.obstacles();
+    if obstacles.is_empty() {
+        return Vec::new();
+    }
+    let mut sides: Vec<Option<bool>> = robot_geoms(scene).into_iter().map(|robot| robot.then_some(false)).collect();
     for (i, object) in scene.objects.iter().enumerate() {
         for &g in &object.geoms {
             if let Some(side) = sides.get_mut(g) {
@@ -65,7 +69,7 @@ pub struct SimEnv {
     /// The planning model for transits, made at the first one.
     planning: Option<Planning>,
     /// Per geom: `Some(true)` an obstacle's, `Some(false)` the robot's or a task object's, `None`
-    /// anything else (the table, the walls).
+    /// anything else (the table, the walls); empty when the task has no obstacles.
     obstacle_side: Vec<Option<bool>>,
 }
 
@@ -512,6 +516,9 @@ impl Environment for SimEnv {
     }
 
     fn obstacle_contacts(&self) -> usize {
+        if self.obstacle_side.is_empty() {
+            return 0;
+        }
         let side = |g: i32| usize::try_from(g).ok().and_then(|g| self.obstacle_side.get(g).copied().flatten());
         self.data.contact().iter().filter(|c| matches!((side(c.geom[0]), side(c.geom[1])), (Some(a), Some(b)) if a != b)).count()
     }
