@@ -114,6 +114,15 @@ pub struct SubtaskSpec {
     pub approach_m: f64,
 }
 
+impl SubtaskSpec {
+    /// The action noise of the steps that bridge to the segment (interpolated or planned): the
+    /// subtask's noise with `apply_noise_during_interpolation`, else none.
+    #[must_use]
+    pub fn bridge_noise(&self) -> f64 {
+        if self.apply_noise_during_interpolation { self.action_noise } else { 0.0 }
+    }
+}
+
 /// How the robot gets from where it is to the first pose of a subtask's segment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

@@ -273,7 +273,7 @@ impl Generator {
             }
         };
         plan.transit = Some(path.stats);
-        let noise = if spec.apply_noise_during_interpolation { spec.action_noise } else { 0.0 };
+        let noise = spec.bridge_noise();
         // The path ends at the goal, held a few steps for the arm to catch up with it.
         let hold = std::iter::repeat_n(goal.pose, self.spec.generation.planner.hold_steps);
         let bridge = path
@@ -349,7 +349,7 @@ impl Generator {
             Some(pose) if settings.interpolate_from_last_target_pose && !is_first => pose,
             _ => here.world_from_eef,
         };
-        let interp_noise = if subtask.apply_noise_during_interpolation { subtask.action_noise } else { 0.0 };
+        let interp_noise = subtask.bridge_noise();
         // A planned transit replaces the interpolation (it is planned when the attempt gets here).
         let num_interp = if subtask.transit == Transit::Plan { 0 } else { subtask.num_interpolation_steps };
         let waypoints = subtask_waypoints(
