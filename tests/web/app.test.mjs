@@ -153,6 +153,11 @@ test("annotate, save, reopen, run, inspect a failure, 3D, and a run that survive
   const cursor = (await state(page)).cursor;
   await page.keyboard.press("e");
   s = await until(page, "the moved end", (s) => s.dirty && s.ends[0] === cursor + 1);
+  // S marks where the segment of the subtask under the cursor starts (here the second's).
+  for (let i = 0; i < 3; i++) await page.keyboard.press("ArrowRight");
+  await page.keyboard.press("s");
+  s = await until(page, "the marked start", (s) => s.starts[1] === cursor + 3);
+  assert.equal(s.starts[0], null, "the first subtask's start is left to the detector");
   await shot(page, "web_annotate.png");
 
   // Save as a new file, then reopen it from the app's own file browser.
@@ -168,6 +173,7 @@ test("annotate, save, reopen, run, inspect a failure, 3D, and a run that survive
   await click(page, "Button", /^annotated\.hdf5/);
   s = await until(page, "reopened", (s) => s.file && s.file.endsWith("annotated.hdf5") && s.in_flight === 0 && s.demos > 0);
   assert.equal(s.ends[0], cursor + 1, "the saved end reads back");
+  assert.deepEqual(s.starts, [null, cursor + 3], "so does the marked start");
   // The 3D view: the Rerun web viewer beside the canvas, fed by the server's stream through the
   // page's own origin, with one time cursor.
   const grpc = [];

@@ -14,6 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
 
 use mimicgen_engine::image::{ImageStream, Pixels};
+use mimicgen_engine::spec::Transit;
 use mimicgen_engine::transform::WaypointKind;
 use mimicgen_engine::{Attempt, Overrides, Plan, Pose, RunStats, SourceDataset, SourceDemo};
 use mimicgen_io::{ATTEMPT_ATTR, DemoReader, DemoSource as _, FAILURE_ATTR, INSTANCE_ATTR, IoError, ReadOptions, source_demo_from_group};
@@ -52,6 +53,7 @@ fn demo_view(d: &SourceDemo, a: &DemoAnnotation) -> DemoView {
             .collect(),
         signals: d.subtask_term_signals.clone(),
         stored_ends: a.signal_ends.clone(),
+        stored_starts: d.manual_subtask_starts.clone(),
         proposals: a.proposals.iter().map(|p| ProposalView { end: p.end, confidence: p.confidence, reason: p.reason.clone() }).collect(),
     }
 }
@@ -76,6 +78,8 @@ fn stream(path: &Path, prepared_from: Option<&Path>, send: &dyn Fn(Reply)) -> Re
                 variants: mimicgen_sim::registry::tasks().find(|t| t.name == spec.name).map(|t| t.variants.clone()).unwrap_or_default(),
                 signal_names: spec.subtasks.iter().take(last).map(|s| s.term_signal.clone().unwrap_or_default()).collect(),
                 subtask_objects: spec.subtasks.iter().map(|s| s.object_ref.clone()).collect(),
+                approach_m: spec.subtasks.iter().map(|s| s.approach_m).collect(),
+                planned: spec.subtasks.iter().map(|s| s.transit == Transit::Plan).collect(),
                 total_demos: total,
                 demos: Vec::new(),
             };
@@ -691,11 +695,11 @@ impl Worker {
         let previewer = match &mut self.previewer {
             Some((made_from, previewer)) if *made_from == config => previewer,
             slot => {
-                let previewer = Previewer::new(&config, &request.ends)?;
+                let previewer = Previewer::new(&config, &request.marks)?;
                 &mut slot.insert((config, previewer)).1
             }
         };
-        previewer.configure(&request.ends, request.seed)?;
+        previewer.configure(&request.marks, request.seed)?;
         let mut overrides = Overrides { sources: request.sources.clone(), ..Overrides::default() };
         if !request.moved.is_empty() {
             let sampled = previewer.plan(request.index, &overrides)?.initial_object_poses;
@@ -762,7 +766,7 @@ impl Worker {
                 }
                 Err(e) => Reply::Failed { what: format!("opening {}", path.display()), error: e.to_string() },
             },
-            Request::Save { source, out, ends, signal_names, overwrite } => {
+            Request::Save { source, out, marks, signal_names, overwrite } => {
                 if out.canonicalize().is_ok_and(|o| source.canonicalize().is_ok_and(|s| s == o)) {
                     return Reply::Failed {
                         what: format!("saving {}", out.display()),
@@ -775,8 +779,8 @@ impl Worker {
                         error: format!("{} exists: choose a new file, or tick \"replace\" to save over it", out.display()),
                     };
                 }
-                match annotate::write_signals(&source, &out, &signal_names, &ends, &BTreeMap::new()) {
-                    Ok(()) => Reply::Saved { out, demos: ends.len() },
+                match annotate::write_signals(&source, &out, &signal_names, &marks.ends, &marks.starts) {
+                    Ok(()) => Reply::Saved { out, demos: marks.ends.len() },
                     Err(e) => Reply::Failed { what: format!("saving {}", out.display()), error: e.to_string() },
                 }
             }

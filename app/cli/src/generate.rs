@@ -222,7 +222,8 @@ pub struct SpecArgs {
 }
 
 impl SpecArgs {
-    fn overrides(&self) -> SpecOverrides {
+    /// The spec fields given, as every front end takes them.
+    pub fn overrides(&self) -> SpecOverrides {
         SpecOverrides {
             selection: self.selection.clone(),
             nn_k: self.nn_k.clone(),

@@ -71,7 +71,8 @@ Examples:
   mimicgen app --run 100                         # start a 100-attempt run on the generate screen
   mimicgen app --run 20 --attempt 1              # then attempt 1, beside the nearest success if it failed
   mimicgen app core/sim/data/square_D0_source.hdf5 --run 3 --robot ur5e --cameras   # another arm, images
-  mimicgen app --demo 3 --screenshot annotate.png  # the docs' screenshots (under Xvfb too)")]
+  mimicgen app --demo 3 --screenshot annotate.png  # the docs' screenshots (under Xvfb too)
+  mimicgen app --screen preview --variant C0 --transit plan   # planned transit around the clutter")]
     App {
         /// Source demos to open (default: the bundled Stack D0 demos).
         file: Option<PathBuf>,
@@ -90,8 +91,9 @@ Examples:
         /// Start a run of this many attempts on the generate screen (to out/app_run.hdf5, replaced).
         #[arg(long, value_name = "ATTEMPTS")]
         run: Option<usize>,
-        /// With --run: the task variant (see `mimicgen tasks`; default the source demos').
-        #[arg(long, requires = "run")]
+        /// The task variant the preview and --run draw scenes from (see `mimicgen tasks`; default
+        /// the source demos').
+        #[arg(long)]
         variant: Option<String>,
         /// With --run: the arm (see `mimicgen tasks`; default the source demos').
         #[arg(long, requires = "run")]
@@ -106,6 +108,9 @@ Examples:
         /// Once everything is shown, save the window to this PNG and exit.
         #[arg(long, value_name = "FILE.png")]
         screenshot: Option<PathBuf>,
+        /// Spec fields for the preview and the run form, as `generate` takes them.
+        #[command(flatten)]
+        spec: generate::SpecArgs,
     },
     /// The inspection app in a browser, for machines without a display: serves the app and runs
     /// its backend here; open the printed URL (through `ssh -L 8080:localhost:8080 host`).
@@ -406,7 +411,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             generate::demos(&args)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::App { file, screen, demo, step, try_it, run, variant, robot, cameras, attempt, screenshot } => {
+        Command::App { file, screen, demo, step, try_it, run, variant, robot, cameras, attempt, screenshot, spec } => {
             let file = match file {
                 Some(f) => f,
                 None => mimicgen_pipeline::bundled::source_demos("stack")?,
@@ -428,6 +433,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 cameras,
                 attempt,
                 screenshot,
+                spec: spec.overrides(),
             };
             mimicgen_gui::run(options).map_err(|e| {
                 anyhow::anyhow!("cannot open the app's window ({e}); without a display, use the batch commands (`mimicgen generate`, `mimicgen annotate`)")

@@ -39,8 +39,10 @@ pub struct RunOptions {
     /// Start a run of this many attempts (to `out/app_run.hdf5`, replacing it) on the generate
     /// screen.
     pub run: Option<usize>,
-    /// With `run`: the task variant (`None`: the source file's).
+    /// The task variant the preview and the run draw scenes from (`None`: the source file's).
     pub variant: Option<String>,
+    /// Spec fields set over the task spec's, in the run form (so in the preview and the run).
+    pub spec: model::SpecOverrides,
     /// The run's arm (`ur5e`; the source demos' when `None`).
     pub robot: Option<String>,
     /// Render robomimic's two cameras into the run's dataset.
@@ -70,6 +72,11 @@ impl Window {
         if let Some(t) = options.step {
             steps.push(Command::SetCursor(t));
         }
+        // Before the screen: showing the preview copies the form's variant and spec fields.
+        let form = model::RunForm { variant: options.variant.clone(), spec: options.spec.clone(), ..model::RunForm::default() };
+        if form.variant.is_some() || form.spec != model::SpecOverrides::default() {
+            steps.push(Command::SetRunForm(Box::new(form.clone())));
+        }
         if options.screen != Screen::Annotate {
             steps.push(Command::Show(options.screen));
         }
@@ -81,10 +88,9 @@ impl Window {
             steps.push(Command::SetRunForm(Box::new(model::RunForm {
                 attempts,
                 overwrite: true,
-                variant: options.variant.clone(),
                 robot: options.robot.clone(),
                 cameras: options.cameras.then(model::CameraConfig::default),
-                ..model::RunForm::default()
+                ..form
             })));
             steps.push(Command::StartRun);
         }

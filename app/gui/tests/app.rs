@@ -1,7 +1,8 @@
 //! The app driven through its real UI with egui_kittest (no display): open files (source demos, a
 //! broken file, a plain robomimic file, a large file), annotate (keyboard, mouse, undo and redo,
-//! auto-detect, save and reload), preview and try attempts (new scenes, forced sources, dragged
-//! objects), the 3D view's recording, and generation runs (start, progress, cancel, re-run).
+//! auto-detect, segment starts, save and reload), preview and try attempts (new scenes, forced
+//! sources, dragged objects, planned transit), the 3D view's recording, and generation runs
+//! (start, progress, cancel, re-run).
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 #![allow(clippy::float_cmp)] // positions pass through the backend unchanged: exact comparisons are the point
 
@@ -80,13 +81,83 @@ fn keyboard_moves_a_subtask_end_and_undo_redo_restore_it() {
     h.key_press(egui::Key::E);
     h.run_steps(2);
     assert_eq!(h.state().model.demo_ends(), vec![13], "E puts the selected end at the cursor (its last step)");
-    assert!(h.state().model.dirty);
+    assert!(h.state().model.annotation.dirty);
     h.get_by_label("Undo").click();
     h.run_steps(2);
     assert_eq!(h.state().model.demo_ends(), before);
     h.get_by_label("Redo").click();
     h.run_steps(2);
     assert_eq!(h.state().model.demo_ends(), vec![13]);
+}
+
+/// SkillGen-style segment starts: marked by button and key, cleared, used by a preview whose
+/// transit the run form plans (the segment starts at the mark, the teal path leads to it), and
+/// saved where the generator reads them.
+#[test]
+fn segment_starts_are_marked_previewed_with_planned_transit_and_saved() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("starts.hdf5");
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    let end = h.state().model.demo_ends()[0];
+    h.state_mut().command(Command::SetCursor(6));
+    h.run_steps(2);
+    // One "start at cursor" per subtask: the first row's marks subtask 0.
+    h.get_all_by_label("start at cursor").next().unwrap().click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_starts(), vec![Some(6), None]);
+    h.get_by_label("segment starts at step 6 (marked)");
+    // S marks the start of the subtask under the cursor: past the end, the second.
+    h.state_mut().command(Command::SetCursor(end + 3));
+    h.run_steps(2);
+    h.key_press(egui::Key::S);
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_starts(), vec![Some(6), Some(end + 3)]);
+    h.get_all_by_label("clear start").next().unwrap().click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_starts(), vec![None, Some(end + 3)]);
+    h.get_by_label_contains("(detected)");
+    h.get_by_label("Undo").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_starts(), vec![Some(6), Some(end + 3)]);
+    // The run form plans transit (clicked: the spec fields, the transit box, "plan").
+    h.get_by_label("Generate").click();
+    h.run_steps(2);
+    h.get_by_label("Spec fields").click();
+    h.run_steps(2);
+    h.get_by_label("transit").click();
+    h.run_steps(2);
+    h.get_by_label("plan").click();
+    h.run_steps(2);
+    let transit = &h.state().model.run_form.spec.transit;
+    assert!(
+        matches!(transit[..], [mimicgen_pipeline::Scoped { subtask: None, value: mimicgen_engine::spec::Transit::Plan }]),
+        "{transit:?}"
+    );
+    h.get_by_label_contains("--transit plan");
+    // The preview of demo_0's first segment starts at the mark, reached by a planned path.
+    h.get_by_label("Preview").click();
+    h.step();
+    settle(&mut h);
+    h.state_mut().command(Command::SetPreviewSource { subtask: 0, demo: Some(0) });
+    settle(&mut h);
+    let view = h.state().model.preview.view.clone().unwrap();
+    assert!(h.state().model.error.is_none(), "{:?}", h.state().model.error);
+    assert_eq!(view.subtasks[0].src_span.0, 6, "the segment starts at the marked step");
+    assert!(view.subtasks[0].transit.len() > 2, "a planned transit leads to it");
+    h.get_by_label_contains("teal: planned");
+    // Saved and reopened: the file holds the starts.
+    h.get_by_label("Annotate").click();
+    h.run_steps(2);
+    h.state_mut().command(Command::Save(out.clone()));
+    settle(&mut h);
+    assert!(h.state().model.error.is_none(), "{:?}", h.state().model.error);
+    h.state_mut().command(Command::Open(out));
+    settle(&mut h);
+    let reopened = h.state().model.file.as_ref().unwrap();
+    assert_eq!(reopened.demos[0].stored_starts, Some(vec![Some(6), Some(end + 3)]));
+    assert_eq!(reopened.demos[1].stored_starts, None, "demos without marks get none");
+    assert_eq!(h.state().model.demo_starts(), vec![Some(6), Some(end + 3)]);
 }
 
 #[test]
@@ -98,7 +169,7 @@ fn accepted_proposals_are_saved_where_mimicgen_reads_them() {
     h.state_mut().command(Command::SetEnd { subtask: 0, end: 20 });
     h.get_by_label("Auto-detect all").click();
     h.run_steps(2);
-    let expected = h.state().model.ends.clone();
+    let expected = h.state().model.annotation.marks.ends.clone();
     assert_ne!(expected["demo_0"], vec![20], "auto-detect replaced the hand-set end");
     h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Save to:").click();
     h.run_steps(2);
@@ -109,7 +180,7 @@ fn accepted_proposals_are_saved_where_mimicgen_reads_them() {
     h.step();
     settle(&mut h);
     assert!(h.state().model.error.is_none(), "{:?}", h.state().model.error);
-    assert!(!h.state().model.dirty, "{}", h.state().model.status);
+    assert!(!h.state().model.annotation.dirty, "{}", h.state().model.status);
     // Reload the saved file in the app: its stored signals are the saved ends.
     h.state_mut().command(Command::Open(out.clone()));
     settle(&mut h);
@@ -328,8 +399,8 @@ fn a_large_file_streams_in_and_is_browsable_before_it_is_read() {
     settle(&mut h);
     let model = &h.state().model;
     assert_eq!(model.file.as_ref().unwrap().demos.len(), 90);
-    assert_eq!(model.ends.len(), 90);
-    assert_eq!(model.ends["demo_83"], model.ends["demo_3"], "copies of a demo get its ends");
+    assert_eq!(model.annotation.marks.ends.len(), 90);
+    assert_eq!(model.annotation.marks.ends["demo_83"], model.annotation.marks.ends["demo_3"], "copies of a demo get its ends");
     h.get_by_label("90 demos");
 }
 

@@ -80,8 +80,8 @@ impl Root {
             Request::ListDir { path } => Request::ListDir { path: self.resolve(&path)? },
             Request::OpenCompare { path } => Request::OpenCompare { path: self.resolve(&path)? },
             Request::OpenRun { path } => Request::OpenRun { path: self.resolve(&path)? },
-            Request::Save { source, out, ends, signal_names, overwrite } => {
-                Request::Save { source: self.resolve(&source)?, out: self.resolve(&out)?, ends, signal_names, overwrite }
+            Request::Save { source, out, marks, signal_names, overwrite } => {
+                Request::Save { source: self.resolve(&source)?, out: self.resolve(&out)?, marks, signal_names, overwrite }
             }
             Request::Preview(r) => Request::Preview(Box::new(preview(*r)?)),
             Request::SideBySide(pair) => {
@@ -176,7 +176,7 @@ mod tests {
         let save = Request::Save {
             source: "a.hdf5".into(),
             out: "/tmp/../etc/x.hdf5".into(),
-            ends: Default::default(),
+            marks: Default::default(),
             signal_names: Vec::new(),
             overwrite: false,
         };

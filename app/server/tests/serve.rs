@@ -198,7 +198,7 @@ fn every_path_stays_inside_the_root() {
             Request::Save {
                 source: "link/demos.hdf5".into(),
                 out: "a.hdf5".into(),
-                ends: Default::default(),
+                marks: Default::default(),
                 signal_names: Vec::new(),
                 overwrite: false,
             },

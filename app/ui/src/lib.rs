@@ -29,6 +29,7 @@
 //! assert_eq!(app.model.in_flight, 1);
 //! ```
 
+pub mod annotation;
 pub mod model;
 pub mod preview_ui;
 pub mod protocol;

@@ -8,8 +8,10 @@ use std::path::{Path, PathBuf};
 use mimicgen_engine::RunStats;
 use mimicgen_engine::coverage::Dimension;
 pub use mimicgen_run::CameraConfig;
-use mimicgen_run::{Report, RunConfig, RunInfo, SpecOverrides};
+pub use mimicgen_run::SpecOverrides;
+use mimicgen_run::{Report, RunConfig, RunInfo};
 
+use crate::annotation::Annotation;
 use crate::protocol::{
     AttemptRow, Listing, LoadedFile, OpenedRun, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink, Welcome,
 };
@@ -239,6 +241,16 @@ pub enum Command {
     },
     /// Set the selected boundary so that the step under the cursor is its subtask's last.
     SetEndAtCursor,
+    /// Mark where the segment of `subtask` starts in the shown demo (`None`: unmark, so the
+    /// approach detector decides). Matters for subtasks whose transit is planned.
+    SetStart {
+        /// The subtask.
+        subtask: usize,
+        /// The first step of its segment.
+        start: Option<usize>,
+    },
+    /// Mark the step under the cursor as the start of the segment of the subtask it lies in.
+    SetStartAtCursor,
     /// Replace the shown demo's ends with the proposals.
     AcceptProposals,
     /// Replace every demo's ends with the proposals.
@@ -316,13 +328,6 @@ pub enum Command {
     Open3d(ViewerSink),
 }
 
-/// One change of ends, kept for undo: the demo and its ends before.
-#[derive(Debug, Clone, PartialEq)]
-struct Edit {
-    demo: String,
-    before: Vec<usize>,
-}
-
 /// The app's state.
 #[derive(Debug, Default)]
 pub struct AppModel {
@@ -336,10 +341,8 @@ pub struct AppModel {
     pub cursor: usize,
     /// The subtask end the keyboard moves.
     pub boundary: usize,
-    /// The annotation: ends (exclusive) per demo.
-    pub ends: BTreeMap<String, Vec<usize>>,
-    /// Whether the annotation has changed since it was opened or saved.
-    pub dirty: bool,
+    /// The annotation: subtask ends and segment starts per demo, with undo.
+    pub annotation: Annotation,
     /// Playing the shown demo.
     pub playing: bool,
     /// What the backend is doing, if anything.
@@ -378,8 +381,6 @@ pub struct AppModel {
     pub welcome: Welcome,
     /// Whether "Save as" may replace an existing file.
     pub save_overwrite: bool,
-    undo: Vec<Edit>,
-    redo: Vec<Edit>,
 }
 
 impl AppModel {
@@ -392,30 +393,31 @@ impl AppModel {
     /// The ends of the shown demo.
     #[must_use]
     pub fn demo_ends(&self) -> Vec<usize> {
-        self.demo().and_then(|d| self.ends.get(&d.name)).cloned().unwrap_or_default()
+        self.demo().map(|d| self.annotation.ends(&d.name)).unwrap_or_default()
     }
 
-    /// Whether undo has anything to undo.
+    /// Whether transit to subtask `k` is planned, and how near its object the segment starts
+    /// (m), as a run from the form would have them: the form's spec fields over the file's spec.
     #[must_use]
-    pub fn can_undo(&self) -> bool {
-        !self.undo.is_empty()
-    }
-
-    /// Whether redo has anything to redo.
-    #[must_use]
-    pub fn can_redo(&self) -> bool {
-        !self.redo.is_empty()
-    }
-
-    fn change_ends(&mut self, demo: &str, ends: Vec<usize>) {
-        let before = self.ends.get(demo).cloned().unwrap_or_default();
-        if before == ends {
-            return;
+    pub fn approach(&self, k: usize) -> (bool, f64) {
+        let file = self.file.as_ref();
+        let spec = &self.run_form.spec;
+        // As `SpecOverrides::apply` reads them: the last value given for all subtasks or for `k`.
+        fn last<T: Copy>(values: &[mimicgen_run::Scoped<T>], k: usize) -> Option<T> {
+            values.iter().rev().find(|s| s.subtask.is_none_or(|j| j == k)).map(|s| s.value)
         }
-        self.undo.push(Edit { demo: demo.to_owned(), before });
-        self.redo.clear();
-        self.ends.insert(demo.to_owned(), ends);
-        self.dirty = true;
+        let planned = last(&spec.transit, k).map(|t| t == mimicgen_engine::spec::Transit::Plan);
+        let approach_m = last(&spec.approach_m, k);
+        (
+            planned.unwrap_or_else(|| file.and_then(|f| f.planned.get(k).copied()).unwrap_or(false)),
+            approach_m.or_else(|| file.and_then(|f| f.approach_m.get(k).copied())).unwrap_or(0.1),
+        )
+    }
+
+    /// The marked segment starts of the shown demo (one per subtask, `None` where unmarked).
+    #[must_use]
+    pub fn demo_starts(&self) -> Vec<Option<usize>> {
+        self.demo().map(|d| self.annotation.starts(&d.name)).unwrap_or_default()
     }
 
     /// A new run: no attempt selected or side by side, the 3D view following.
@@ -442,7 +444,7 @@ impl AppModel {
         self.busy = Some(format!("{} attempt {} (seed {})", if execute { "trying" } else { "planning" }, p.index, p.seed));
         Some(Request::Preview(Box::new(PreviewRequest {
             source: file.path.clone(),
-            ends: self.ends.clone(),
+            marks: self.annotation.marks.clone(),
             seed: p.seed,
             index: p.index,
             sources: p.sources.clone(),
@@ -467,7 +469,7 @@ impl AppModel {
         let (Some(source), Some(seed)) = (open, run.config.seed) else { return Err("the run's seed is not known".to_owned()) };
         Ok(PreviewRequest {
             source,
-            ends: self.ends.clone(),
+            marks: self.annotation.marks.clone(),
             seed,
             index,
             sources: Vec::new(),
@@ -511,51 +513,35 @@ impl AppModel {
                 }
             }
             Command::SetEnd { subtask, end } => {
-                let name = self.demo().map(|d| d.name.clone())?;
-                let mut ends = self.demo_ends();
-                if subtask < ends.len() {
-                    // Keep every segment at least two steps long, so that each signal is off for
-                    // at least one step before it turns on (what MimicGen's parser needs).
-                    let low = if subtask == 0 { 2 } else { ends[subtask - 1] + 2 };
-                    let high = ends.get(subtask + 1).map_or(len.saturating_sub(1), |&e| e.saturating_sub(2));
-                    ends[subtask] = end.clamp(low, high.max(low));
-                    self.change_ends(&name, ends);
-                }
+                let demo = self.file.as_ref()?.demos.get(self.selected)?;
+                self.annotation.set_end(demo, subtask, end);
+            }
+            Command::SetStart { subtask, start } => {
+                let demo = self.file.as_ref()?.demos.get(self.selected)?;
+                self.annotation.set_start(demo, subtask, start);
+            }
+            Command::SetStartAtCursor => {
+                let subtask = self.demo_ends().iter().take_while(|&&end| end <= self.cursor).count();
+                return self.apply_command(Command::SetStart { subtask, start: Some(self.cursor) });
             }
             Command::SetEndAtCursor => {
                 let subtask = self.boundary;
                 return self.apply_command(Command::SetEnd { subtask, end: self.cursor + 1 });
             }
             Command::AcceptProposals => {
-                if let Some(d) = self.demo() {
-                    let (name, ends) = (d.name.clone(), d.proposals.iter().map(|p| p.end).collect());
-                    self.change_ends(&name, ends);
-                }
+                let demo = self.file.as_ref()?.demos.get(self.selected)?;
+                self.annotation.set_ends(demo, demo.proposals.iter().map(|p| p.end).collect());
             }
             Command::AcceptAllProposals => {
-                let all: Vec<(String, Vec<usize>)> = self
-                    .file
-                    .iter()
-                    .flat_map(|f| &f.demos)
-                    .map(|d| (d.name.clone(), d.proposals.iter().map(|p| p.end).collect()))
-                    .collect();
-                for (name, ends) in all {
-                    self.change_ends(&name, ends);
+                for demo in self.file.iter().flat_map(|f| &f.demos) {
+                    self.annotation.set_ends(demo, demo.proposals.iter().map(|p| p.end).collect());
                 }
             }
             Command::Undo => {
-                if let Some(edit) = self.undo.pop() {
-                    let now = self.ends.insert(edit.demo.clone(), edit.before).unwrap_or_default();
-                    self.redo.push(Edit { demo: edit.demo, before: now });
-                    self.dirty = true;
-                }
+                self.annotation.undo();
             }
             Command::Redo => {
-                if let Some(edit) = self.redo.pop() {
-                    let now = self.ends.insert(edit.demo.clone(), edit.before).unwrap_or_default();
-                    self.undo.push(Edit { demo: edit.demo, before: now });
-                    self.dirty = true;
-                }
+                self.annotation.redo();
             }
             Command::Save(out) => {
                 let file = self.file.as_ref()?;
@@ -565,7 +551,8 @@ impl AppModel {
                     return None;
                 }
                 self.busy = Some(format!("saving {}", out.display()));
-                return Some(Request::Save { source, out, ends: self.ends.clone(), signal_names, overwrite: self.save_overwrite });
+                let marks = self.annotation.marks.clone();
+                return Some(Request::Save { source, out, marks, signal_names, overwrite: self.save_overwrite });
             }
             Command::SetSaveOverwrite(on) => self.save_overwrite = on,
             Command::TogglePlay => self.playing = !self.playing && len > 0,
@@ -630,9 +617,9 @@ impl AppModel {
                     self.error = Some("a run is going: cancel it or wait for it to end".to_owned());
                     return None;
                 }
-                if self.dirty {
+                if self.annotation.dirty {
                     self.error = Some(format!(
-                        "the subtask ends have unsaved changes: save them (\"Save as\") and open the saved file first; a run reads the ends from {}",
+                        "the subtask ends or starts have unsaved changes: save them (\"Save as\") and open the saved file first; a run reads the ends from {}",
                         file.path.display()
                     ));
                     return None;
@@ -755,9 +742,7 @@ impl AppModel {
             Reply::Run(update) => self.on_run_update(update),
             Reply::MoreDemos { path, demos, .. } => {
                 let Some(file) = self.file.as_mut().filter(|f| f.path == path) else { return };
-                for d in &demos {
-                    self.ends.insert(d.name.clone(), d.stored_ends.clone().unwrap_or_else(|| d.proposals.iter().map(|p| p.end).collect()));
-                }
+                self.annotation.add(&demos);
                 file.demos.extend(demos);
                 let (loaded, total) = (file.demos.len(), file.total_demos);
                 if loaded < total {
@@ -769,11 +754,7 @@ impl AppModel {
                 }
             }
             Reply::Opened(file) => {
-                self.ends = file
-                    .demos
-                    .iter()
-                    .map(|d| (d.name.clone(), d.stored_ends.clone().unwrap_or_else(|| d.proposals.iter().map(|p| p.end).collect())))
-                    .collect();
+                self.annotation = Annotation::opened(&file.demos);
                 self.status = match &file.prepared_from {
                     Some(plain) => format!(
                         "opened {} ({} demos of {}), prepared by replay into {}",
@@ -788,9 +769,6 @@ impl AppModel {
                 self.selected = 0;
                 self.cursor = 0;
                 self.boundary = 0;
-                self.undo.clear();
-                self.redo.clear();
-                self.dirty = false;
                 self.error = None;
                 self.preview.sources.clear();
                 self.preview.view = None;
@@ -811,7 +789,7 @@ impl AppModel {
             Reply::Images { demo, cameras } => self.images = (demo, cameras),
             Reply::Saved { out, demos } => {
                 self.status = format!("saved the subtask ends of {demos} demos to {}", out.display());
-                self.dirty = false;
+                self.annotation.dirty = false;
                 self.error = None;
             }
             Reply::Previewed(view) => {
@@ -885,6 +863,7 @@ mod tests {
             distances: BTreeMap::new(),
             signals: BTreeMap::new(),
             stored_ends: Some(ends),
+            stored_starts: None,
             proposals: Vec::new(),
         };
         let mut m = AppModel::default();
@@ -896,6 +875,8 @@ mod tests {
             task: "t".into(),
             signal_names: vec!["a".into(), "b".into()],
             subtask_objects: vec![Some("a".into()), Some("b".into())],
+            approach_m: vec![0.1, 0.1],
+            planned: vec![false, true],
             demos: vec![demo],
         })));
         m
@@ -917,7 +898,27 @@ mod tests {
         assert_eq!(m.demo_ends(), vec![28, 30]);
         // A new change clears what could be redone.
         m.apply(Command::SetEnd { subtask: 1, end: 40 });
-        assert!(!m.can_redo());
+        assert!(!m.annotation.can_redo());
+    }
+
+    #[test]
+    fn a_start_marked_at_the_cursor_belongs_to_the_subtask_there_and_is_previewed_and_saved() {
+        let mut m = model(50, vec![10, 30]);
+        m.apply(Command::SetCursor(14));
+        m.apply(Command::SetStartAtCursor);
+        assert_eq!(m.demo_starts(), vec![None, Some(14), None]);
+        m.apply(Command::SetCursor(45));
+        m.apply(Command::SetStartAtCursor);
+        assert_eq!(m.demo_starts(), vec![None, Some(14), Some(45)]);
+        assert!(m.annotation.dirty);
+        let Some(Request::Preview(p)) = m.apply(Command::Show(Screen::Preview)) else { panic!("no preview asked") };
+        assert_eq!(p.marks.starts["demo_0"], vec![None, Some(14), Some(45)]);
+        m.apply(Command::SetStart { subtask: 1, start: None });
+        m.apply(Command::Undo);
+        assert_eq!(m.demo_starts()[1], Some(14));
+        let Some(Request::Save { marks, .. }) = m.apply(Command::Save("g.hdf5".into())) else { panic!("no save asked") };
+        assert_eq!(marks.starts["demo_0"], vec![None, Some(14), Some(45)]);
+        assert_eq!(m.apply(Command::StartRun), None, "unsaved starts keep a run from starting");
     }
 
     #[test]
@@ -925,7 +926,7 @@ mod tests {
         let mut m = model(50, vec![10]);
         m.apply(Command::SetEnd { subtask: 0, end: 20 });
         let Some(Request::Preview(p)) = m.apply(Command::Show(Screen::Preview)) else { panic!("no preview asked") };
-        assert_eq!((p.seed, p.index, p.execute, p.ends["demo_0"].clone()), (1, 0, false, vec![20]));
+        assert_eq!((p.seed, p.index, p.execute, p.marks.ends["demo_0"].clone()), (1, 0, false, vec![20]));
         let Some(Request::Preview(p)) = m.apply(Command::NextScene) else { panic!("no preview asked") };
         assert_eq!(p.index, 1);
         assert_eq!(m.apply(Command::SetPreviewSource { subtask: 0, demo: Some(3) }), None, "there is one demo");
@@ -979,8 +980,8 @@ mod tests {
         assert_eq!(m.file.as_ref().unwrap().demos.len(), 1, "parts of another file are ignored");
         m.on_reply(Reply::MoreDemos { path: "big.hdf5".into(), demos: vec![second], last: true });
         assert_eq!((m.in_flight, m.file.as_ref().unwrap().demos.len()), (0, 2));
-        assert_eq!(m.ends["demo_1"], vec![10]);
-        assert_eq!(m.ends["demo_0"], vec![12], "edits made while it streamed are kept");
+        assert_eq!(m.annotation.marks.ends["demo_1"], vec![10]);
+        assert_eq!(m.annotation.marks.ends["demo_0"], vec![12], "edits made while it streamed are kept");
         assert!(m.busy.is_none());
     }
 

@@ -5,8 +5,8 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use mimicgen_engine::RunStats;
 use mimicgen_engine::coverage::Dimension;
+use mimicgen_engine::{RunStats, SubtaskMarks};
 use mimicgen_run::{Report, RunConfig, RunInfo, SpecOverrides};
 use serde::{Deserialize, Serialize};
 
@@ -18,14 +18,14 @@ pub enum Request {
         /// The file.
         path: PathBuf,
     },
-    /// Write `source` to `out` with these subtask ends (exclusive, per demo).
+    /// Write `source` to `out` with these subtask ends (exclusive, per demo) and segment starts.
     Save {
         /// The file the demos came from.
         source: PathBuf,
         /// Where to write.
         out: PathBuf,
-        /// Ends per demo.
-        ends: BTreeMap<String, Vec<usize>>,
+        /// Ends and starts per demo.
+        marks: SubtaskMarks,
         /// The signal each subtask end is written to.
         signal_names: Vec<String>,
         /// Replace `out` if it exists (else an existing `out` is refused).
@@ -143,8 +143,8 @@ pub enum ViewerSink {
 pub struct PreviewRequest {
     /// The source demos.
     pub source: PathBuf,
-    /// Subtask ends (exclusive) per demo, as annotated.
-    pub ends: BTreeMap<String, Vec<usize>>,
+    /// Subtask ends and segment starts per demo, as annotated.
+    pub marks: SubtaskMarks,
     /// Run seed.
     pub seed: u64,
     /// Attempt index (its scene and random draws).
@@ -254,6 +254,11 @@ pub struct LoadedFile {
     pub signal_names: Vec<String>,
     /// The object each subtask is relative to.
     pub subtask_objects: Vec<Option<String>>,
+    /// Per subtask, how near its object the end effector must come for the segment to start
+    /// there (m; the spec's `approach_m`, what the auto-detected start uses).
+    pub approach_m: Vec<f64>,
+    /// Per subtask, whether the spec plans its transit (only then does a segment start matter).
+    pub planned: Vec<bool>,
     /// How many demos the file has (more than `demos` while it is still streaming in).
     pub total_demos: usize,
     /// The demos read so far, in file order.
@@ -314,6 +319,8 @@ pub struct DemoView {
     pub signals: BTreeMap<String, Vec<i64>>,
     /// The ends the stored signals give (exclusive), when they give all.
     pub stored_ends: Option<Vec<usize>>,
+    /// The segment starts marked in the file (one per subtask, `None` where unmarked).
+    pub stored_starts: Option<Vec<Option<usize>>>,
     /// Proposed ends.
     pub proposals: Vec<ProposalView>,
 }

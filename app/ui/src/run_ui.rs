@@ -151,7 +151,7 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: 
         }
     });
     ui.label(RichText::new(f.command_line(&file.path)).monospace().small());
-    if model.dirty {
+    if model.annotation.dirty {
         ui.label(RichText::new("Unsaved subtask ends: a run reads the ends saved in the file.").italics());
     }
     ui.separator();

@@ -1,8 +1,9 @@
 //! Drawing: reads the model, returns commands. Nothing here changes state directly.
 
 use egui::{Color32, Key, Modifiers, RichText};
-use egui_plot::{Corner, Legend, Line, Plot, PlotPoints, Span, VLine};
+use egui_plot::{Corner, Legend, Line, LineStyle, Plot, PlotPoints, Span, VLine};
 
+use crate::annotation::detected_start;
 use crate::model::{AppModel, Command, Screen};
 use crate::protocol::DemoView;
 
@@ -78,6 +79,9 @@ pub fn keys(ctx: &egui::Context, commands: &mut Vec<Command>) {
         if i.key_pressed(Key::E) {
             commands.push(Command::SetEndAtCursor);
         }
+        if i.key_pressed(Key::S) {
+            commands.push(Command::SetStartAtCursor);
+        }
         for (k, key) in [Key::Num1, Key::Num2, Key::Num3, Key::Num4, Key::Num5].into_iter().enumerate() {
             if i.key_pressed(key) {
                 commands.push(Command::SelectBoundary(k));
@@ -118,10 +122,10 @@ pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, command
         {
             commands.push(Command::AcceptAllProposals);
         }
-        if ui.add_enabled(model.can_undo(), egui::Button::new("Undo")).clicked() {
+        if ui.add_enabled(model.annotation.can_undo(), egui::Button::new("Undo")).clicked() {
             commands.push(Command::Undo);
         }
-        if ui.add_enabled(model.can_redo(), egui::Button::new("Redo")).clicked() {
+        if ui.add_enabled(model.annotation.can_redo(), egui::Button::new("Redo")).clicked() {
             commands.push(Command::Redo);
         }
         ui.separator();
@@ -167,7 +171,7 @@ pub fn top_bar(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, command
         } else {
             ui.label(&model.status);
         }
-        if model.dirty {
+        if model.annotation.dirty {
             ui.label(RichText::new("unsaved changes").italics());
         }
     });
@@ -183,7 +187,7 @@ pub fn demo_list(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command
     egui::ScrollArea::vertical().show_rows(ui, 18.0, file.demos.len(), |ui, rows| {
         for i in rows {
             let d = &file.demos[i];
-            let ends = model.ends.get(&d.name);
+            let ends = model.annotation.marks.ends.get(&d.name);
             let edited = ends.is_some_and(|e| d.stored_ends.as_ref() != Some(e));
             let text = format!("{}  {} steps{}", d.name, d.len, if edited { "  (edited)" } else { "" });
             if ui.selectable_label(model.selected == i, text).clicked() {
@@ -226,10 +230,20 @@ pub fn timeline(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
             commands.push(Command::AcceptProposals);
         }
     });
-    for (k, &end) in ends.iter().enumerate() {
+    let starts = model.demo_starts();
+    let mut shown_starts = Vec::new();
+    for k in 0..=ends.len() {
+        let object = file.and_then(|f| f.subtask_objects.get(k).cloned().flatten());
+        let (planned, approach_m) = model.approach(k);
+        let detected = detected_start(demo, object.as_deref(), &ends, k, approach_m);
         ui.horizontal(|ui| {
+            let object = object.as_deref().unwrap_or("no object");
+            let Some(&end) = ends.get(k) else {
+                ui.label(RichText::new(format!("subtask {k} ({object}) ends with the demo")).color(subtask_color(k)));
+                segment_start(ui, k, starts.get(k).copied().flatten(), detected, planned, model.cursor, commands);
+                return;
+            };
             let signal = file.and_then(|f| f.signal_names.get(k)).map_or("", String::as_str);
-            let object = file.and_then(|f| f.subtask_objects.get(k).cloned().flatten()).unwrap_or_default();
             let label = RichText::new(format!("subtask {k} ({object}, {signal}) ends at step {}", end - 1)).color(subtask_color(k));
             if ui.selectable_label(model.boundary == k, label).on_hover_text("Select, then press E to move it to the cursor").clicked() {
                 commands.push(Command::SelectBoundary(k));
@@ -245,10 +259,51 @@ pub fn timeline(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
             if let Some(stored) = demo.stored_ends.as_ref().and_then(|s| s.get(k)) {
                 ui.label(format!("stored signal: step {}", stored - 1));
             }
+            segment_start(ui, k, starts.get(k).copied().flatten(), detected, planned, model.cursor, commands);
+        });
+        shown_starts.push(match starts.get(k).copied().flatten() {
+            Some(marked) => Some((marked, true)),
+            None => detected.filter(|_| planned).map(|d| (d, false)),
         });
     }
     cameras(ui, model, state);
-    plots(ui, demo, &ends, model.cursor, state, commands);
+    plots(ui, demo, &ends, &shown_starts, model.cursor, state, commands);
+}
+
+/// Where subtask `k`'s segment starts: the marked step, or the approach detector's (`detected`),
+/// with buttons to mark the cursor's step and to clear a mark. The start matters where transit is
+/// `planned`: the robot plans its way to the segment's first pose and the steps before are skipped.
+fn segment_start(
+    ui: &mut egui::Ui,
+    k: usize,
+    marked: Option<usize>,
+    detected: Option<usize>,
+    planned: bool,
+    cursor: usize,
+    commands: &mut Vec<Command>,
+) {
+    ui.separator();
+    let text = match (marked, detected) {
+        (Some(m), _) => format!("segment starts at step {m} (marked)"),
+        (None, Some(d)) => format!("segment starts at step {d} (detected)"),
+        (None, None) => "segment starts with the subtask".to_owned(),
+    };
+    let hint = if planned {
+        "Transit to this subtask is planned: the steps before its segment's start are not replayed"
+    } else {
+        "Used when transit to this subtask is planned (--transit plan); with interpolation the segment starts with the subtask"
+    };
+    ui.label(RichText::new(text).color(subtask_color(k))).on_hover_text(hint);
+    if ui
+        .small_button("start at cursor")
+        .on_hover_text("Mark the cursor's step as this segment's start (S marks it in the subtask under the cursor)")
+        .clicked()
+    {
+        commands.push(Command::SetStart { subtask: k, start: Some(cursor) });
+    }
+    if marked.is_some() && ui.small_button("clear start").on_hover_text("Let the approach detector decide").clicked() {
+        commands.push(Command::SetStart { subtask: k, start: None });
+    }
 }
 
 /// The shown demo's camera images at the cursor, when its file has camera observations
@@ -289,7 +344,17 @@ fn cameras(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState) {
     });
 }
 
-fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, state: &mut UiState, commands: &mut Vec<Command>) {
+/// `starts`: per subtask, where its segment starts, and whether that was marked by hand (else
+/// detected; only shown for subtasks whose transit is planned).
+fn plots(
+    ui: &mut egui::Ui,
+    demo: &DemoView,
+    ends: &[usize],
+    starts: &[Option<(usize, bool)>],
+    cursor: usize,
+    state: &mut UiState,
+    commands: &mut Vec<Command>,
+) {
     #[allow(clippy::cast_precision_loss)]
     let x = |t: usize| t as f64;
     let n = demo.len;
@@ -321,6 +386,11 @@ fn plots(ui: &mut egui::Ui, demo: &DemoView, ends: &[usize], cursor: usize, stat
                         _ => x(end - 1),
                     };
                     plot.vline(VLine::new("", at).color(subtask_color(k)).width(2.0));
+                }
+                for (k, start) in starts.iter().enumerate() {
+                    let Some((t, marked)) = *start else { continue };
+                    let style = if marked { LineStyle::dashed_dense() } else { LineStyle::dotted_loose() };
+                    plot.vline(VLine::new("", x(t)).color(subtask_color(k)).width(if marked { 2.0 } else { 1.0 }).style(style));
                 }
                 plot.vline(VLine::new("", x(cursor)).color(Color32::GRAY));
                 (plot.response().clone(), plot.pointer_coordinate())

@@ -8,6 +8,18 @@ use serde::{Deserialize, Serialize};
 use crate::EngineError;
 use crate::pose::{Pose, check_finite};
 
+/// A hand-made annotation of some demos, by demo name: what the app and `mimicgen annotate` mark,
+/// used in place of what the file's signals and the approach detector give.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SubtaskMarks {
+    /// Subtask ends (exclusive, one per subtask but the last).
+    pub ends: BTreeMap<String, Vec<usize>>,
+    /// Segment starts (one per subtask, `None` where unmarked; see
+    /// [`SourceDemo::manual_subtask_starts`]).
+    #[serde(default)]
+    pub starts: BTreeMap<String, Vec<Option<usize>>>,
+}
+
 /// A row-major 2-D array of `f64` with a fixed row width (actions, flattened states, gripper actions).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Rows {

@@ -45,7 +45,7 @@ pub mod transit;
 #[cfg(test)]
 pub(crate) mod testing;
 
-pub use demo::{Rows, SimPayload, SourceDataset, SourceDemo};
+pub use demo::{Rows, SimPayload, SourceDataset, SourceDemo, SubtaskMarks};
 pub use env::{EnvError, Environment};
 pub use generate::{Attempt, Failure, FailureReason, Generator, Overrides, Plan, RunControl, RunStats, Shard, SubtaskPlan, run, run_with};
 pub use pose::Pose;

@@ -190,14 +190,24 @@ fn approach_starts(
             out.push(None);
             continue;
         };
-        let near = |t: usize| match (demo.eef_poses.get(t), poses.get(t)) {
-            (Some(eef), Some(obj)) => (eef.translation.vector - obj.translation.vector).norm() <= s.approach_m,
-            _ => false,
+        let distance = |t: usize| match (demo.eef_poses.get(t), poses.get(t)) {
+            (Some(eef), Some(obj)) => Some((eef.translation.vector - obj.translation.vector).norm()),
+            _ => None,
         };
-        let approach = (start..end).find(|&t| near(t)).unwrap_or(start);
-        out.push(Some(approach.min(latest_start).max(start)));
+        out.push(Some(approach_start(start..end, latest_start, s.approach_m, distance)));
     }
     Ok(out)
+}
+
+/// Where the approach to a subtask's object begins among its `steps`: the first step at which the
+/// end effector's `distance` to the object is within `approach_m` (the first step when it never
+/// is, or is that close already), and no later than `latest`. The auto-detected segment start,
+/// which the app proposes and a hand-marked start overrides.
+#[must_use]
+pub fn approach_start(steps: std::ops::Range<usize>, latest: usize, approach_m: f64, distance: impl Fn(usize) -> Option<f64>) -> usize {
+    let first = steps.start;
+    let approach = steps.clone().find(|&t| distance(t).is_some_and(|d| d <= approach_m)).unwrap_or(first);
+    approach.min(latest).max(first)
 }
 
 fn spans_from_ends(ends: &[usize]) -> Vec<Span> {

@@ -3,10 +3,9 @@
 //! that attempt executed in simulation. What the app's preview screen shows, from the same
 //! generator `generate` runs, so a previewed attempt is the one a run with that seed makes.
 
-use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use mimicgen_engine::{Attempt, Generator, Overrides, Plan};
+use mimicgen_engine::{Attempt, Generator, Overrides, Plan, SubtaskMarks};
 use mimicgen_sim::SimEnv;
 
 use crate::{Pipeline, PipelineError, RunConfig};
@@ -16,8 +15,8 @@ pub struct Previewer {
     pipeline: Pipeline,
     generator: Generator,
     env: SimEnv,
-    /// The ends and seed `generator` was made with, so an unchanged request rebuilds nothing.
-    configured: Option<(BTreeMap<String, Vec<usize>>, u64)>,
+    /// The marks and seed `generator` was made with, so an unchanged request rebuilds nothing.
+    configured: Option<(SubtaskMarks, u64)>,
 }
 
 impl std::fmt::Debug for Previewer {
@@ -28,12 +27,12 @@ impl std::fmt::Debug for Previewer {
 
 impl Previewer {
     /// Prepares `config` as a run would (task, variant, spec, sources, scene), with hand-set
-    /// subtask `ends` for the demos it names, and builds one simulator.
+    /// subtask ends for the demos `marks` names, and builds one simulator.
     ///
     /// # Errors
     /// As [`Pipeline::prepare_with_ends`].
-    pub fn new(config: &RunConfig, ends: &BTreeMap<String, Vec<usize>>) -> Result<Self, PipelineError> {
-        let pipeline = Pipeline::prepare_with_ends(config, ends)?;
+    pub fn new(config: &RunConfig, marks: &SubtaskMarks) -> Result<Self, PipelineError> {
+        let pipeline = Pipeline::prepare_with_ends(config, &marks.ends)?;
         let env = SimEnv::new(Arc::clone(pipeline.scene()), Arc::clone(pipeline.task()));
         let generator = pipeline.generator().clone();
         Ok(Self { pipeline, generator, env, configured: None })
@@ -51,18 +50,18 @@ impl Previewer {
         &self.generator
     }
 
-    /// Uses hand-set subtask ends (exclusive, per demo name) instead of the file's signals, and
-    /// run seed `seed`.
+    /// Uses the hand-made `marks` (subtask ends instead of the file's signals, segment starts
+    /// instead of the approach detector) and run seed `seed`.
     ///
     /// # Errors
-    /// [`PipelineError::Engine`] naming the demo whose ends do not fit.
-    pub fn configure(&mut self, ends: &BTreeMap<String, Vec<usize>>, seed: u64) -> Result<(), PipelineError> {
-        if self.configured.as_ref().is_some_and(|(e, s)| e == ends && *s == seed) {
+    /// [`PipelineError::Engine`] naming the demo whose ends or starts do not fit.
+    pub fn configure(&mut self, marks: &SubtaskMarks, seed: u64) -> Result<(), PipelineError> {
+        if self.configured.as_ref().is_some_and(|(m, s)| m == marks && *s == seed) {
             return Ok(());
         }
         let label = self.pipeline.source_path().display().to_string();
-        self.generator = self.pipeline.generator().with_subtask_ends(ends).map_err(|e| PipelineError::engine(label, e))?.with_seed(seed);
-        self.configured = Some((ends.clone(), seed));
+        self.generator = self.pipeline.generator().with_marks(marks).map_err(|e| PipelineError::engine(label, e))?.with_seed(seed);
+        self.configured = Some((marks.clone(), seed));
         Ok(())
     }
 

@@ -4,8 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use mimicgen_engine::TaskSpec;
 use mimicgen_engine::segment::Segmentation;
+use mimicgen_engine::{SubtaskMarks, TaskSpec};
 use mimicgen_io::RobomimicDataset;
 use mimicgen_io::tree::{Array, Node};
 use mimicgen_pipeline::{Event, FrontEnd, Outcome, Pipeline, PipelineError, RunConfig};
@@ -325,7 +325,7 @@ fn a_tried_attempt_is_the_attempt_a_run_makes() {
             _ => None,
         })
         .collect();
-    let mut preview = Previewer::new(&cfg, &std::collections::BTreeMap::new()).unwrap();
+    let mut preview = Previewer::new(&cfg, &SubtaskMarks::default()).unwrap();
     let signal_ends: std::collections::BTreeMap<String, Vec<usize>> = preview
         .generator()
         .dataset()
@@ -334,7 +334,8 @@ fn a_tried_attempt_is_the_attempt_a_run_makes() {
         .enumerate()
         .map(|(d, demo)| (demo.name.clone(), vec![preview.generator().segmentation().nominal_spans(d)[0].1]))
         .collect();
-    preview.configure(&signal_ends, 3).unwrap();
+    let marks = |ends: &std::collections::BTreeMap<String, Vec<usize>>| SubtaskMarks { ends: ends.clone(), ..SubtaskMarks::default() };
+    preview.configure(&marks(&signal_ends), 3).unwrap();
     for ran in &attempts {
         let tried = preview.try_attempt(ran.index, &Overrides::default()).unwrap();
         assert_eq!(tried.trajectory.actions, ran.trajectory.actions, "attempt {}", ran.index);
@@ -346,13 +347,17 @@ fn a_tried_attempt_is_the_attempt_a_run_makes() {
     let mut moved = signal_ends.clone();
     let name = preview.generator().dataset().demos[demo].name.clone();
     moved.insert(name.clone(), vec![signal_ends[&name][0] - 12]);
-    preview.configure(&moved, 3).unwrap();
+    preview.configure(&marks(&moved), 3).unwrap();
     let plan = preview.plan(attempts[0].index, &Overrides { sources: vec![Some(demo)], ..Overrides::default() }).unwrap();
     assert_eq!(plan.subtasks[0].src_span.1 + 12, attempts[0].plans[0].src_span.1);
     // Ends that do not fit name the demo.
     let bad = std::collections::BTreeMap::from([(name.clone(), vec![100_000])]);
-    let err = preview.configure(&bad, 3).unwrap_err().to_string();
+    let err = preview.configure(&marks(&bad), 3).unwrap_err().to_string();
     assert!(err.contains(&name), "{err}");
+    // So do starts of a demo the file does not have.
+    let unknown = SubtaskMarks { starts: std::collections::BTreeMap::from([("demo_99".to_owned(), vec![None, Some(3)])]), ..marks(&moved) };
+    let err = preview.configure(&unknown, 3).unwrap_err().to_string();
+    assert!(err.contains("demo_99") && err.contains("segment starts"), "{err}");
 }
 
 /// Spec fields given for a run (`--action-noise 1:0.2`, the app's form) change the spec the run

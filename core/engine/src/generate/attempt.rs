@@ -10,7 +10,7 @@ use super::attempt_rng;
 use super::records::{Attempt, Failure, FailureReason, SubtaskPlan, Trajectory};
 use crate::EngineError;
 use crate::action::POSE_ACTION_DIM;
-use crate::demo::SourceDataset;
+use crate::demo::{SourceDataset, SubtaskMarks};
 use crate::env::{EnvError, Environment};
 use crate::pose::Pose;
 use crate::segment::{Segmentation, Span};
@@ -40,21 +40,32 @@ impl Generator {
         Ok(Self { spec, dataset, segmentation })
     }
 
-    /// The same generator with hand-set subtask ends (exclusive, one per subtask but the last)
-    /// for the demos `ends` names, in place of their signals.
+    /// The same generator with the hand-made `marks`: subtask ends in place of the signals, and
+    /// segment starts in place of the approach detector, for the demos each names.
     ///
     /// # Errors
     /// [`EngineError::UnknownName`] for a demo that does not exist, [`EngineError::Segmentation`]
-    /// for ends that do not fit the demo.
-    pub fn with_subtask_ends(&self, ends: &BTreeMap<String, Vec<usize>>) -> Result<Self, EngineError> {
+    /// for ends or starts that do not fit the demo.
+    pub fn with_marks(&self, marks: &SubtaskMarks) -> Result<Self, EngineError> {
         let mut dataset = self.dataset.clone();
-        for (name, demo_ends) in ends {
-            let demo = dataset.demos.iter_mut().find(|d| &d.name == name).ok_or_else(|| EngineError::UnknownName {
-                field: "subtask ends".to_owned(),
-                name: name.clone(),
-                available: self.dataset.demos.iter().map(|d| d.name.clone()).collect(),
-            })?;
-            demo.manual_subtask_ends = Some(demo_ends.clone());
+        let find = |field: &str, name: &String| {
+            let available = || self.dataset.demos.iter().map(|d| d.name.clone()).collect();
+            let found = dataset.demos.iter().position(|d| &d.name == name);
+            found.ok_or_else(|| EngineError::UnknownName { field: field.to_owned(), name: name.clone(), available: available() })
+        };
+        let mut ends = Vec::new();
+        for (name, demo_ends) in &marks.ends {
+            ends.push((find("subtask ends", name)?, demo_ends));
+        }
+        let mut starts = Vec::new();
+        for (name, demo_starts) in &marks.starts {
+            starts.push((find("segment starts", name)?, demo_starts));
+        }
+        for (i, demo_ends) in ends {
+            dataset.demos[i].manual_subtask_ends = Some(demo_ends.clone());
+        }
+        for (i, demo_starts) in starts {
+            dataset.demos[i].manual_subtask_starts = Some(demo_starts.clone());
         }
         let segmentation = Segmentation::new(&dataset.demos, &self.spec)?;
         Ok(Self { spec: self.spec.clone(), dataset, segmentation })
