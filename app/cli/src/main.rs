@@ -10,6 +10,7 @@ use mimicgen_io::info::DatasetInfo;
 use mimicgen_io::{DemoReader, DemoSource as _, ReadOptions};
 
 mod annotate;
+mod app;
 mod bench_app;
 mod bench_io;
 mod bench_render;
@@ -73,45 +74,7 @@ Examples:
   mimicgen app core/sim/data/square_D0_source.hdf5 --run 3 --robot ur5e --cameras   # another arm, images
   mimicgen app --demo 3 --screenshot annotate.png  # the docs' screenshots (under Xvfb too)
   mimicgen app --screen preview --variant C0 --transit plan   # planned transit around the clutter")]
-    App {
-        /// Source demos to open (default: the bundled Stack D0 demos).
-        file: Option<PathBuf>,
-        /// Screen to show once the file is open.
-        #[arg(long, value_enum, default_value = "annotate")]
-        screen: ScreenArg,
-        /// Demo to show (index in the file).
-        #[arg(long)]
-        demo: Option<usize>,
-        /// Step to put the time cursor at.
-        #[arg(long)]
-        step: Option<usize>,
-        /// Try the previewed attempt in simulation once the preview is shown.
-        #[arg(long)]
-        try_it: bool,
-        /// Start a run of this many attempts on the generate screen (to out/app_run.hdf5, replaced).
-        #[arg(long, value_name = "ATTEMPTS")]
-        run: Option<usize>,
-        /// The task variant the preview and --run draw scenes from (see `mimicgen tasks`; default
-        /// the source demos').
-        #[arg(long)]
-        variant: Option<String>,
-        /// With --run: the arm (see `mimicgen tasks`; default the source demos').
-        #[arg(long, requires = "run")]
-        robot: Option<String>,
-        /// With --run: render robomimic's two cameras (agentview, the wrist) into the dataset.
-        #[arg(long, requires = "run")]
-        cameras: bool,
-        /// After --run: select this attempt (the 3D view stays on it) and, if it failed, show it
-        /// beside the nearest successful attempt.
-        #[arg(long, requires = "run")]
-        attempt: Option<u64>,
-        /// Once everything is shown, save the window to this PNG and exit.
-        #[arg(long, value_name = "FILE.png")]
-        screenshot: Option<PathBuf>,
-        /// Spec fields for the preview and the run form, as `generate` takes them.
-        #[command(flatten)]
-        spec: generate::SpecArgs,
-    },
+    App(Box<app::AppArgs>),
     /// The inspection app in a browser, for machines without a display: serves the app and runs
     /// its backend here; open the printed URL (through `ssh -L 8080:localhost:8080 host`).
     Serve(serve::ServeArgs),
@@ -411,33 +374,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             generate::demos(&args)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::App { file, screen, demo, step, try_it, run, variant, robot, cameras, attempt, screenshot, spec } => {
-            let file = match file {
-                Some(f) => f,
-                None => mimicgen_pipeline::bundled::source_demos("stack")?,
-            };
-            let screen = match screen {
-                ScreenArg::Annotate => mimicgen_gui::Screen::Annotate,
-                ScreenArg::Preview => mimicgen_gui::Screen::Preview,
-                ScreenArg::Generate => mimicgen_gui::Screen::Generate,
-            };
-            let options = mimicgen_gui::RunOptions {
-                file: Some(file),
-                screen,
-                demo,
-                step,
-                try_it,
-                run,
-                variant,
-                robot,
-                cameras,
-                attempt,
-                screenshot,
-                spec: spec.overrides(),
-            };
-            mimicgen_gui::run(options).map_err(|e| {
-                anyhow::anyhow!("cannot open the app's window ({e}); without a display, use the batch commands (`mimicgen generate`, `mimicgen annotate`)")
-            })?;
+        Command::App(args) => {
+            app::run(*args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Serve(args) => {
@@ -467,7 +405,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::CompileModel => {
             let mut xml = String::new();
             std::io::Read::read_to_string(&mut std::io::stdin(), &mut xml).context("reading the MJCF from stdin")?;
-            mimicgen_sim::model_cache::store_compiled(&xml).map_err(|e| anyhow::anyhow!("compiling the scene: {e}"))?;
+            mimicgen_sim::scene::store_compiled(&xml).map_err(|e| anyhow::anyhow!("compiling the scene: {e}"))?;
             Ok(ExitCode::SUCCESS)
         }
         Command::BenchRender(args) => {
@@ -561,15 +499,4 @@ fn print_info(info: &DatasetInfo) -> anyhow::Result<()> {
         outln!("  MimicGen source: no: {}", info.report);
     }
     Ok(())
-}
-
-/// The app's screens, as `--screen` names them.
-#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
-enum ScreenArg {
-    /// Demo timelines and subtask ends.
-    Annotate,
-    /// An attempt over a new scene, and "try it".
-    Preview,
-    /// A generation run, live.
-    Generate,
 }

@@ -81,7 +81,7 @@ impl Annotation {
 
     /// Replaces `demo`'s marks, keeping the old ones for undo. Starts that no longer lie inside
     /// their subtask are dropped (the engine would refuse them).
-    fn change(&mut self, demo: &DemoView, ends: Vec<usize>, starts: Vec<Option<usize>>) {
+    fn change(&mut self, demo: &DemoView, ends: Vec<usize>, starts: &[Option<usize>]) {
         let starts: Vec<Option<usize>> =
             starts.iter().enumerate().map(|(k, s)| s.filter(|&s| start_range(&ends, demo.len, k).contains(&s))).collect();
         let before = self.edit(&demo.name);
@@ -115,13 +115,13 @@ impl Annotation {
         let high = ends.get(subtask + 1).map_or(demo.len.saturating_sub(1), |&e| e.saturating_sub(2));
         ends[subtask] = end.clamp(low, high.max(low));
         let starts = self.starts(&demo.name);
-        self.change(demo, ends, starts);
+        self.change(demo, ends, &starts);
     }
 
     /// Replaces `demo`'s ends (its marked starts kept where they still fit).
     pub fn set_ends(&mut self, demo: &DemoView, ends: Vec<usize>) {
         let starts = self.starts(&demo.name);
-        self.change(demo, ends, starts);
+        self.change(demo, ends, &starts);
     }
 
     /// Marks (or with `None` unmarks) where `subtask`'s segment starts in `demo`, clamped into
@@ -132,7 +132,7 @@ impl Annotation {
         let range = start_range(&ends, demo.len, subtask);
         let Some(slot) = starts.get_mut(subtask) else { return };
         *slot = start.map(|s| s.clamp(*range.start(), *range.end()));
-        self.change(demo, ends, starts);
+        self.change(demo, ends, &starts);
     }
 
     /// Undoes the last change; returns whether there was one.

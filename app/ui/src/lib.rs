@@ -30,10 +30,15 @@
 //! ```
 
 pub mod annotation;
+pub mod command;
+pub mod coverage_ui;
 pub mod model;
 pub mod preview_ui;
 pub mod protocol;
+pub mod run_form_ui;
+pub mod run_state;
 pub mod run_ui;
+pub mod style;
 pub mod ui;
 
 use std::path::PathBuf;
@@ -148,13 +153,15 @@ impl MimicgenApp {
             Screen::Preview => {
                 egui::Panel::left("preview").default_size(300.0).show(ui, |ui| preview_ui::controls(ui, &self.model, &mut commands));
                 let beside = egui::Panel::right("views").default_size(520.0);
-                main_area(ui, viewer, beside, |ui| preview_ui::views(ui, &self.model, &mut self.ui, &mut commands));
+                main_area(ui, viewer, beside, |ui| preview_ui::views(ui, &self.model, &mut self.ui.preview, &mut commands));
             }
             Screen::Generate => {
-                egui::Panel::left("run_form").default_size(300.0).show(ui, |ui| run_ui::form(ui, &self.model, &mut self.ui, &mut commands));
+                egui::Panel::left("run_form")
+                    .default_size(300.0)
+                    .show(ui, |ui| run_form_ui::form(ui, &self.model, &mut self.ui.run, &mut commands));
                 // Beside the 3D view, at most 60 % of the height, however much the run shows.
                 let beside = egui::Panel::bottom("run").default_size(420.0).max_size(0.6 * ctx.content_rect().height());
-                main_area(ui, viewer, beside, |ui| run_ui::progress(ui, &self.model, &mut self.ui, &mut commands));
+                main_area(ui, viewer, beside, |ui| run_ui::progress(ui, &self.model, &mut self.ui.run, &mut commands));
             }
         }
         for command in commands {

@@ -1,198 +1,21 @@
 //! The app's state and the one place that changes it: [`AppModel::apply`] takes a [`Command`] from
 //! the UI (or a test) and returns the backend request it needs, if any; [`AppModel::on_reply`]
 //! takes the backend's answers. Nothing here draws, reads files or waits.
+//!
+//! Longer than 500 lines on purpose: one `match` over every [`Command`] and one over every reply,
+//! each read best whole (the screens' own state lives in `annotation`, `run_state` and the
+//! `*_ui` modules); about a quarter of the file is its tests.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 
-use mimicgen_engine::RunStats;
-use mimicgen_engine::coverage::Dimension;
 pub use mimicgen_run::CameraConfig;
+use mimicgen_run::RunConfig;
 pub use mimicgen_run::SpecOverrides;
-use mimicgen_run::{Report, RunConfig, RunInfo};
 
 use crate::annotation::Annotation;
-use crate::protocol::{
-    AttemptRow, Listing, LoadedFile, OpenedRun, PreviewRequest, PreviewView, Reply, Request, RunUpdate, ViewerSink, Welcome,
-};
-
-/// The app's screens.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Screen {
-    /// Demo timelines and subtask ends.
-    #[default]
-    Annotate,
-    /// A transformed attempt over a new scene, and "try it".
-    Preview,
-    /// A generation run: its form, live progress and attempts.
-    Generate,
-}
-
-/// The run form: what `mimicgen generate` takes (the source is the open file, with the subtask
-/// ends it holds on disk).
-#[derive(Debug, Clone, PartialEq)]
-pub struct RunForm {
-    /// Attempts to make (successes to reach with `guarantee`).
-    pub attempts: usize,
-    /// Keep attempting until `attempts` successes.
-    pub guarantee: bool,
-    /// Run seed.
-    pub seed: u64,
-    /// Worker threads.
-    pub workers: usize,
-    /// Also write failed attempts.
-    pub keep_failed: bool,
-    /// End an attempt at the first subtask that misses its signal.
-    pub early_abort: bool,
-    /// Output dataset.
-    pub out: String,
-    /// Replace existing outputs.
-    pub overwrite: bool,
-    /// Task variant (`None`: what the source file names).
-    pub variant: Option<String>,
-    /// The arm (`None`: the source demos').
-    pub robot: Option<String>,
-    /// Camera observations rendered into the dataset (`None`: none).
-    pub cameras: Option<CameraConfig>,
-    /// Spec fields set for this run over the task spec's.
-    pub spec: SpecOverrides,
-}
-
-impl Default for RunForm {
-    fn default() -> Self {
-        Self {
-            attempts: 50,
-            guarantee: false,
-            seed: 1,
-            workers: 1,
-            keep_failed: true,
-            early_abort: false,
-            out: "out/app_run.hdf5".to_owned(),
-            overwrite: false,
-            variant: None,
-            robot: None,
-            cameras: None,
-            spec: SpecOverrides::default(),
-        }
-    }
-}
-
-impl RunForm {
-    /// The pipeline's config for a run over `source`. Every field of [`RunConfig`] is named, so
-    /// a field the pipeline gains does not compile here until the form has it (or says why not).
-    #[must_use]
-    pub fn config(&self, source: &Path) -> RunConfig {
-        RunConfig {
-            source: Some(source.to_path_buf()),
-            out: PathBuf::from(&self.out),
-            workers: self.workers.max(1),
-            num_demos: Some(self.attempts),
-            seed: Some(self.seed),
-            keep_failed: self.keep_failed,
-            guarantee: self.guarantee,
-            early_abort: self.early_abort,
-            overwrite: self.overwrite,
-            variant: self.variant.clone(),
-            robot: self.robot.clone(),
-            cameras: self.cameras.clone(),
-            spec: self.spec.clone(),
-            // The task and its spec are the open file's; the app makes whole runs (no shards,
-            // no attempt cap, no validation split) and starts over rather than resuming.
-            task: None,
-            config: None,
-            max_attempts: None,
-            valid_fraction: None,
-            resume: false,
-            shard: None,
-        }
-    }
-
-    /// The `mimicgen generate` line that makes the same run (for a batch machine).
-    #[must_use]
-    pub fn command_line(&self, source: &Path) -> String {
-        let quote = |s: &str| {
-            if s.chars().all(|c| c.is_ascii_alphanumeric() || "/._-+=:,".contains(c)) {
-                s.to_owned()
-            } else {
-                format!("'{}'", s.replace('\'', "'\\''"))
-            }
-        };
-        let args: Vec<String> = self.config(source).to_args().iter().map(|a| quote(a)).collect();
-        format!("mimicgen generate {}", args.join(" "))
-    }
-}
-
-/// The successful attempt whose initial objects are nearest `failed`'s (mean distance per object,
-/// cm), preferring those that used the same source demo for the subtask that failed.
-pub fn nearest_success<'a>(rows: &'a [AttemptRow], failed: &AttemptRow) -> Option<(&'a AttemptRow, f64)> {
-    let distance = |r: &AttemptRow| {
-        let pairs: Vec<f64> = failed
-            .objects
-            .iter()
-            .filter_map(|o| {
-                let p = r.objects.iter().find(|q| q.name == o.name)?;
-                Some(((o.position[0] - p.position[0]).powi(2) + (o.position[1] - p.position[1]).powi(2)).sqrt())
-            })
-            .collect();
-        #[allow(clippy::cast_precision_loss)]
-        let mean = pairs.iter().sum::<f64>() / pairs.len().max(1) as f64;
-        100.0 * mean
-    };
-    let source = failed.failed_subtask.and_then(|k| failed.sources.get(k).map(|d| (k, *d)));
-    let same_source = |r: &&AttemptRow| source.is_none_or(|(k, d)| r.sources.get(k) == Some(&d));
-    let candidates = |filter: &dyn Fn(&&AttemptRow) -> bool| {
-        rows.iter().filter(|r| r.success).filter(|r| filter(r)).map(|r| (r, distance(r))).min_by(|a, b| a.1.total_cmp(&b.1))
-    };
-    candidates(&same_source).or_else(|| candidates(&|_| true))
-}
-
-/// Two attempts of a run re-run to be seen side by side (a failure and the nearest success).
-#[derive(Debug, Clone, PartialEq)]
-pub struct SideBySide {
-    /// The attempts: the failure, then the success.
-    pub indices: [u64; 2],
-    /// Both, executed, once the backend has them.
-    pub views: Option<Box<[PreviewView; 2]>>,
-}
-
-/// A run started from the app, as its updates arrive.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RunState {
-    /// What was asked.
-    pub config: RunConfig,
-    /// The run as it started (task, variant, target).
-    pub info: Option<RunInfo>,
-    /// The task variant's reset region per object coordinate (for coverage).
-    pub dimensions: Vec<Dimension>,
-    /// Every decided attempt, in index order.
-    pub rows: Vec<AttemptRow>,
-    /// The report, once the run has ended.
-    pub report: Option<Report>,
-    /// The error that stopped it, if one did.
-    pub error: Option<String>,
-    /// Whether a cancel was asked for.
-    pub cancelling: bool,
-}
-
-impl RunState {
-    /// A run of `config` before its first update.
-    #[must_use]
-    pub fn new(config: RunConfig) -> Self {
-        Self { config, info: None, dimensions: Vec::new(), rows: Vec::new(), report: None, error: None, cancelling: false }
-    }
-
-    /// Whether the run is still going.
-    #[must_use]
-    pub fn running(&self) -> bool {
-        self.report.is_none() && self.error.is_none()
-    }
-
-    /// Statistics after the last decided attempt.
-    #[must_use]
-    pub fn stats(&self) -> Option<&RunStats> {
-        self.rows.last().map(|r| &r.stats)
-    }
-}
+pub use crate::command::{Command, Screen};
+use crate::protocol::{Listing, LoadedFile, OpenedRun, PreviewRequest, PreviewView, Reply, Request, RunUpdate, Welcome};
+pub use crate::run_state::{RunForm, RunState, SideBySide, nearest_success};
 
 /// What the preview screen shows and asks for.
 #[derive(Debug, Clone, PartialEq)]
@@ -217,115 +40,6 @@ impl Default for PreviewState {
     fn default() -> Self {
         Self { seed: 1, index: 0, sources: Vec::new(), moved: BTreeMap::new(), view: None, variant: None, spec: SpecOverrides::default() }
     }
-}
-
-/// Everything the user can do.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Command {
-    /// Open a source file.
-    Open(PathBuf),
-    /// Show demo `index`.
-    SelectDemo(usize),
-    /// Put the time cursor at a step.
-    SetCursor(usize),
-    /// Move the time cursor by this many steps.
-    StepCursor(i64),
-    /// Choose which subtask end the keyboard and "set at cursor" move.
-    SelectBoundary(usize),
-    /// Set the end of `subtask` (its last step is `end - 1`) in the shown demo.
-    SetEnd {
-        /// The subtask.
-        subtask: usize,
-        /// The end (exclusive).
-        end: usize,
-    },
-    /// Set the selected boundary so that the step under the cursor is its subtask's last.
-    SetEndAtCursor,
-    /// Mark where the segment of `subtask` starts in the shown demo (`None`: unmark, so the
-    /// approach detector decides). Matters for subtasks whose transit is planned.
-    SetStart {
-        /// The subtask.
-        subtask: usize,
-        /// The first step of its segment.
-        start: Option<usize>,
-    },
-    /// Mark the step under the cursor as the start of the segment of the subtask it lies in.
-    SetStartAtCursor,
-    /// Replace the shown demo's ends with the proposals.
-    AcceptProposals,
-    /// Replace every demo's ends with the proposals.
-    AcceptAllProposals,
-    /// Undo the last change of ends.
-    Undo,
-    /// Redo what was undone.
-    Redo,
-    /// Write the annotations to a new file (an existing one only with [`Command::SetSaveOverwrite`]).
-    Save(PathBuf),
-    /// Whether "Save as" may replace an existing file.
-    SetSaveOverwrite(bool),
-    /// Start or stop playing the shown demo.
-    TogglePlay,
-    /// Advance playback by one step (the UI sends it at the control rate while playing).
-    Tick,
-    /// Show a screen (the preview screen asks for a fresh preview).
-    Show(Screen),
-    /// Preview the scenes of a run with this seed.
-    SetPreviewSeed(u64),
-    /// Preview attempt `index` of the run.
-    SetPreviewIndex(u64),
-    /// Preview the next attempt's scene.
-    NextScene,
-    /// Force the source demo of a subtask (`None`: let the selection strategy pick).
-    SetPreviewSource {
-        /// The subtask.
-        subtask: usize,
-        /// The demo index.
-        demo: Option<usize>,
-    },
-    /// Execute the previewed attempt in simulation.
-    TryIt,
-    /// Move an object of the previewed scene to (x, y) on the table.
-    MoveObject {
-        /// The object.
-        name: String,
-        /// Where (m, world frame).
-        xy: [f64; 2],
-    },
-    /// Put every moved object back where the scene had it.
-    ResetObjects,
-    /// Change the run form.
-    SetRunForm(Box<RunForm>),
-    /// Start a run as the form says, over the open file.
-    StartRun,
-    /// Stop the run (after the attempts already decided).
-    CancelRun,
-    /// Show attempt `index` of the run on the preview screen and try it again.
-    ReRun(u64),
-    /// Re-run a failed attempt and a successful one of the run and show them side by side.
-    SideBySide {
-        /// The failed attempt's index.
-        failed: u64,
-        /// The successful attempt's index (`None`: the nearest success, see [`nearest_success`]).
-        success: Option<u64>,
-    },
-    /// Stop showing two attempts side by side.
-    CloseSideBySide,
-    /// Select an attempt of the run (the 3D view stays on it: following the latest stops).
-    SelectAttempt(u64),
-    /// Let the 3D view follow the run's latest attempt (or stay on the selected one).
-    FollowLatest(bool),
-    /// Read a finished run's outputs (the dataset `generate` wrote, its `_failed.hdf5` and report).
-    OpenRun(PathBuf),
-    /// Read a finished run's outputs to compare the current run's coverage with.
-    OpenCompare(PathBuf),
-    /// Stop comparing.
-    CloseCompare,
-    /// Show the file browser at a directory.
-    Browse(PathBuf),
-    /// Close the file browser.
-    CloseBrowser,
-    /// Stream the shown demo, and every demo shown and attempt tried after, to Rerun.
-    Open3d(ViewerSink),
 }
 
 /// The app's state.
@@ -922,6 +636,14 @@ mod tests {
     }
 
     #[test]
+    fn a_run_does_not_start_over_unsaved_ends() {
+        let mut m = model(50, vec![10]);
+        m.apply(Command::SetEnd { subtask: 0, end: 20 });
+        assert_eq!(m.apply(Command::StartRun), None, "unsaved ends: the run would not read them");
+        assert!(m.error.as_deref().is_some_and(|e| e.contains("unsaved")));
+    }
+
+    #[test]
     fn preview_commands_ask_for_the_scene_sources_and_ends_shown() {
         let mut m = model(50, vec![10]);
         m.apply(Command::SetEnd { subtask: 0, end: 20 });
@@ -983,28 +705,6 @@ mod tests {
         assert_eq!(m.annotation.marks.ends["demo_1"], vec![10]);
         assert_eq!(m.annotation.marks.ends["demo_0"], vec![12], "edits made while it streamed are kept");
         assert!(m.busy.is_none());
-    }
-
-    #[test]
-    fn the_run_form_is_a_generate_command_line_and_a_pipeline_config() {
-        let form = RunForm { attempts: 30, seed: 7, workers: 2, guarantee: true, out: "my runs/out.hdf5".into(), ..RunForm::default() };
-        let line = form.command_line(Path::new("/data/src.hdf5"));
-        assert_eq!(
-            line,
-            "mimicgen generate --source /data/src.hdf5 --num-demos 30 --seed 7 --workers 2 --out 'my runs/out.hdf5' --keep-failed --guarantee"
-        );
-        let arm = RunForm { robot: Some("ur5e".into()), cameras: Some(CameraConfig::default()), ..form.clone() };
-        assert!(arm.command_line(Path::new("s.hdf5")).contains("--robot ur5e --source s.hdf5"));
-        assert_eq!(arm.config(Path::new("s.hdf5")).cameras, Some(CameraConfig::default()));
-        let config = form.config(Path::new("/data/src.hdf5"));
-        assert_eq!(
-            (config.num_demos, config.seed, config.workers, config.guarantee, config.keep_failed),
-            (Some(30), Some(7), 2, true, true)
-        );
-        let mut m = model(50, vec![10]);
-        m.apply(Command::SetEnd { subtask: 0, end: 20 });
-        assert_eq!(m.apply(Command::StartRun), None, "unsaved ends: the run would not read them");
-        assert!(m.error.as_deref().is_some_and(|e| e.contains("unsaved")));
     }
 
     #[test]

@@ -8,7 +8,14 @@ use egui_plot::{Corner, Legend, Line, LineStyle, MarkerShape, Plot, PlotPoint, P
 
 use crate::model::{AppModel, Command};
 use crate::protocol::{ExecutedView, Point, PreviewView};
-use crate::ui::{UiState, subtask_color};
+use crate::style::subtask_color;
+
+/// The preview screen's own state.
+#[derive(Debug, Default)]
+pub struct PreviewUiState {
+    /// An object being dragged in the view from above: (name, current x, y).
+    pub object_drag: Option<(String, [f64; 2])>,
+}
 
 /// The id of preview plot `name` (`top`, `side`), where egui_plot keeps its transform (tests find
 /// screen positions of objects through it).
@@ -155,7 +162,7 @@ pub fn view_plot(
     axes: (usize, usize),
     size: egui::Vec2,
     legend: bool,
-    drag: Option<(&mut UiState, &mut Vec<Command>)>,
+    drag: Option<(&mut PreviewUiState, &mut Vec<Command>)>,
 ) {
     let names = ["x (m)", "y (m)", "z (m)"];
     let top = axes == (0, 1) && drag.is_some();
@@ -253,7 +260,7 @@ pub fn view_plot(
 }
 
 /// The scene from above (objects can be dragged there) and from the side.
-pub fn views(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, commands: &mut Vec<Command>) {
+pub fn views(ui: &mut egui::Ui, model: &AppModel, state: &mut PreviewUiState, commands: &mut Vec<Command>) {
     let Some(view) = &model.preview.view else {
         ui.label("Planning the first scene...");
         return;

@@ -6,22 +6,7 @@ use egui_plot::{Corner, Legend, Line, LineStyle, Plot, PlotPoints, Span, VLine};
 use crate::annotation::detected_start;
 use crate::model::{AppModel, Command, Screen};
 use crate::protocol::DemoView;
-
-/// Colours of subtasks 0, 1, 2, ... (segments and their end markers).
-const SUBTASK_COLORS: [Color32; 6] = [
-    Color32::from_rgb(66, 133, 244),
-    Color32::from_rgb(234, 67, 53),
-    Color32::from_rgb(52, 168, 83),
-    Color32::from_rgb(251, 188, 5),
-    Color32::from_rgb(171, 71, 188),
-    Color32::from_rgb(0, 172, 193),
-];
-
-/// The colour of subtask `k`.
-#[must_use]
-pub fn subtask_color(k: usize) -> Color32 {
-    SUBTASK_COLORS[k % SUBTASK_COLORS.len()]
-}
+use crate::style::subtask_color;
 
 /// UI-only state that is not part of the model (text fields, a drag in progress).
 #[derive(Default)]
@@ -32,20 +17,14 @@ pub struct UiState {
     pub save_path: String,
     /// A boundary being dragged: (subtask, current x).
     pub drag: Option<(usize, f64)>,
-    /// An object being dragged in the preview's view from above: (name, current x, y).
-    pub object_drag: Option<(String, [f64; 2])>,
-    /// Which attempts the run's table lists.
-    pub attempt_filter: crate::run_ui::AttemptFilter,
-    /// Sort the attempt table by length, longest first (else by index).
-    pub longest_first: bool,
-    /// The "open a run" path field.
-    pub run_path: String,
+    /// The preview screen's.
+    pub preview: crate::preview_ui::PreviewUiState,
+    /// The generate screen's.
+    pub run: crate::run_ui::RunUiState,
     /// Time of the last playback step (s).
     pub last_tick_s: f64,
     /// The camera images drawn: `(camera, demo, step)` and its texture, one per camera.
     pub camera_textures: Vec<((String, usize, usize), egui::TextureHandle)>,
-    /// The coverage figures drawn, until their attempts change.
-    pub coverage: Vec<crate::run_ui::CoverageFigures>,
 }
 
 impl std::fmt::Debug for UiState {

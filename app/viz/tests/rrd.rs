@@ -105,7 +105,7 @@ fn pegs_are_drawn_where_each_episode_had_them() {
     let scene = Arc::new(Scene::for_task(task.as_ref()).expect("scene"));
     let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
     env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7)).expect("reset");
-    let peg = env.object_pose(1);
+    let peg = env.physics().object_pose(1);
     let state = env.state();
     let mut logger = mimicgen_viz::SceneLogger::new(&scene, "world/scene");
     let peg_geom = |positions: Vec<(String, [f64; 3])>| {

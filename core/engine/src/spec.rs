@@ -11,6 +11,12 @@ use serde::{Deserialize, Serialize};
 use crate::EngineError;
 use crate::pose::PoseDistanceWeights;
 
+mod mimicgen_json;
+mod text;
+
+pub use text::field_line;
+use text::toml_error;
+
 /// How the source demo for a subtask is chosen (paper appendix "Reference Segment Selection").
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "strategy", rename_all = "snake_case", deny_unknown_fields)]
@@ -313,86 +319,6 @@ impl TaskSpec {
         Ok(spec)
     }
 
-    /// Parses the reference MimicGen experiment JSON. `origin` names the file in errors.
-    ///
-    /// # Errors
-    /// [`EngineError::Config`] naming the file and the offending field.
-    pub fn from_mimicgen_json_str(text: &str, origin: &str) -> Result<Self, EngineError> {
-        let err = |field: &str, reason: String| EngineError::Config { file: origin.to_owned(), field: field.to_owned(), reason };
-        let json: MgConfig = serde_json::from_str(text).map_err(|e| err("", e.to_string()))?;
-        let mut subtasks: Vec<(usize, String, MgSubtask)> = Vec::new();
-        for (key, value) in json.task.task_spec {
-            let index = key
-                .strip_prefix("subtask_")
-                .and_then(|n| n.parse::<usize>().ok())
-                .ok_or_else(|| err(&format!("task.task_spec.{key}"), "keys must be subtask_1, subtask_2, ...".to_owned()))?;
-            let sub: MgSubtask = serde_json::from_value(value).map_err(|e| err(&format!("task.task_spec.{key}"), e.to_string()))?;
-            subtasks.push((index, key, sub));
-        }
-        subtasks.sort_by_key(|(i, _, _)| *i);
-        let mut out = Vec::with_capacity(subtasks.len());
-        for (position, (index, key, sub)) in subtasks.into_iter().enumerate() {
-            if index != position + 1 {
-                return Err(err(
-                    &format!("task.task_spec.{key}"),
-                    format!("subtask numbering has a gap: expected subtask_{}", position + 1),
-                ));
-            }
-            let nn = |kw: &serde_json::Map<String, serde_json::Value>, k: &str, default: f64| {
-                kw.get(k).and_then(serde_json::Value::as_f64).unwrap_or(default)
-            };
-            let kw = sub.selection_strategy_kwargs.unwrap_or_default();
-            let nn_k = kw.get("nn_k").and_then(serde_json::Value::as_u64).map_or(3, |k| usize::try_from(k).unwrap_or(usize::MAX));
-            let selection = match sub.selection_strategy.as_str() {
-                "random" => SelectionStrategy::Random,
-                "nearest_neighbor_object" => SelectionStrategy::NearestNeighborObject {
-                    nn_k,
-                    pos_weight: nn(&kw, "pos_weight", 1.0),
-                    rot_weight: nn(&kw, "rot_weight", 1.0),
-                },
-                "nearest_neighbor_robot_distance" => SelectionStrategy::NearestNeighborRobotDistance {
-                    nn_k,
-                    pos_weight: nn(&kw, "pos_weight", 1.0),
-                    rot_weight: nn(&kw, "rot_weight", 1.0),
-                },
-                other => return Err(err(&format!("task.task_spec.{key}.selection_strategy"), format!("unknown strategy {other:?}"))),
-            };
-            out.push(SubtaskSpec {
-                object_ref: sub.object_ref,
-                term_signal: sub.subtask_term_signal,
-                term_offset_range: sub.subtask_term_offset_range,
-                selection,
-                action_noise: sub.action_noise,
-                num_interpolation_steps: sub.num_interpolation_steps,
-                num_fixed_steps: sub.num_fixed_steps,
-                apply_noise_during_interpolation: sub.apply_noise_during_interpolation,
-                transit: Transit::Interpolate,
-                approach_m: default_approach(),
-            });
-        }
-        let g = json.experiment.generation;
-        let spec = Self {
-            name: json.name.unwrap_or_default(),
-            env_name: json.experiment.task.and_then(|t| t.name),
-            generation: GenerationSettings {
-                num_trials: g.num_trials,
-                guarantee: g.guarantee,
-                keep_failed: g.keep_failed,
-                max_num_failures: json.experiment.max_num_failures.unwrap_or(50),
-                max_attempts: 0,
-                select_src_per_subtask: g.select_src_per_subtask,
-                transform_first_robot_pose: g.transform_first_robot_pose,
-                interpolate_from_last_target_pose: g.interpolate_from_last_target_pose,
-                seed: json.experiment.seed.unwrap_or(1),
-                ..GenerationSettings::default()
-            },
-            source: json.experiment.source.unwrap_or_default(),
-            subtasks: out,
-        };
-        spec.check(origin)?;
-        Ok(spec)
-    }
-
     /// Loads a spec from a `.toml` or `.json` (MimicGen) file.
     ///
     /// # Errors
@@ -499,127 +425,6 @@ impl TaskSpec {
         }
         Ok(())
     }
-}
-
-/// The 1-based line of field `field` (`subtask[1].object_ref`, as errors name fields) in a spec's
-/// text: our TOML (`[[subtask]]` tables) or a MimicGen experiment JSON (`"subtask_2": {...}`).
-/// `None` when the text does not spell it out on a line of its own.
-#[must_use]
-pub fn field_line(text: &str, field: &str) -> Option<usize> {
-    let (index, key) = field.strip_prefix("subtask[")?.split_once("].")?;
-    let index: usize = index.parse().ok()?;
-    let lines = text.lines().enumerate();
-    if text.trim_start().starts_with('{') {
-        let table = format!("\"subtask_{}\"", index + 1);
-        let quoted = format!("\"{key}\"");
-        let mut inside = false;
-        for (n, line) in lines {
-            if line.contains("\"subtask_") {
-                inside = line.contains(&table);
-            }
-            if inside && line.contains(&quoted) {
-                return Some(n + 1);
-            }
-        }
-        return None;
-    }
-    let mut table: Option<usize> = None;
-    let mut subtasks = 0;
-    for (n, line) in lines {
-        let line = line.trim();
-        if line.starts_with('[') {
-            table = (line.trim_start_matches('[').trim_end_matches(']').trim() == "subtask" && line.starts_with("[[")).then_some(subtasks);
-            subtasks += usize::from(table.is_some());
-        } else if table == Some(index) && line.split_once('=').is_some_and(|(k, _)| k.trim().trim_matches('"') == key) {
-            return Some(n + 1);
-        }
-    }
-    None
-}
-
-/// A TOML error as `file:line`, the dotted field (`subtask[1].object_ref`) and the message.
-fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> EngineError {
-    let Some(span) = e.span() else {
-        return EngineError::Config { file: origin.to_owned(), field: String::new(), reason: e.message().to_owned() };
-    };
-    let start = span.start.min(text.len());
-    let line = text[..start].matches('\n').count() + 1;
-    let lines: Vec<&str> = text.lines().take(line).collect();
-    let key = lines.last().and_then(|l| l.split_once('=')).map(|(k, _)| k.trim().trim_matches('"').to_owned());
-    // The table the line sits in, with its index when it is an array of tables.
-    let mut table: Option<String> = None;
-    let mut counts: std::collections::BTreeMap<String, usize> = std::collections::BTreeMap::new();
-    for l in &lines {
-        let l = l.trim();
-        if let Some(name) = l.strip_prefix("[[").and_then(|r| r.strip_suffix("]]")) {
-            let n = counts.entry(name.trim().to_owned()).or_insert(0);
-            table = Some(format!("{}[{n}]", name.trim()));
-            *n += 1;
-        } else if let Some(name) = l.strip_prefix('[').and_then(|r| r.strip_suffix(']')) {
-            table = Some(name.trim().to_owned());
-        }
-    }
-    let field = match (table, key) {
-        (Some(t), Some(k)) => format!("{t}.{k}"),
-        (Some(t), None) => t,
-        (None, Some(k)) => k,
-        (None, None) => String::new(),
-    };
-    EngineError::Config { file: format!("{origin}:{line}"), field, reason: e.message().trim().to_owned() }
-}
-
-#[derive(Deserialize)]
-struct MgConfig {
-    name: Option<String>,
-    experiment: MgExperiment,
-    task: MgTask,
-}
-
-#[derive(Deserialize)]
-struct MgExperiment {
-    source: Option<SourceSelection>,
-    task: Option<MgExperimentTask>,
-    generation: MgGeneration,
-    max_num_failures: Option<usize>,
-    seed: Option<u64>,
-}
-
-#[derive(Deserialize)]
-struct MgGeneration {
-    #[serde(default)]
-    guarantee: bool,
-    #[serde(default)]
-    keep_failed: bool,
-    num_trials: usize,
-    #[serde(default)]
-    select_src_per_subtask: bool,
-    #[serde(default)]
-    transform_first_robot_pose: bool,
-    #[serde(default)]
-    interpolate_from_last_target_pose: bool,
-}
-
-#[derive(Deserialize)]
-struct MgExperimentTask {
-    name: Option<String>,
-}
-
-#[derive(Deserialize)]
-struct MgTask {
-    task_spec: serde_json::Map<String, serde_json::Value>,
-}
-
-#[derive(Deserialize)]
-struct MgSubtask {
-    object_ref: Option<String>,
-    subtask_term_signal: Option<String>,
-    subtask_term_offset_range: Option<(i64, i64)>,
-    selection_strategy: String,
-    selection_strategy_kwargs: Option<serde_json::Map<String, serde_json::Value>>,
-    action_noise: f64,
-    num_interpolation_steps: usize,
-    num_fixed_steps: usize,
-    apply_noise_during_interpolation: bool,
 }
 
 #[cfg(test)]

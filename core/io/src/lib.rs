@@ -32,6 +32,7 @@ mod error;
 pub mod info;
 pub mod lerobot;
 pub mod mcap_export;
+mod source_demo;
 pub mod tree;
 pub mod writer;
 

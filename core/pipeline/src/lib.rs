@@ -32,9 +32,11 @@ mod config;
 pub use config::check_spec_file;
 pub mod coverage;
 mod error;
+mod events;
 pub mod lerobot;
 pub mod memory;
 pub mod merge;
+mod outputs;
 pub mod prepare;
 pub mod preview;
 pub mod render;
@@ -42,10 +44,9 @@ pub mod replay;
 mod run;
 
 pub use error::PipelineError;
+pub use events::{AttemptEvent, Event};
 pub use mimicgen_run::{
     CameraConfig, Choice, DemoReport, FailureReport, FrontEnd, OffsetRange, Outcome, Report, RunConfig, RunInfo, Scoped, SpecOverrides,
 };
-pub use run::{
-    AttemptEvent, AttemptRecord, Event, Observed, PROGRESS_ATTR, Pipeline, RUN_ATTR, attempt_log_path, failed_path, read_attempt_log,
-    sibling,
-};
+pub use outputs::{AttemptRecord, PROGRESS_ATTR, RUN_ATTR, attempt_log_path, failed_path, read_attempt_log, sibling};
+pub use run::{Observed, Pipeline};

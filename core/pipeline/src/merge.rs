@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use mimicgen_engine::{RunStats, Shard};
 use mimicgen_io::{DatasetWriter, DemoReader, DemoSource as _, ReadOptions, WriterOptions};
 
-use crate::run::{
+use crate::outputs::{
     AttemptRecord, Progress, RunDescription, attempt_log_path, clear_outputs, differing_fields, failed_path, read_attempt_log,
 };
 use crate::{PROGRESS_ATTR, PipelineError, RUN_ATTR, Report, sibling};
@@ -207,9 +207,9 @@ pub fn merge(
         #[allow(clippy::cast_precision_loss)]
         attempts_per_s: if wall_time_s > 0.0 { stats.attempts as f64 / wall_time_s } else { 0.0 },
         control_steps,
-        per_source_demo: crate::run::per_source_demo(&stats),
+        per_source_demo: crate::outputs::per_source_demo(&stats),
         peak_rss_mib: crate::memory::peak_rss_mib(),
-        failures: crate::run::failures(&stats),
+        failures: crate::outputs::failures(&stats),
         cancelled: false,
         resumed_from: 0,
         early_abort: first.early_abort,

@@ -35,7 +35,7 @@ pub fn render(
     let reader = DemoReader::open_with(input, ReadOptions::default())?;
     let env_args = reader.env_args_json().map(str::to_owned);
     let task = crate::prepare::task_of(task, env_args.as_deref(), &file)?;
-    crate::run::clear_outputs(out, None, overwrite, false)?;
+    crate::outputs::clear_outputs(out, None, overwrite, false)?;
     let options = WriterOptions {
         env_args: env_args.map(|a| registry::env_args_with_cameras(&a, cameras)),
         compress_obs: true,

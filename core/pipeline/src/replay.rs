@@ -119,14 +119,14 @@ fn flat(pose: &Pose) -> [f64; 7] {
 }
 
 fn observe(env: &SimEnv) -> StepTrace {
-    let scene = env.scene();
-    let qpos = env.data().qpos();
+    let scene = env.physics().scene();
+    let qpos = env.physics().data().qpos();
     StepTrace {
         eef: flat(&env.eef_pose()),
         fingers: scene.robot.finger_qpos.iter().map(|&i| qpos[i]).collect(),
         objects: env.object_poses().iter().map(|(name, pose)| (name.clone(), flat(pose))).collect(),
-        contacts: env.contact_count(),
-        pads: scene.objects.iter().enumerate().map(|(i, o)| (o.name.clone(), env.pad_contacts(i))).collect(),
+        contacts: env.physics().contact_count(),
+        pads: scene.objects.iter().enumerate().map(|(i, o)| (o.name.clone(), env.physics().pad_contacts(i))).collect(),
         signals: env.subtask_term_signals(),
         success: env.is_success(),
     }
@@ -182,7 +182,7 @@ pub fn replay(
         // The first state is the attempt's reset: its arm pose is the posture the controller held.
         env.hold_posture_here();
         let scale = DeltaPoseScale::default();
-        let scene = env.scene();
+        let scene = env.physics().scene();
         let mut trace = DemoTrace {
             demo: name.clone(),
             objects: scene

@@ -9,20 +9,19 @@ use std::time::Instant;
 
 use mimicgen_engine::demo::initial_object_poses;
 use mimicgen_engine::image::ImageStream;
-use mimicgen_engine::{Attempt, EngineError, Environment, Failure, Generator, RunControl, RunStats, Shard, TaskSpec};
+use mimicgen_engine::{Attempt, EngineError, Environment, Generator, RunControl, RunStats};
 use mimicgen_io::{DatasetWriter, DemoData, Observation, WriterOptions};
 use mimicgen_sim::camera::Cameras;
 use mimicgen_sim::{Scene, SimEnv, Task};
-use serde::{Deserialize, Serialize};
 
 use crate::config::{Resolved, output_env_args, resolve};
-use crate::{DemoReport, FailureReport, Outcome, PipelineError, Report, RunConfig, RunInfo};
+use crate::{Outcome, PipelineError, Report, RunConfig, RunInfo};
 
-/// Root attribute of the output (and of its `.partial`) holding the run description.
-pub const RUN_ATTR: &str = "mimicgen_run";
-/// Root attribute of the `.partial` file holding the progress of the run (the commit point of
-/// each attempt: attempts before its `next_attempt` are decided and their demos written).
-pub const PROGRESS_ATTR: &str = "mimicgen_progress";
+use crate::events::{AttemptEvent, Event};
+use crate::outputs::{
+    AttemptLog, AttemptRecord, PROGRESS_ATTR, Progress, RUN_ATTR, RunDescription, attempt_log_path, clear_outputs, differing_fields,
+    failed_path, failures, per_source_demo, sibling,
+};
 
 /// What a worker makes of an attempt that may be kept: its observations, camera images, and the
 /// episode's `model_file` where the simulator has one.
@@ -34,85 +33,6 @@ pub struct Observed {
     pub images: BTreeMap<String, ImageStream>,
     /// The episode's scene XML.
     pub model_xml: Option<String>,
-}
-
-/// What a run was asked to make; a resumed run must describe the same dataset.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub(crate) struct RunDescription {
-    pub(crate) task: String,
-    pub(crate) variant: String,
-    pub(crate) source: String,
-    /// FNV-1a of the source file's bytes, so a resumed run reads the same demos.
-    pub(crate) source_fingerprint: String,
-    pub(crate) spec: TaskSpec,
-    pub(crate) valid_fraction: Option<f64>,
-    /// The share of the attempts a shard makes (absent for a whole run, and in a merged one).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(crate) shard: Option<Shard>,
-    /// The cameras rendered into the demos.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(crate) cameras: Option<mimicgen_sim::camera::CameraConfig>,
-    /// The arm, when it is not the Panda.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(crate) robot: Option<String>,
-}
-
-/// How far a run has got, stored in the `.partial` file after every attempt.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub(crate) struct Progress {
-    pub(crate) next_attempt: usize,
-    pub(crate) failures_kept: usize,
-    pub(crate) stats: RunStats,
-}
-
-/// One decided attempt, as a shard logs it (`<out>.attempts.jsonl`, a line each, in index order)
-/// so that `mimicgen merge` can cut the joined run where the whole run stops and count what it
-/// counts, failures that were not kept included.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct AttemptRecord {
-    /// Attempt index.
-    pub index: usize,
-    /// Whether the task succeeded.
-    pub success: bool,
-    /// Source demo per subtask.
-    pub sources: Vec<usize>,
-    /// Where and why it failed.
-    pub failure: Option<Failure>,
-    /// Control steps.
-    pub steps: usize,
-    /// Its demo in the shard's dataset (a success) or failed-attempts file (a kept failure).
-    pub kept: Option<String>,
-    /// The object instance its episode drew (object transfer); absent for the other tasks.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub instance: Option<String>,
-}
-
-/// What a run reports as it goes. Front ends (the CLI's progress bar, the app, Python) consume
-/// these; the run itself prints nothing.
-#[derive(Debug, Clone)]
-pub enum Event {
-    /// The run has started.
-    Started(Box<RunInfo>),
-    /// An attempt was decided (in index order).
-    Attempt(Box<AttemptEvent>),
-    /// The run has ended (completed or cancelled) and its outputs are complete.
-    Finished(Box<Report>),
-}
-
-/// One decided attempt.
-#[derive(Debug, Clone)]
-pub struct AttemptEvent {
-    /// The attempt's full record.
-    pub attempt: Attempt,
-    /// Where it went.
-    pub outcome: Outcome,
-    /// The object instance its episode drew (object transfer: which mug); `None` for the other
-    /// tasks.
-    pub instance: Option<String>,
-    /// Statistics of the run so far, this attempt included.
-    pub stats: RunStats,
-    /// Seconds since this session of the run started.
-    pub elapsed_s: f64,
 }
 
 /// A run ready to go: inputs read and checked, scene compiled, task resolved.
@@ -138,115 +58,6 @@ impl std::fmt::Debug for Pipeline {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Pipeline").field("task", &self.task.name()).field("variant", &self.variant).field("config", &self.config).finish()
     }
-}
-
-/// A shard's attempt log: a JSON line per decided attempt, flushed after each (before the
-/// dataset's progress, so the log never lags behind it).
-struct AttemptLog {
-    file: std::io::BufWriter<std::fs::File>,
-    path: PathBuf,
-}
-
-impl AttemptLog {
-    fn create(path: PathBuf) -> Result<Self, PipelineError> {
-        let file =
-            std::fs::File::create(&path).map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
-        Ok(Self { file: std::io::BufWriter::new(file), path })
-    }
-
-    /// The log of an interrupted shard, cut to the attempts before `next`, to go on appending.
-    fn resume(path: PathBuf, next: usize) -> Result<Self, PipelineError> {
-        let kept: Vec<AttemptRecord> = read_attempt_log(&path)?.into_iter().filter(|r| r.index < next).collect();
-        let mut log = Self::create(path)?;
-        for r in &kept {
-            log.append(r)?;
-        }
-        Ok(log)
-    }
-
-    fn append(&mut self, record: &AttemptRecord) -> Result<(), PipelineError> {
-        use std::io::Write as _;
-        let fs = |e: std::io::Error| PipelineError::Fs { file: self.path.display().to_string(), reason: e.to_string() };
-        let line = serde_json::to_string(record).map_err(|e| PipelineError::input("", "attempt record", e.to_string()))?;
-        writeln!(self.file, "{line}").map_err(fs)?;
-        self.file.flush().map_err(fs)
-    }
-}
-
-/// Reads a shard's attempt log.
-///
-/// # Errors
-/// [`PipelineError::Fs`] when it cannot be read, [`PipelineError::Input`] naming the line that
-/// is not a record.
-pub fn read_attempt_log(path: &Path) -> Result<Vec<AttemptRecord>, PipelineError> {
-    let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| PipelineError::Fs { file: file.clone(), reason: e.to_string() })?;
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(n, l)| serde_json::from_str(l).map_err(|e| PipelineError::input(file.clone(), format!("line {}", n + 1), e.to_string())))
-        .collect()
-}
-
-/// The report's rows per source demo.
-pub(crate) fn per_source_demo(stats: &RunStats) -> Vec<DemoReport> {
-    stats.per_source_demo.iter().enumerate().map(|(demo, d)| DemoReport { demo, attempts: d.attempts, successes: d.successes }).collect()
-}
-
-/// The report's failures by subtask and reason.
-pub(crate) fn failures(stats: &RunStats) -> Vec<FailureReport> {
-    stats.failures.iter().map(|f| FailureReport { subtask: f.subtask, reason: f.reason.to_string(), count: f.count }).collect()
-}
-
-/// The failed-attempts file beside dataset `out`.
-#[must_use]
-pub fn failed_path(out: &Path) -> PathBuf {
-    sibling(out, "_failed", "hdf5")
-}
-
-/// The top-level fields whose values differ between two descriptions of a run (JSON objects).
-pub(crate) fn differing_fields(a: &serde_json::Value, b: &serde_json::Value) -> Vec<String> {
-    a.as_object().map(|o| o.iter().filter(|(k, v)| b.get(*k) != Some(*v)).map(|(k, _)| k.clone()).collect()).unwrap_or_default()
-}
-
-/// Makes room for a run's outputs at `out` (the dataset, failed attempts, their `.partial`s, the
-/// report, and `extra`): refuses any that exists, or with `overwrite` removes them; then creates
-/// `out`'s folder. With `resumable`, a `.partial` left there is said to be resumable.
-///
-/// # Errors
-/// [`PipelineError::Exists`] naming the first output that exists;
-/// [`PipelineError::Fs`] when one cannot be removed or the folder made.
-pub(crate) fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, resumable: bool) -> Result<(), PipelineError> {
-    let failed = failed_path(out);
-    let partial = DatasetWriter::partial_path(out);
-    let outputs = [out.to_path_buf(), partial.clone(), failed.clone(), DatasetWriter::partial_path(&failed), sibling(out, "", "json")];
-    let existing: Vec<&Path> = outputs.iter().map(PathBuf::as_path).chain(extra).filter(|p| p.exists()).collect();
-    if let Some(first) = existing.first() {
-        if !overwrite {
-            let resumable = resumable && *first == partial.as_path();
-            return Err(PipelineError::Exists { file: first.display().to_string(), resumable });
-        }
-        for path in existing {
-            std::fs::remove_file(path).map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
-        }
-    }
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| PipelineError::Fs { file: dir.display().to_string(), reason: e.to_string() })?;
-    }
-    Ok(())
-}
-
-/// Where a shard writing `out` logs its attempts.
-#[must_use]
-pub fn attempt_log_path(out: &Path) -> PathBuf {
-    sibling(out, "", "attempts.jsonl")
-}
-
-/// `<out stem><suffix>.<ext>` beside `out`.
-#[must_use]
-pub fn sibling(out: &Path, suffix: &str, ext: &str) -> PathBuf {
-    let stem = out.file_stem().map_or_else(|| "generated".into(), |s| s.to_string_lossy().into_owned());
-    out.with_file_name(format!("{stem}{suffix}.{ext}"))
 }
 
 impl Pipeline {
@@ -525,8 +336,9 @@ impl Pipeline {
                 None => BTreeMap::new(),
             };
             // The instance's own scene where the variant draws one per episode.
-            let instance_xml = env.instance().map(|_| mimicgen_sim::assets::portable_asset_paths(&env.scene().xml));
+            let instance_xml = env.instance().map(|_| mimicgen_sim::assets::portable_asset_paths(&env.physics().scene().xml));
             let xml = env
+                .physics()
                 .scene()
                 .xml_with_fixed_objects(instance_xml.as_deref().unwrap_or(&self.scene_xml), &initial)
                 .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;

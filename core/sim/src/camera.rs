@@ -4,7 +4,7 @@
 //! (robomimic flips robosuite's OpenGL-ordered frames; datasets hold them upright).
 //!
 //! Rendering uses the scene with its image textures (physics runs on a copy without them, see
-//! [`crate::compose::without_image_textures`]). A GL context belongs to the thread that made it,
+//! [`crate::mjcf_edit::without_image_textures`]). A GL context belongs to the thread that made it,
 //! so each thread that renders keeps its own renderer (made on its first frame).
 
 use std::cell::RefCell;
@@ -72,7 +72,7 @@ impl Cameras {
         // The offscreen buffer holds every camera's image side by side and no more: MuJoCo
         // resolves all of it every frame.
         let buffer_width = config.width.saturating_mul(config.names.len());
-        let xml = with_visual(&crate::compose::with_arena(&scene.xml, "32M"), buffer_width, config.height, config.fast);
+        let xml = with_visual(&crate::mjcf_edit::with_arena(&scene.xml, "32M"), buffer_width, config.height, config.fast);
         let model = crate::scene::compile_mjcf(&xml).map_err(|reason| SimError::Compile { file: origin.clone(), reason })?;
         let ncam = usize::try_from(model.ffi().ncam).unwrap_or_default();
         let names: Vec<String> = (0..ncam).filter_map(|i| model.id_to_name(MjtObjBase::mjOBJ_CAMERA, i).map(str::to_owned)).collect();

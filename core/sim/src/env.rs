@@ -13,7 +13,8 @@ use rand::{Rng as _, RngCore};
 use rand_distr::{Distribution, Normal};
 
 use crate::osc::{Osc, OscConfig};
-use crate::scene::{Scene, pose_from_xpos_xmat};
+use crate::scene::Scene;
+use crate::state::SimState;
 use crate::task::Task;
 use crate::transit::{ArmSpace, Planning, robot_geoms};
 
@@ -56,9 +57,8 @@ fn obstacle_sides(scene: &Scene, task: &dyn Task) -> Vec<Option<bool>> {
 
 /// One robosuite-like environment: a scene, its MuJoCo data, the controller and the task.
 pub struct SimEnv {
-    scene: Arc<Scene>,
+    state: SimState,
     task: Arc<dyn Task>,
-    data: MjData<Arc<MjModel>>,
     osc: Osc,
     gripper_command: [f64; 2],
     warnings_seen: i64,
@@ -75,7 +75,7 @@ pub struct SimEnv {
 
 impl std::fmt::Debug for SimEnv {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SimEnv").field("scene", &self.scene.origin).field("task", &self.task.name()).finish_non_exhaustive()
+        f.debug_struct("SimEnv").field("scene", &self.state.scene.origin).field("task", &self.task.name()).finish_non_exhaustive()
     }
 }
 
@@ -88,9 +88,8 @@ impl SimEnv {
         let osc = Osc::new(OscConfig::default(), scene.robot.model.init_qpos.to_vec(), nv);
         let obstacle_side = obstacle_sides(&scene, task.as_ref());
         Self {
-            scene,
+            state: SimState { scene, data },
             task,
-            data,
             osc,
             gripper_command: [0.0; 2],
             warnings_seen: 0,
@@ -120,25 +119,20 @@ impl SimEnv {
 
     fn use_instance(&mut self, k: usize) {
         if let Some((_, scene)) = self.instances.get(k) {
-            if !Arc::ptr_eq(scene, &self.scene) {
-                self.scene = Arc::clone(scene);
-                self.data = MjData::new(Arc::clone(&self.scene.model));
-                self.obstacle_side = obstacle_sides(&self.scene, self.task.as_ref());
+            if !Arc::ptr_eq(scene, &self.state.scene) {
+                self.state.scene = Arc::clone(scene);
+                self.state.data = MjData::new(Arc::clone(&self.state.scene.model));
+                self.obstacle_side = obstacle_sides(&self.state.scene, self.task.as_ref());
             }
             self.instance = k;
         }
     }
 
-    /// The scene.
+    /// The simulated physics: the scene and its MuJoCo data, with what they tell (poses,
+    /// contacts, grasps). (The flattened robosuite state is [`Environment::state`].)
     #[must_use]
-    pub fn scene(&self) -> &Scene {
-        &self.scene
-    }
-
-    /// The MuJoCo data (read-only), e.g. for rendering or extra observations.
-    #[must_use]
-    pub fn data(&self) -> &MjData<Arc<MjModel>> {
-        &self.data
+    pub fn physics(&self) -> &SimState {
+        &self.state
     }
 
     /// Restores a recorded robosuite state as robomimic's `reset_to` does with a model: the
@@ -148,7 +142,7 @@ impl SimEnv {
     /// [`EnvError::Fatal`] on a state of the wrong length.
     pub fn reset_to_state(&mut self, state: &[f64]) -> Result<(), EnvError> {
         self.gripper_command = [0.0; 2];
-        self.osc.initial_joint = self.scene.robot.model.init_qpos.to_vec();
+        self.osc.initial_joint = self.state.scene.robot.model.init_qpos.to_vec();
         self.set_state(state)
     }
 
@@ -156,136 +150,65 @@ impl SimEnv {
     /// does: after [`SimEnv::reset_to_state`] with an attempt's first state, the controller is the
     /// one that attempt ran with.
     pub fn hold_posture_here(&mut self) {
-        let qpos = self.data.qpos();
-        self.osc.initial_joint = self.scene.robot.arm_qpos.iter().map(|&i| qpos[i]).collect();
+        let qpos = self.state.data.qpos();
+        self.osc.initial_joint = self.state.scene.robot.arm_qpos.iter().map(|&i| qpos[i]).collect();
     }
 
     /// The arm's configuration space from the present state, carrying the objects the gripper
     /// grasps (what planned transit plans in).
     pub fn arm_space(&mut self) -> ArmSpace<'_> {
-        let held: Vec<usize> = (0..self.scene.objects.len()).filter(|&i| self.is_grasping(i)).collect();
-        if !self.planning.as_ref().is_some_and(|p| p.is_for(&self.scene)) {
+        let held: Vec<usize> = (0..self.state.scene.objects.len()).filter(|&i| self.state.is_grasping(i)).collect();
+        if !self.planning.as_ref().is_some_and(|p| p.is_for(&self.state.scene)) {
             self.planning = None;
         }
-        let planning = self.planning.get_or_insert_with(|| Planning::new(&self.scene));
-        ArmSpace::new(&self.scene, planning, &self.data, &held, &self.osc.initial_joint)
-    }
-
-    /// The indices of the contacts between a geom of `a` and a geom of `b`.
-    fn contacts_between<'a>(&'a self, a: &'a [usize], b: &'a [usize]) -> impl Iterator<Item = usize> + 'a {
-        self.data.contact().iter().enumerate().filter_map(move |(i, c)| {
-            let (g1, g2) = (usize::try_from(c.geom[0]).unwrap_or(usize::MAX), usize::try_from(c.geom[1]).unwrap_or(usize::MAX));
-            ((a.contains(&g1) && b.contains(&g2)) || (a.contains(&g2) && b.contains(&g1))).then_some(i)
-        })
-    }
-
-    /// Whether any geom of `a` touches any geom of `b`.
-    #[must_use]
-    pub fn in_contact(&self, a: &[usize], b: &[usize]) -> bool {
-        self.contacts_between(a, b).next().is_some()
-    }
-
-    /// The finger pads' contacts with object `i`: how many, and the sum of their normal forces
-    /// (N, MuJoCo's `mj_contactForce`). With [`SimEnv::is_grasping`], what a physics comparison
-    /// reads per step.
-    #[must_use]
-    pub fn pad_contacts(&self, object: usize) -> (usize, f64) {
-        let geoms = &self.scene.objects[object].geoms;
-        let pads: Vec<usize> = self.scene.robot.finger_pads.iter().flatten().copied().collect();
-        let (mut count, mut force) = (0, 0.0);
-        for i in self.contacts_between(&pads, geoms) {
-            let mut wrench = [0.0; 6];
-            #[allow(unsafe_code)]
-            // SAFETY: `i` indexes one of the data's `ncon` contacts and `wrench` holds the 6
-            // values mj_contactForce writes; the data belongs to the scene's model.
-            unsafe {
-                mujoco_rs::mujoco_c::mj_contactForce(
-                    self.scene.model.ffi(),
-                    self.data.ffi(),
-                    i32::try_from(i).unwrap_or(i32::MAX),
-                    &raw mut wrench,
-                );
-            }
-            count += 1;
-            force += wrench[0];
-        }
-        (count, force)
-    }
-
-    /// How many contacts the simulation holds now (MuJoCo's `ncon`).
-    #[must_use]
-    pub fn contact_count(&self) -> usize {
-        self.data.contact().len()
-    }
-
-    /// robosuite's `_check_grasp`: both finger pads touch the object.
-    #[must_use]
-    pub fn is_grasping(&self, object: usize) -> bool {
-        let geoms = &self.scene.objects[object].geoms;
-        self.scene.robot.finger_pads.iter().all(|pad| self.in_contact(pad, geoms))
-    }
-
-    /// `world_from_object` of the scene's object `i`.
-    #[must_use]
-    pub fn object_pose(&self, i: usize) -> Pose {
-        let body = self.scene.objects[i].body;
-        let mat = self.data.xmat()[body];
-        pose_from_xpos_xmat(&self.data.xpos()[body], &mat)
-    }
-
-    /// Linear speed of object `i` (m/s); 0 for a fixed one.
-    #[must_use]
-    pub fn object_speed(&self, i: usize) -> f64 {
-        self.scene.objects[i].dof_adr.map_or(0.0, |v| {
-            let qvel = self.data.qvel();
-            (qvel[v].powi(2) + qvel[v + 1].powi(2) + qvel[v + 2].powi(2)).sqrt()
-        })
+        let planning = self.planning.get_or_insert_with(|| Planning::new(&self.state.scene));
+        ArmSpace::new(&self.state.scene, planning, &self.state.data, &held, &self.osc.initial_joint)
     }
 
     /// Places object `i` at `world_from_object`: at rest for an object with a free joint; a fixed
     /// (mocap) object moves there and stays. Call `forward` (or step) before reading poses.
     pub fn place_object(&mut self, i: usize, world_from_object: &Pose) {
-        let object = &self.scene.objects[i];
+        let object = &self.state.scene.objects[i];
         if let (Some(q), Some(v)) = (object.qpos_adr, object.dof_adr) {
             let t = world_from_object.translation.vector;
             let w = quat_to_wxyz(&world_from_object.rotation);
-            let qpos = self.data.qpos_mut();
+            let qpos = self.state.data.qpos_mut();
             qpos[q..q + 3].copy_from_slice(t.as_slice());
             qpos[q + 3..q + 7].copy_from_slice(&w);
-            self.data.qvel_mut()[v..v + 6].fill(0.0);
+            self.state.data.qvel_mut()[v..v + 6].fill(0.0);
         } else if let Some(m) = object.mocap {
-            set_mocap_pose(&mut self.data, m, world_from_object);
+            set_mocap_pose(&mut self.state.data, m, world_from_object);
         }
     }
 
     /// Puts the fixed (mocap) objects where `world_from_objects` (by object name) has them: the
     /// part of a scene robosuite's flattened state does not hold. Objects not named stay.
     pub fn place_fixed_objects(&mut self, world_from_objects: &BTreeMap<String, Pose>) {
-        for i in 0..self.scene.objects.len() {
-            if let Some(pose) = world_from_objects.get(&self.scene.objects[i].name)
-                && self.scene.objects[i].mocap.is_some()
+        for i in 0..self.state.scene.objects.len() {
+            if let Some(pose) = world_from_objects.get(&self.state.scene.objects[i].name)
+                && self.state.scene.objects[i].mocap.is_some()
             {
                 self.place_object(i, pose);
             }
         }
-        self.data.forward();
+        self.state.data.forward();
     }
 
     /// robosuite's low-dim observations in the current state, keyed as robomimic expects
     /// (`robot0_eef_pos`, `robot0_eef_quat` in `xyzw`, `object`, ...).
     #[must_use]
     pub fn observation(&self) -> BTreeMap<String, Vec<f64>> {
-        let robot = &self.scene.robot;
-        let (qpos, qvel) = (self.data.qpos(), self.data.qvel());
+        let robot = &self.state.scene.robot;
+        let (qpos, qvel) = (self.state.data.qpos(), self.state.data.qvel());
         let joint_pos: Vec<f64> = robot.arm_qpos.iter().map(|&i| qpos[i]).collect();
         let site = robot.eef_site;
-        let (jacp, jacr) = self.data.jac_site(true, true, site);
+        let (jacp, jacr) = self.state.data.jac_site(true, true, site);
         let nv = qvel.len();
         let twist = |jac: &[f64]| -> Vec<f64> { (0..3).map(|r| (0..nv).map(|c| jac[r * nv + c] * qvel[c]).sum()).collect() };
-        let hand = self.data.xquat()[robot.hand_body];
+        let hand = self.state.data.xquat()[robot.hand_body];
         BTreeMap::from([
-            ("object".to_owned(), self.task.object_obs(self)),
-            ("robot0_eef_pos".to_owned(), self.data.site_xpos()[site].to_vec()),
+            ("object".to_owned(), self.task.object_obs(&self.state)),
+            ("robot0_eef_pos".to_owned(), self.state.data.site_xpos()[site].to_vec()),
             ("robot0_eef_quat".to_owned(), vec![hand[1], hand[2], hand[3], hand[0]]),
             ("robot0_eef_vel_ang".to_owned(), twist(&jacr)),
             ("robot0_eef_vel_lin".to_owned(), twist(&jacp)),
@@ -328,7 +251,7 @@ impl SimEnv {
         let mut out = cameras.streams(states.len());
         for state in states.iter() {
             self.set_state(state)?;
-            cameras.capture(&self.data, &mut out).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
+            cameras.capture(&self.state.data, &mut out).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
         }
         Ok(out)
     }
@@ -351,24 +274,24 @@ impl SimEnv {
     /// [`EnvError::Fatal`] on a state of the wrong length.
     pub fn replay_controls_bare(&mut self, state: &[f64], controls: &[f64]) -> Result<(), EnvError> {
         self.set_state(state)?;
-        let nu = self.data.ctrl().len().max(1);
+        let nu = self.state.data.ctrl().len().max(1);
         for ctrl in controls.chunks(nu) {
-            self.data.ctrl_mut().copy_from_slice(ctrl);
-            self.data.step();
+            self.state.data.ctrl_mut().copy_from_slice(ctrl);
+            self.state.data.step();
         }
         Ok(())
     }
 
     fn warning_count(&self) -> i64 {
-        self.data.warning().iter().map(|w| i64::from(w.number)).sum()
+        self.state.data.warning().iter().map(|w| i64::from(w.number)).sum()
     }
 
     fn physics_step(&mut self, gripper_action: f64) -> Result<(), EnvError> {
         // robosuite runs mj_forward, sets controls, then mj_step. With the Euler integrator,
         // mj_step1 + controls + mj_step2 computes the same thing without the second forward pass.
-        self.data.step1();
-        let torques = self.osc.torques(&self.data, &self.scene.robot);
-        let robot = &self.scene.robot;
+        self.state.data.step1();
+        let torques = self.osc.torques(&self.state.data, &self.state.scene.robot);
+        let robot = &self.state.scene.robot;
         let sign = if gripper_action > 0.0 {
             1.0
         } else if gripper_action < 0.0 {
@@ -379,7 +302,7 @@ impl SimEnv {
         for (command, direction) in self.gripper_command.iter_mut().zip(robot.model.close_direction) {
             *command = (*command + direction * GRIPPER_SPEED * sign).clamp(-1.0, 1.0);
         }
-        let ctrl = self.data.ctrl_mut();
+        let ctrl = self.state.data.ctrl_mut();
         for ((a, [lo, hi]), tau) in robot.arm_actuators.iter().zip(torques) {
             ctrl[*a] = tau.clamp(*lo, *hi);
         }
@@ -387,13 +310,14 @@ impl SimEnv {
             ctrl[*a] = 0.5 * (hi + lo) + 0.5 * (hi - lo) * command;
         }
         if let Some(log) = self.control_log.as_mut() {
-            log.extend_from_slice(self.data.ctrl());
+            log.extend_from_slice(self.state.data.ctrl());
         }
-        self.data.step2();
+        self.state.data.step2();
         let warnings = self.warning_count();
         if warnings > self.warnings_seen {
             self.warnings_seen = warnings;
             let kinds: Vec<String> = self
+                .state
                 .data
                 .warning()
                 .iter()
@@ -401,10 +325,10 @@ impl SimEnv {
                 .filter(|(_, w)| w.number > 0)
                 .map(|(i, w)| format!("{} (x{})", WARNING_NAMES.get(i).unwrap_or(&"warning"), w.number))
                 .collect();
-            return Err(EnvError::Unstable { reason: format!("MuJoCo {} at t = {:.3} s", kinds.join(", "), self.data.time()) });
+            return Err(EnvError::Unstable { reason: format!("MuJoCo {} at t = {:.3} s", kinds.join(", "), self.state.data.time()) });
         }
-        if self.data.qpos().iter().chain(self.data.qvel()).any(|v| !v.is_finite()) {
-            return Err(EnvError::Unstable { reason: format!("non-finite state at t = {:.3} s", self.data.time()) });
+        if self.state.data.qpos().iter().chain(self.state.data.qvel()).any(|v| !v.is_finite()) {
+            return Err(EnvError::Unstable { reason: format!("non-finite state at t = {:.3} s", self.state.data.time()) });
         }
         Ok(())
     }
@@ -420,13 +344,13 @@ impl Environment for SimEnv {
             let k = rng.random_range(0..self.instances.len());
             self.use_instance(k);
         }
-        self.data.reset();
+        self.state.data.reset();
         self.warnings_seen = 0;
         let noise = Normal::new(0.0, ARM_INIT_NOISE).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
-        let robot = self.scene.robot.clone();
+        let robot = self.state.scene.robot.clone();
         let arm: Vec<f64> = robot.model.init_qpos.iter().map(|q| q + noise.sample(rng)).collect();
         {
-            let qpos = self.data.qpos_mut();
+            let qpos = self.state.data.qpos_mut();
             for (adr, q) in robot.arm_qpos.iter().zip(&arm) {
                 qpos[*adr] = *q;
             }
@@ -438,45 +362,44 @@ impl Environment for SimEnv {
         for (i, pose) in placements.iter().enumerate() {
             self.place_object(i, pose);
         }
-        self.data.forward();
+        self.state.data.forward();
         self.osc.initial_joint = arm;
         self.gripper_command = [0.0; 2];
         Ok(())
     }
 
     fn eef_pose(&self) -> Pose {
-        let site = self.scene.robot.eef_site;
-        pose_from_xpos_xmat(&self.data.site_xpos()[site], &self.data.site_xmat()[site])
+        self.state.eef_pose()
     }
 
     fn place_objects(&mut self, world_from_objects: &BTreeMap<String, Pose>) -> Result<(), EnvError> {
         for (name, pose) in world_from_objects {
-            let i = self.scene.objects.iter().position(|o| &o.name == name).ok_or_else(|| EnvError::Fatal {
+            let i = self.state.scene.objects.iter().position(|o| &o.name == name).ok_or_else(|| EnvError::Fatal {
                 reason: format!(
                     "no object {name:?} in the scene (it has {:?})",
-                    self.scene.objects.iter().map(|o| &o.name).collect::<Vec<_>>()
+                    self.state.scene.objects.iter().map(|o| &o.name).collect::<Vec<_>>()
                 ),
             })?;
             self.place_object(i, pose);
         }
-        self.data.forward();
+        self.state.data.forward();
         Ok(())
     }
 
     fn object_poses(&self) -> BTreeMap<String, Pose> {
-        (0..self.scene.objects.len()).map(|i| (self.scene.objects[i].name.clone(), self.object_pose(i))).collect()
+        (0..self.state.scene.objects.len()).map(|i| (self.state.scene.objects[i].name.clone(), self.state.object_pose(i))).collect()
     }
 
     fn subtask_term_signals(&self) -> BTreeMap<String, i64> {
-        self.task.signals(self)
+        self.task.signals(&self.state)
     }
 
     fn is_success(&self) -> bool {
-        self.task.is_success(self)
+        self.task.is_success(&self.state)
     }
 
     fn unmet_success(&self) -> Option<String> {
-        self.task.unmet_success(self)
+        self.task.unmet_success(&self.state)
     }
 
     fn target_pose_to_action(&self, world_from_target: &Pose) -> [f64; 6] {
@@ -502,12 +425,12 @@ impl Environment for SimEnv {
         if action.len() != 7 || action.iter().any(|a| !a.is_finite()) {
             return Err(EnvError::Unstable { reason: format!("action {action:?} is not 7 finite numbers") });
         }
-        self.data.forward();
-        self.osc.set_goal(&self.data, &self.scene.robot, action);
-        for _ in 0..self.scene.substeps {
+        self.state.data.forward();
+        self.osc.set_goal(&self.state.data, &self.state.scene.robot, action);
+        for _ in 0..self.state.scene.substeps {
             self.physics_step(action[6])?;
         }
-        self.data.forward();
+        self.state.data.forward();
         Ok(())
     }
 
@@ -520,28 +443,33 @@ impl Environment for SimEnv {
             return 0;
         }
         let side = |g: i32| usize::try_from(g).ok().and_then(|g| self.obstacle_side.get(g).copied().flatten());
-        self.data.contact().iter().filter(|c| matches!((side(c.geom[0]), side(c.geom[1])), (Some(a), Some(b)) if a != b)).count()
+        self.state.data.contact().iter().filter(|c| matches!((side(c.geom[0]), side(c.geom[1])), (Some(a), Some(b)) if a != b)).count()
     }
 
     fn state(&self) -> Vec<f64> {
-        let mut s = Vec::with_capacity(self.scene.state_dim());
-        s.push(self.data.time());
-        s.extend_from_slice(self.data.qpos());
-        s.extend_from_slice(self.data.qvel());
+        let mut s = Vec::with_capacity(self.state.scene.state_dim());
+        s.push(self.state.data.time());
+        s.extend_from_slice(self.state.data.qpos());
+        s.extend_from_slice(self.state.data.qvel());
         s
     }
 
     fn set_state(&mut self, state: &[f64]) -> Result<(), EnvError> {
-        if state.len() != self.scene.state_dim() {
+        if state.len() != self.state.scene.state_dim() {
             return Err(EnvError::Fatal {
-                reason: format!("state has {} values, the scene {} needs {}", state.len(), self.scene.origin, self.scene.state_dim()),
+                reason: format!(
+                    "state has {} values, the scene {} needs {}",
+                    state.len(),
+                    self.state.scene.origin,
+                    self.state.scene.state_dim()
+                ),
             });
         }
-        let nq = self.data.qpos().len();
-        self.data.set_time(state[0]);
-        self.data.qpos_mut().copy_from_slice(&state[1..=nq]);
-        self.data.qvel_mut().copy_from_slice(&state[1 + nq..]);
-        self.data.forward();
+        let nq = self.state.data.qpos().len();
+        self.state.data.set_time(state[0]);
+        self.state.data.qpos_mut().copy_from_slice(&state[1..=nq]);
+        self.state.data.qvel_mut().copy_from_slice(&state[1 + nq..]);
+        self.state.data.forward();
         Ok(())
     }
 }

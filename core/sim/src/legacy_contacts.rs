@@ -171,9 +171,9 @@ pub fn contact_section(model: &MjModel) -> Option<String> {
                 out,
                 r#"    <pair geom1="{n1}" geom2="{n2}" condim="{}" friction="{}" solref="{}" solimp="{}" margin="{}" gap="{}"/>"#,
                 p.condim,
-                crate::compose::words(&p.friction),
-                crate::compose::words(&p.solref),
-                crate::compose::words(&p.solimp),
+                crate::mjcf_edit::words(&p.friction),
+                crate::mjcf_edit::words(&p.solref),
+                crate::mjcf_edit::words(&p.solimp),
                 p.margin,
                 p.gap
             );

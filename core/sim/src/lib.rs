@@ -11,24 +11,29 @@
 pub mod assets;
 pub mod camera;
 pub mod compose;
+pub mod data_task;
 pub mod env;
 pub mod geometry;
 pub mod legacy_contacts;
+pub mod mjcf_edit;
 pub mod model_cache;
 mod offscreen;
 pub mod osc;
 pub mod registry;
 pub mod robot;
 pub mod scene;
+pub mod state;
 pub mod task;
 pub mod task_file;
 pub mod transit;
 
+pub use data_task::DataTask;
 pub use env::SimEnv;
 pub use geometry::{GeomPoser, Part, Shape, VisibleGeom};
 pub use scene::Scene;
+pub use state::SimState;
 pub use task::Task;
-pub use task_file::{DataTask, TaskFile};
+pub use task_file::TaskFile;
 
 /// Everything that can go wrong building or running a simulation.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -52,7 +52,7 @@ pub(crate) fn load_or_compile(xml: &str, compile: impl FnOnce(&str) -> Result<Mj
 static CHILD: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
 
 /// Compile scenes missing from the cache in a child process: `program compile-model`, which reads
-/// the MJCF on stdin and stores the model in the cache ([`store_compiled`]). MuJoCo's compiler
+/// the MJCF on stdin and stores the model in the cache ([`crate::scene::store_compiled`]). MuJoCo's compiler
 /// uses about 300 MB for robosuite's scenes (meshes, bounding-volume trees) and this process would
 /// keep most of it; the child gives it back when it exits. The command-line program sets itself.
 /// Without it, or when the child fails, scenes compile in this process as before.
@@ -60,13 +60,14 @@ pub fn compile_in_child(program: PathBuf) {
     let _ = CHILD.set(program);
 }
 
-/// Compiles `xml` and stores the model in the cache (what `mimicgen compile-model` runs).
+/// Compiles `xml` with `compile` and stores the model in the cache (see
+/// [`crate::scene::store_compiled`]).
 ///
 /// # Errors
-/// MuJoCo's message, or why the model could not be stored.
-pub fn store_compiled(xml: &str) -> Result<(), String> {
+/// `compile`'s message, or why the model could not be stored.
+pub(crate) fn store_compiled_with(xml: &str, compile: impl FnOnce(&str) -> Result<MjModel, String>) -> Result<(), String> {
     let path = path_in(&crate::assets::cache_dir().join("models"), xml);
-    let model = crate::scene::compile_uncached(xml)?;
+    let model = compile(xml)?;
     store(&model, &path).map_err(|e| format!("{}: {e}", path.display()))
 }
 
@@ -183,7 +184,7 @@ mod tests {
     fn a_cached_model_is_the_compiled_one() {
         let task = crate::registry::task("stack", "D0").unwrap_or_else(|e| panic!("{e}"));
         let scene = crate::Scene::for_task(task.as_ref()).unwrap_or_else(|e| panic!("{e}"));
-        let xml = crate::compose::with_arena(&crate::compose::without_image_textures(&scene.xml), "32M");
+        let xml = crate::mjcf_edit::with_arena(&crate::mjcf_edit::without_image_textures(&scene.xml), "32M");
         let dir = std::env::temp_dir().join(format!("mimicgen_model_cache_same_{}", std::process::id()));
         let compiled = crate::scene::compile_uncached(&xml).unwrap_or_else(|e| panic!("{e}"));
         let first = load_or_compile_in(&dir, &xml, false, crate::scene::compile_uncached).unwrap_or_else(|e| panic!("{e}"));

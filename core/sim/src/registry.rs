@@ -2,8 +2,9 @@
 
 use std::sync::{Arc, OnceLock};
 
+use crate::data_task::DataTask;
 use crate::task::Task;
-use crate::task_file::{DataTask, TaskFile};
+use crate::task_file::TaskFile;
 
 /// `(name, task file, generation spec)` of every task we ship, by name: each
 /// `core/sim/tasks/<name>.task.toml` with `<name>.toml` beside it, listed by the build script (a

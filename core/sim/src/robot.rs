@@ -279,7 +279,7 @@ pub fn for_simulation(xml: &str, robot: &RobotModel) -> String {
     let patch = &robot.sim_patch;
     let mut xml = xml.to_owned();
     for (element, name, attribute, value) in patch.attributes {
-        xml = crate::compose::edit_element(&xml, element, name, &[(attribute, (*value).to_owned())], &[]).unwrap_or(xml);
+        xml = crate::mjcf_edit::edit_element(&xml, element, name, &[(attribute, (*value).to_owned())], &[]).unwrap_or(xml);
     }
     let excludes: String = patch.contact_excludes.iter().map(|(a, b)| format!(r#"<exclude body1="{a}" body2="{b}"/>"#)).collect();
     // Stiffer than MuJoCo's default (0.02 s): the fingers' links weigh grams and the default
@@ -298,7 +298,7 @@ pub fn for_simulation(xml: &str, robot: &RobotModel) -> String {
     if !couplings.is_empty() {
         sections += &format!("<equality>{couplings}</equality>\n");
     }
-    crate::compose::with_section(&xml, &sections)
+    crate::mjcf_edit::with_section(&xml, &sections)
 }
 
 /// The arm whose joints `has_joint` finds in a scene (Panda for a scene with none of them).

@@ -90,13 +90,13 @@ impl Scene {
     pub fn compile(xml: &str, origin: &str, objects: &[(String, String)], control_freq_hz: f64) -> Result<Self, SimError> {
         let robot_model = crate::robot::detect(|name| xml.contains(&format!("\"{name}\"")));
         let physics_xml =
-            crate::robot::for_simulation(&crate::compose::with_arena(&crate::compose::without_image_textures(xml), "32M"), robot_model);
+            crate::robot::for_simulation(&crate::mjcf_edit::with_arena(&crate::mjcf_edit::without_image_textures(xml), "32M"), robot_model);
         let model = compile_mjcf(&physics_xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?;
         let section = if crate::legacy_contacts::enabled() { crate::legacy_contacts::contact_section(&model) } else { None };
         let model = match section {
             Some(section) => {
                 drop(model); // one compiled scene in memory at a time
-                compile_mjcf(&crate::compose::with_section(&physics_xml, &section))
+                compile_mjcf(&crate::mjcf_edit::with_section(&physics_xml, &section))
                     .map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?
             }
             None => model,
@@ -118,7 +118,7 @@ impl Scene {
         if !to_mocap.is_empty() {
             let mut edited = xml.to_owned();
             for body in to_mocap {
-                edited = crate::compose::edit_body(&edited, body, &[("mocap", "true".to_owned())], &[])
+                edited = crate::mjcf_edit::edit_body(&edited, body, &[("mocap", "true".to_owned())], &[])
                     .ok_or_else(|| SimError::MissingName { file: origin.to_owned(), kind: "body tag".to_owned(), name: body.to_owned() })?;
             }
             return Self::compile(&edited, origin, objects, control_freq_hz);
@@ -294,7 +294,7 @@ impl Scene {
         let mut out = xml.to_owned();
         for object in self.objects.iter().filter(|o| o.mocap.is_some()) {
             if let Some(pose) = world_from_objects.get(&object.name) {
-                out = crate::compose::place_body(&out, &object.body_name, pose).ok_or_else(|| SimError::MissingName {
+                out = crate::mjcf_edit::place_body(&out, &object.body_name, pose).ok_or_else(|| SimError::MissingName {
                     file: self.origin.clone(),
                     kind: "body tag".to_owned(),
                     name: object.body_name.clone(),
@@ -329,6 +329,15 @@ impl Scene {
 /// MuJoCo's message.
 pub fn compile_mjcf(xml: &str) -> Result<MjModel, String> {
     crate::model_cache::load_or_compile(xml, compile_uncached)
+}
+
+/// Compiles `xml` and stores the model in the model cache (what `mimicgen compile-model` runs in
+/// the child process [`crate::model_cache::compile_in_child`] starts).
+///
+/// # Errors
+/// MuJoCo's message, or why the model could not be stored.
+pub fn store_compiled(xml: &str) -> Result<(), String> {
+    crate::model_cache::store_compiled_with(xml, compile_uncached)
 }
 
 /// Compiles an MJCF string. MuJoCo 3 refuses meshes whose volume is too small to give an inertia

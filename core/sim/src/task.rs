@@ -10,7 +10,7 @@ use mimicgen_engine::pose::Pose;
 use rand::RngCore;
 
 use crate::compose::{BASE_TABLE_TOP_Z, ObjectModel};
-use crate::env::SimEnv;
+use crate::state::SimState;
 
 /// What a task adds to a robosuite scene.
 pub trait Task: Send + Sync {
@@ -32,16 +32,16 @@ pub trait Task: Send + Sync {
     /// [`EnvError::Fatal`] if no valid placement is found.
     fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError>;
     /// Subtask-end signals in the current state.
-    fn signals(&self, env: &SimEnv) -> BTreeMap<String, i64>;
+    fn signals(&self, env: &SimState) -> BTreeMap<String, i64>;
     /// Whether the task is achieved in the current state.
-    fn is_success(&self, env: &SimEnv) -> bool;
+    fn is_success(&self, env: &SimState) -> bool;
     /// The parts of the success condition that do not hold in the current state, in words;
     /// `None` when achieved or when the task cannot say.
-    fn unmet_success(&self, _env: &SimEnv) -> Option<String> {
+    fn unmet_success(&self, _env: &SimState) -> Option<String> {
         None
     }
     /// robosuite's `object` observation for this task in the current state.
-    fn object_obs(&self, env: &SimEnv) -> Vec<f64>;
+    fn object_obs(&self, env: &SimState) -> Vec<f64>;
     /// The scripted demonstrator's pick-and-places, in order (empty if the task has none).
     fn scripts(&self) -> Vec<PickPlaceScript>;
     /// The reset distribution as coverage dimensions: each object's x, y and yaw over its range.

@@ -20,7 +20,7 @@ fn stack_env() -> (Arc<Scene>, SimEnv) {
 
 fn capture(cameras: &Cameras, env: &SimEnv) -> BTreeMap<String, ImageStream> {
     let mut streams = cameras.streams(1);
-    cameras.capture(env.data(), &mut streams).unwrap();
+    cameras.capture(env.physics().data(), &mut streams).unwrap();
     streams
 }
 

@@ -2,8 +2,8 @@
 //! met at twice the reported depth, so a box resting on a box sinks twice as deep as MuJoCo 3.17
 //! alone lets it, and no other contact changes.
 
-use mimicgen_sim::compose::with_section;
 use mimicgen_sim::legacy_contacts::contact_section;
+use mimicgen_sim::mjcf_edit::with_section;
 use mimicgen_sim::scene::compile_mjcf;
 use mujoco_rs::prelude::*;
 

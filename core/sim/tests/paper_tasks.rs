@@ -29,7 +29,7 @@ fn settle(task: &str, variant: &str) -> (f64, bool) {
         for (name, pose) in env.object_poses() {
             moved = moved.max((pose.translation.vector - before[&name].translation.vector).norm());
         }
-        success |= task.is_success(&env);
+        success |= task.is_success(env.physics());
     }
     (moved, success)
 }
@@ -71,13 +71,13 @@ fn bundled_demos_succeed_and_generate(task_name: &str, signals: &[&str], variant
         // Fixed objects (the tripod) are not in robosuite's state: put them where the demo had them.
         env.place_fixed_objects(&mimicgen_engine::demo::initial_object_poses(&demo.object_poses));
         env.reset_to_state(demo.sim.states.row(0)).unwrap();
-        assert!(!task.is_success(&env), "{} starts unsolved", demo.name);
-        assert!(task.unmet_success(&env).is_some(), "{}: an unsolved state names what is unmet", demo.name);
+        assert!(!task.is_success(env.physics()), "{} starts unsolved", demo.name);
+        assert!(task.unmet_success(env.physics()).is_some(), "{}: an unsolved state names what is unmet", demo.name);
         env.reset_to_state(demo.sim.states.row(demo.len() - 1)).unwrap();
         let poses = env.object_poses();
         let rel: Vec<_> = poses.values().map(|p| p.translation.vector).collect();
-        assert!(task.is_success(&env), "{} ends in success: {rel:?} obs {:?}", demo.name, task.object_obs(&env));
-        assert_eq!(task.unmet_success(&env), None, "{}", demo.name);
+        assert!(task.is_success(env.physics()), "{} ends in success: {rel:?} obs {:?}", demo.name, task.object_obs(env.physics()));
+        assert_eq!(task.unmet_success(env.physics()), None, "{}", demo.name);
     }
     let spec = TaskSpec::from_toml_str(registry::default_spec_toml(task_name).unwrap(), "spec").unwrap();
     let generator = Generator::new(spec, sources).unwrap().with_seed(1);
@@ -127,14 +127,14 @@ fn three_piece_assembly_counts_the_post_in_the_tube_not_lying_across_it() {
     let mut env = SimEnv::new(scene, Arc::clone(&task));
     let assembled = |env: &mut SimEnv, post: Rot, dz: f64| {
         env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(2)).unwrap();
-        let base = env.object_pose(0).translation.vector;
+        let base = env.physics().object_pose(0).translation.vector;
         let tube = base + Vec3::new(0.0, 0.0, 0.019);
         env.place_object(1, &pose_from_parts(tube, Rot::identity()));
         env.place_object(2, &pose_from_parts(tube + Vec3::new(0.0, 0.0, dz), post));
         for _ in 0..10 {
             env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
         }
-        task.is_success(env)
+        task.is_success(env.physics())
     };
     assert!(assembled(&mut env, Rot::identity(), 0.034), "the post down in the tube");
     let lying = Rot::from_axis_angle(&Vec3::x_axis(), std::f64::consts::FRAC_PI_2);
@@ -149,11 +149,11 @@ fn coffee_starts_open_and_its_demos_insert_the_pod_and_shut_the_lid() {
     rests_unsolved("coffee", &["D0", "D1", "D2"]);
     // The lid starts open (hinge at 0), resting against its stop, and the hinge is observed.
     let (task, env) = settled("coffee");
-    let obs = task.object_obs(&env);
+    let obs = task.object_obs(env.physics());
     assert_eq!(obs.len(), 7 + 7 + 7 + 7 + 1);
     assert!(obs[28].abs() < 0.05, "hinge at {:.3} rad", obs[28]);
     // A failed attempt says which parts of the success condition are unmet: both, at the start.
-    assert_eq!(task.unmet_success(&env).as_deref(), Some("pod in machine and machine_hinge in [95, inf]"));
+    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("pod in machine and machine_hinge in [95, inf]"));
     bundled_demos_succeed_and_generate("coffee", &["grasp"], "D0");
 }
 
@@ -176,10 +176,10 @@ fn mug_cleanup_drawer_starts_shut_and_its_demos_open_it_put_the_mug_in_and_shut_
     assert!(scene.objects[1].mocap.is_some(), "the cabinet is fixed in the world");
     let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
     env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
-    let obs = task.object_obs(&env);
+    let obs = task.object_obs(env.physics());
     assert_eq!(obs.len(), 7 + 7 + 7 + 7 + 1);
     assert!(obs[28].abs() < 1e-6, "the drawer starts shut: slide at {:.4} m", obs[28]);
-    assert_eq!(task.unmet_success(&env).as_deref(), Some("mug in drawer"));
+    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("mug in drawer"));
 
     // Along a bundled demo: whenever the drawer is out, the task is not done; it ends done.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/mug_cleanup_D0_source.hdf5");
@@ -188,20 +188,20 @@ fn mug_cleanup_drawer_starts_shut_and_its_demos_open_it_put_the_mug_in_and_shut_
     let mut furthest = 0.0_f64;
     for t in (0..demo.len()).step_by(5) {
         env.reset_to_state(demo.sim.states.row(t)).unwrap();
-        let out = task.object_obs(&env)[28];
+        let out = task.object_obs(env.physics())[28];
         furthest = furthest.max(out);
         if out > 0.02 {
-            assert!(!task.is_success(&env), "step {t}: the drawer is {out:.3} m out");
+            assert!(!task.is_success(env.physics()), "step {t}: the drawer is {out:.3} m out");
         }
     }
     assert!(furthest > 0.15, "the demo pulls the drawer out: at most {furthest:.3} m");
     env.reset_to_state(demo.sim.states.row(demo.len() - 1)).unwrap();
-    assert!(task.is_success(&env));
+    assert!(task.is_success(env.physics()));
     // The same mug in the shut drawer, lying on its side, is not put away.
-    let mug = env.object_pose(0).translation.vector;
+    let mug = env.physics().object_pose(0).translation.vector;
     env.place_object(0, &pose_from_parts(mug + Vec3::new(0.0, 0.0, 0.04), Rot::from_axis_angle(&Vec3::x_axis(), 1.4)));
     env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
-    assert!(task.unmet_success(&env).unwrap().contains("mug upright"), "{:?}", task.unmet_success(&env));
+    assert!(task.unmet_success(env.physics()).unwrap().contains("mug upright"), "{:?}", task.unmet_success(env.physics()));
 
     bundled_demos_succeed_and_generate("mug_cleanup", &["open", "grasp"], "D0");
 }
@@ -220,10 +220,10 @@ fn kitchen_switch_starts_off_and_its_demos_cook_serve_and_switch_off() {
     rests_unsolved("kitchen", &["D0", "D1"]);
     let (task, env) = settled("kitchen");
     // The switch rests against its off stop (the last observation term, radians).
-    let obs = task.object_obs(&env);
+    let obs = task.object_obs(env.physics());
     assert_eq!(obs.len(), 5 * 7 + 1);
     assert!(obs[35].abs() < 0.02, "switch at {:.3} rad", obs[35]);
-    assert_eq!(task.signals(&env)["stove_on"], 0);
+    assert_eq!(task.signals(env.physics())["stove_on"], 0);
     let signals = ["stove_on", "grasp_pot", "place_pot_on_stove", "grasp_bread", "place_bread_in_pot", "serve"];
     bundled_demos_succeed_and_generate("kitchen", &signals, "D0");
 }
@@ -234,11 +234,11 @@ fn coffee_preparation_starts_shut_and_its_demos_open_lid_and_drawer_then_shut_th
     let (task, mut env) = settled("coffee_preparation");
     // Six 7-number terms (mug, pod, machine, drawer poses; mug and pod relative to the gripper),
     // then the lid's hinge and the drawer's slide: both rest shut.
-    let obs = task.object_obs(&env);
+    let obs = task.object_obs(env.physics());
     assert_eq!(obs.len(), 6 * 7 + 2);
     assert!(obs[42].abs() < 0.02, "lid hinge at {:.3} rad", obs[42]);
     assert!(obs[43].abs() < 1e-3, "drawer slide at {:.4} m", obs[43]);
-    assert_eq!(task.unmet_success(&env).as_deref(), Some("mug in machine and pod in machine"));
+    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("mug in machine and pod in machine"));
 
     // Along a bundled demo the lid opens past 95 deg and the drawer past 12 cm, and while the lid
     // is open the task is not done (the drawer may stay out at the end, as in the reference).
@@ -248,10 +248,10 @@ fn coffee_preparation_starts_shut_and_its_demos_open_lid_and_drawer_then_shut_th
     let (mut widest, mut furthest) = (0.0_f64, 0.0_f64);
     for t in (0..demo.len()).step_by(5) {
         env.reset_to_state(demo.sim.states.row(t)).unwrap();
-        let obs = task.object_obs(&env);
+        let obs = task.object_obs(env.physics());
         (widest, furthest) = (widest.min(obs[42]), furthest.max(obs[43]));
         if obs[42] < -0.1 {
-            assert!(!task.is_success(&env), "step {t}: the lid is open at {:.2} rad", obs[42]);
+            assert!(!task.is_success(env.physics()), "step {t}: the lid is open at {:.2} rad", obs[42]);
         }
     }
     assert!(widest < -95_f64.to_radians(), "the demo opens the lid: at most {widest:.3} rad");

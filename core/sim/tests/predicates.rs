@@ -41,17 +41,17 @@ fn predicates_read_the_scene() {
     env.place_object(1, &pose_from_parts(Vec3::new(0.05, 0.0, 0.825), yaw(10.0)));
     env.place_object(0, &pose_from_parts(Vec3::new(-0.1, 0.0, 0.82), yaw(103.0)));
     settle(&mut env, 10);
-    let s = task.signals(&env);
+    let s = task.signals(env.physics());
     assert_eq!((s["aligned"], s["at_rest"], s["apart"], s["near"], s["on_top"], s["either"]), (1, 1, 1, 0, 0, 0), "{s:?}");
     // Stacked, turned 20 deg: near and on top, touching, not aligned.
     env.place_object(0, &pose_from_parts(Vec3::new(0.05, 0.0, 0.8705), yaw(30.0)));
     settle(&mut env, 10);
-    let s = task.signals(&env);
+    let s = task.signals(env.physics());
     assert_eq!((s["aligned"], s["apart"], s["near"], s["on_top"], s["either"]), (0, 0, 1, 1, 1), "{s:?}");
     // Dropped from 10 cm: moving, not at rest.
     env.place_object(0, &pose_from_parts(Vec3::new(-0.1, 0.1, 0.92), yaw(0.0)));
     settle(&mut env, 2);
-    assert_eq!(task.signals(&env)["at_rest"], 0);
+    assert_eq!(task.signals(env.physics())["at_rest"], 0);
 }
 
 #[test]

@@ -22,7 +22,7 @@ fn sawyer_resets_home_and_follows_delta_pose_actions() {
     let start = env.eef_pose().translation.vector;
     // No part of the arm touches another at rest (MuJoCo 3 would count the first link on the base).
     let name = |g: i32| scene.model.id_to_name(MjtObjBase::mjOBJ_GEOM, usize::try_from(g).unwrap()).unwrap_or("").to_owned();
-    let touching: Vec<(String, String)> = env.data().contact().iter().map(|c| (name(c.geom[0]), name(c.geom[1]))).collect();
+    let touching: Vec<(String, String)> = env.physics().data().contact().iter().map(|c| (name(c.geom[0]), name(c.geom[1]))).collect();
     assert!(!touching.iter().any(|(a, b)| a.starts_with("robot0_") && b.starts_with("robot0_")), "{touching:?}");
     // The gripper starts above the table in front of the base, as robosuite's Sawyer does.
     assert!(start.x > -0.3 && start.x < 0.1 && start.z > 0.9 && start.z < 1.2, "{start:?}");
@@ -58,7 +58,7 @@ fn iiwa_with_its_robotiq_gripper_composes_rests_and_closes() {
     let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
     env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(4)).unwrap();
     let name = |g: i32| scene.model.id_to_name(MjtObjBase::mjOBJ_GEOM, usize::try_from(g).unwrap()).unwrap_or("").to_owned();
-    let touching: Vec<(String, String)> = env.data().contact().iter().map(|c| (name(c.geom[0]), name(c.geom[1]))).collect();
+    let touching: Vec<(String, String)> = env.physics().data().contact().iter().map(|c| (name(c.geom[0]), name(c.geom[1]))).collect();
     assert!(!touching.iter().any(|(a, b)| a.starts_with("robot0_") && b.starts_with("robot0_")), "{touching:?}");
     let start = env.eef_pose().translation.vector;
     let open = env.observation()["robot0_gripper_qpos"].clone();
@@ -109,7 +109,7 @@ fn ur5e_six_joint_arm_follows_actions_and_closes_its_robotiq_85() {
 /// Distance (m) between the two finger pads.
 fn pad_gap(env: &SimEnv, scene: &Scene) -> f64 {
     let [a, b] = scene.robot.model.finger_pads.map(|pad| scene.model.name_to_id(MjtObjBase::mjOBJ_GEOM, pad).unwrap());
-    let xpos = env.data().geom_xpos();
+    let xpos = env.physics().data().geom_xpos();
     (0..3).map(|k| (xpos[a][k] - xpos[b][k]).powi(2)).sum::<f64>().sqrt()
 }
 

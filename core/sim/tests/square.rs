@@ -26,15 +26,15 @@ fn the_peg_moves_between_episodes_and_stays_put_within_one() {
     let mut pegs = Vec::new();
     for _ in 0..3 {
         env.reset(&mut rng).unwrap();
-        let peg = env.object_pose(1);
+        let peg = env.physics().object_pose(1);
         let yaw = yaw_of(&peg);
         assert!((-1e-9..=std::f64::consts::FRAC_PI_2 + 1e-9).contains(&yaw), "peg yaw {yaw}");
         for _ in 0..10 {
             env.step(&[0.0; 7]).unwrap();
         }
         // Fixed during the episode; the nut has dropped onto the table (top at 0.82 m), clear of it.
-        assert!((env.object_pose(1).translation.vector - peg.translation.vector).norm() < 1e-12);
-        let nut = env.object_pose(0).translation.vector;
+        assert!((env.physics().object_pose(1).translation.vector - peg.translation.vector).norm() < 1e-12);
+        let nut = env.physics().object_pose(0).translation.vector;
         assert!((nut.z - 0.83).abs() < 0.003, "nut at {nut:?}");
         assert!((nut - peg.translation.vector).xy().norm() > 0.14, "nut {nut:?} on the peg {peg:?}");
         pegs.push(peg.translation.vector);
@@ -47,7 +47,7 @@ fn the_peg_moves_between_episodes_and_stays_put_within_one() {
         &task.object_models(),
         task.table_top_z(),
     );
-    let plain = mimicgen_sim::compose::edit_body(&xml, "peg1", &[], &["mocap"]).unwrap();
+    let plain = mimicgen_sim::mjcf_edit::edit_body(&xml, "peg1", &[], &["mocap"]).unwrap();
     assert!(!plain.contains("mocap"));
     let scene = Scene::compile(&plain, "robosuite-like", &task.objects(), 20.0).unwrap();
     assert!(scene.objects[1].mocap.is_some());
@@ -59,7 +59,7 @@ fn success_is_robosuites_on_peg_check() {
     let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
     let mut env = SimEnv::new(scene, task);
     env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
-    let peg = env.object_pose(1).translation.vector;
+    let peg = env.physics().object_pose(1).translation.vector;
     let mut check = |offset: Vec3| {
         env.place_object(0, &pose_from_parts(peg + offset, Rot::identity()));
         env.place_fixed_objects(&BTreeMap::new());
@@ -90,7 +90,7 @@ fn bundled_demos_succeed_and_generated_demos_carry_their_peg() {
         assert!(demo.subtask_term_signals["grasp"].contains(&1), "{} never grasps", demo.name);
     }
 
-    let d0_scene_peg = check.object_pose(1).translation.vector;
+    let d0_scene_peg = check.physics().object_pose(1).translation.vector;
     assert!((d0_scene_peg - Vec3::new(0.23, 0.1, 0.85)).norm() < 1e-12, "robosuite's default peg, {d0_scene_peg:?}");
 
     // Generate on D1 (the peg moves) from the D0 demos, as `mimicgen generate` does.
@@ -116,7 +116,7 @@ fn bundled_demos_succeed_and_generated_demos_carry_their_peg() {
         let scene = Arc::new(Scene::from_model_file(model_xml, "generated model_file", d1.as_ref()).unwrap());
         let mut replay = SimEnv::new(scene, Arc::clone(&d1));
         replay.reset_to_state(last).unwrap();
-        let peg = replay.object_pose(1).translation.vector;
+        let peg = replay.physics().object_pose(1).translation.vector;
         assert!((peg - initial["square_peg"].translation.vector).norm() < 1e-9, "{peg:?} vs {initial:?}");
         // ... so the recorded states put the nut on it there, and not on the D0 scene's peg.
         let ends_on_peg = |env: &mut SimEnv| {

@@ -1,0 +1,119 @@
+//! Plans and tried attempts as the preview screen draws them.
+
+use std::collections::BTreeMap;
+
+use mimicgen_engine::transform::WaypointKind;
+use mimicgen_engine::{Attempt, Plan, Pose};
+use mimicgen_pipeline::PipelineError;
+use mimicgen_pipeline::preview::Previewer;
+
+use mimicgen_ui::protocol::{
+    ExecutedView, ObjectView, Point, PreviewRequest, PreviewView, RankView, Reply, SubtaskDiagnostics, SubtaskPreview,
+};
+
+pub(crate) fn point(pose: &Pose) -> Point {
+    let t = pose.translation.vector;
+    [t.x, t.y, t.z]
+}
+
+pub(crate) fn objects(poses: &BTreeMap<String, Pose>) -> Vec<ObjectView> {
+    poses.iter().map(|(name, p)| ObjectView { name: name.clone(), position: point(p), yaw: p.rotation.euler_angles().2 }).collect()
+}
+
+/// Each executed subtask of `attempt` in numbers (see [`SubtaskDiagnostics`]).
+pub(crate) fn diagnostics(attempt: &Attempt, subtasks: &[mimicgen_engine::SubtaskSpec]) -> Vec<SubtaskDiagnostics> {
+    let t = &attempt.trajectory;
+    let mm = |v: mimicgen_engine::pose::Vec3| v.norm() * 1000.0;
+    attempt
+        .plans
+        .iter()
+        .enumerate()
+        .filter_map(|(k, plan)| {
+            let first = plan.first_step;
+            let end = attempt.plans.get(k + 1).map_or(t.len(), |p| p.first_step).min(t.len());
+            let last = end.checked_sub(1).filter(|&l| l >= first)?;
+            let target_error_mm = mm(t.target_poses[last].translation.vector - t.eef_poses[last].translation.vector);
+            let track = |name: &Option<String>| name.as_ref().and_then(|n| t.object_poses.get(n));
+            let object_moved_mm =
+                track(&subtasks.get(k)?.object_ref).map(|poses| mm(poses[last].translation.vector - poses[first].translation.vector));
+            let held_object_slip_mm = k.checked_sub(1).and_then(|j| track(&subtasks.get(j)?.object_ref)).map(|poses| {
+                let eef_from_obj = |s: usize| t.eef_poses[s].inverse() * poses[s];
+                mm(eef_from_obj(last).translation.vector - eef_from_obj(first).translation.vector)
+            });
+            Some(SubtaskDiagnostics { subtask: k, steps: (first, end), target_error_mm, object_moved_mm, held_object_slip_mm })
+        })
+        .collect()
+}
+
+/// Turns a plan (and an executed attempt) into what the preview screen draws.
+pub(crate) fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) -> PreviewView {
+    let demos = &previewer.generator().dataset().demos;
+    let spec = previewer.generator().spec();
+    // Once executed, the segments the attempt really ran: from subtask 1 on, the selection sees
+    // where the objects are then, which a plan made before executing cannot know.
+    let ran = executed.map_or(&[][..], |a| &a.plans[..]);
+    let subtasks = plan
+        .subtasks
+        .iter()
+        .enumerate()
+        .map(|(k, s)| ran.get(k).unwrap_or(s))
+        .zip(&spec.subtasks)
+        .map(|(s, subtask)| {
+            let mut ranking: Vec<RankView> = s
+                .source_distances
+                .iter()
+                .flatten()
+                .enumerate()
+                .map(|(demo, &distance)| RankView { demo, name: demos[demo].name.clone(), distance })
+                .collect();
+            ranking.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.demo.cmp(&b.demo)));
+            let bridge = s.waypoints.iter().take_while(|(_, k)| *k == WaypointKind::Interpolation).map(|(p, _)| point(p)).collect();
+            let transit = s.waypoints.iter().take_while(|(_, k)| *k == WaypointKind::Transit).map(|(p, _)| point(p)).collect();
+            SubtaskPreview {
+                object: subtask.object_ref.clone(),
+                src_demo: s.src_demo,
+                src_demo_name: demos[s.src_demo].name.clone(),
+                src_span: s.src_span,
+                ranking,
+                source_path: s.source_poses.iter().map(point).collect(),
+                source_object: s.world_from_obj_src.as_ref().map(point),
+                bridge,
+                transit,
+                transformed: s.transformed_poses.iter().map(point).collect(),
+            }
+        })
+        .collect();
+    let executed = executed.map(|a| ExecutedView {
+        success: a.success,
+        failure: a.failure.as_ref().map(|f| format!("subtask {}: {}", f.subtask, f.reason)),
+        path: a.trajectory.eef_poses.iter().map(point).collect(),
+        planned: a.plans.iter().flat_map(|p| p.waypoints.iter().map(|(w, _)| point(w))).collect(),
+        subtask_of_step: a.trajectory.subtask_labels.clone(),
+        sources: a.src_demo_per_subtask.clone(),
+        final_objects: objects(&a.trajectory.object_poses.iter().filter_map(|(n, p)| Some((n.clone(), *p.last()?))).collect()),
+        diagnostics: diagnostics(a, &spec.subtasks),
+    });
+    PreviewView {
+        task: previewer.pipeline().task().name().to_owned(),
+        variant: previewer.pipeline().variant().to_owned(),
+        seed: spec.generation.seed,
+        index: plan.index,
+        eef: point(&plan.world_from_eef),
+        objects: objects(&plan.initial_object_poses),
+        subtasks,
+        executed,
+        failure_3d: None,
+    }
+}
+
+pub(crate) fn preview_failed(request: &PreviewRequest, e: &PipelineError) -> Reply {
+    Reply::Failed {
+        what: format!(
+            "{} attempt {} of {}",
+            if request.execute { "trying" } else { "previewing" },
+            request.index,
+            request.source.display()
+        ),
+        error: e.to_string(),
+    }
+}

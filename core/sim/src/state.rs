@@ -1,0 +1,114 @@
+//! What a simulated state tells: the scene's object poses and speeds, the end effector, contacts
+//! and grasps. Tasks read their signals, success and observations from it; the environment that
+//! steps the physics ([`crate::SimEnv`]) holds one.
+
+use std::sync::Arc;
+
+use mimicgen_engine::pose::Pose;
+use mujoco_rs::prelude::*;
+
+use crate::scene::{Scene, pose_from_xpos_xmat};
+
+/// A scene and its MuJoCo data.
+pub struct SimState {
+    pub(crate) scene: Arc<Scene>,
+    pub(crate) data: MjData<Arc<MjModel>>,
+}
+
+impl std::fmt::Debug for SimState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimState").field("scene", &self.scene.origin).finish_non_exhaustive()
+    }
+}
+
+impl SimState {
+    /// The scene.
+    #[must_use]
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The MuJoCo data (read-only), e.g. for rendering or extra observations.
+    #[must_use]
+    pub fn data(&self) -> &MjData<Arc<MjModel>> {
+        &self.data
+    }
+
+    /// The indices of the contacts between a geom of `a` and a geom of `b`.
+    fn contacts_between<'a>(&'a self, a: &'a [usize], b: &'a [usize]) -> impl Iterator<Item = usize> + 'a {
+        self.data.contact().iter().enumerate().filter_map(move |(i, c)| {
+            let (g1, g2) = (usize::try_from(c.geom[0]).unwrap_or(usize::MAX), usize::try_from(c.geom[1]).unwrap_or(usize::MAX));
+            ((a.contains(&g1) && b.contains(&g2)) || (a.contains(&g2) && b.contains(&g1))).then_some(i)
+        })
+    }
+
+    /// Whether any geom of `a` touches any geom of `b`.
+    #[must_use]
+    pub fn in_contact(&self, a: &[usize], b: &[usize]) -> bool {
+        self.contacts_between(a, b).next().is_some()
+    }
+
+    /// The finger pads' contacts with object `i`: how many, and the sum of their normal forces
+    /// (N, MuJoCo's `mj_contactForce`). With [`SimState::is_grasping`], what a physics comparison
+    /// reads per step.
+    #[must_use]
+    pub fn pad_contacts(&self, object: usize) -> (usize, f64) {
+        let geoms = &self.scene.objects[object].geoms;
+        let pads: Vec<usize> = self.scene.robot.finger_pads.iter().flatten().copied().collect();
+        let (mut count, mut force) = (0, 0.0);
+        for i in self.contacts_between(&pads, geoms) {
+            let mut wrench = [0.0; 6];
+            #[allow(unsafe_code)]
+            // SAFETY: `i` indexes one of the data's `ncon` contacts and `wrench` holds the 6
+            // values mj_contactForce writes; the data belongs to the scene's model.
+            unsafe {
+                mujoco_rs::mujoco_c::mj_contactForce(
+                    self.scene.model.ffi(),
+                    self.data.ffi(),
+                    i32::try_from(i).unwrap_or(i32::MAX),
+                    &raw mut wrench,
+                );
+            }
+            count += 1;
+            force += wrench[0];
+        }
+        (count, force)
+    }
+
+    /// How many contacts the simulation holds now (MuJoCo's `ncon`).
+    #[must_use]
+    pub fn contact_count(&self) -> usize {
+        self.data.contact().len()
+    }
+
+    /// robosuite's `_check_grasp`: both finger pads touch the object.
+    #[must_use]
+    pub fn is_grasping(&self, object: usize) -> bool {
+        let geoms = &self.scene.objects[object].geoms;
+        self.scene.robot.finger_pads.iter().all(|pad| self.in_contact(pad, geoms))
+    }
+
+    /// `world_from_object` of the scene's object `i`.
+    #[must_use]
+    pub fn object_pose(&self, i: usize) -> Pose {
+        let body = self.scene.objects[i].body;
+        let mat = self.data.xmat()[body];
+        pose_from_xpos_xmat(&self.data.xpos()[body], &mat)
+    }
+
+    /// Linear speed of object `i` (m/s); 0 for a fixed one.
+    #[must_use]
+    pub fn object_speed(&self, i: usize) -> f64 {
+        self.scene.objects[i].dof_adr.map_or(0.0, |v| {
+            let qvel = self.data.qvel();
+            (qvel[v].powi(2) + qvel[v + 1].powi(2) + qvel[v + 2].powi(2)).sqrt()
+        })
+    }
+
+    /// `world_from_eef`: the robot's end-effector site.
+    #[must_use]
+    pub fn eef_pose(&self) -> Pose {
+        let site = self.scene.robot.eef_site;
+        pose_from_xpos_xmat(&self.data.site_xpos()[site], &self.data.site_xmat()[site])
+    }
+}
