@@ -1,4 +1,7 @@
-//! Cross-crate integration tests live in `tests/`; this library holds their shared helpers.
+//! Cross-crate integration tests live in `tests/`; this library holds their shared helpers and
+//! the fuzz harnesses ([`fuzz`]).
+
+pub mod fuzz;
 
 /// Path of a file in the repository, from this crate's directory.
 #[must_use]

@@ -5,9 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
-use exit::{out, outln};
-use mimicgen_io::info::DatasetInfo;
-use mimicgen_io::{DemoReader, DemoSource as _, ReadOptions};
+use exit::outln;
 
 mod annotate;
 mod app;
@@ -18,10 +16,14 @@ mod bench_sim;
 mod bench_transit;
 mod coverage;
 mod exit;
+mod export;
 mod generate;
+mod info;
+mod merge;
 mod prepare;
 mod replay;
 mod serve;
+mod spec;
 mod view;
 
 /// Turn a handful of robot demonstrations into large, diverse training datasets.
@@ -55,7 +57,7 @@ enum Command {
     /// Read, validate and convert task specs (MimicGen JSON or TOML).
     Spec {
         #[command(subcommand)]
-        command: SpecCommand,
+        command: spec::SpecCommand,
     },
     /// Generate demonstrations in simulation (MuJoCo, robosuite-like Panda + OSC_POSE).
     Generate(Box<generate::GenerateArgs>),
@@ -115,16 +117,7 @@ Examples:
     /// Measure the app's frame time with a file loaded, and the time until it is browsable.
     BenchApp(bench_app::BenchAppArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
-    Info {
-        /// The dataset.
-        file: PathBuf,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-        /// Open a file an interrupted writer left behind (keeps its complete demos).
-        #[arg(long)]
-        recover: bool,
-    },
+    Info(info::InfoArgs),
     /// Join the shards of a run (`generate --shard i/K`) into the dataset of the whole run.
     #[command(after_help = "\
 Examples:
@@ -138,17 +131,7 @@ demos, arrays, masks, failed attempts and report counts), also with --guarantee 
 runs to its own --num-demos successes; the merge keeps the whole run's first ones). Each shard's
 folder must hold its dataset, its .json report, its .attempts.jsonl log and, with --keep-failed,
 its _failed.hdf5.")]
-    Merge {
-        /// The shards' datasets, all K of them, in any order.
-        #[arg(required = true, value_name = "SHARD")]
-        shards: Vec<PathBuf>,
-        /// Output dataset (the failed attempts go to OUT_failed.hdf5, the report to OUT.json).
-        #[arg(long)]
-        out: PathBuf,
-        /// Replace existing outputs.
-        #[arg(long)]
-        overwrite: bool,
-    },
+    Merge(merge::MergeArgs),
     /// Export a dataset: to MCAP for Foxglove (poses, actions, labels), or to a LeRobot dataset
     /// (parquet frames, camera streams as MP4, meta/) that LeRobot's loaders read.
     #[command(after_help = "\
@@ -164,29 +147,7 @@ Load the LeRobot export in Python:
 
 Every obs/<camera>_image of the dataset (generate --cameras) becomes the video feature
 observation.images.<camera> (H.264, encoded by the ffmpeg scripts/setup.sh installs).")]
-    Export {
-        /// The dataset.
-        file: PathBuf,
-        /// Output MCAP file.
-        #[arg(long, required_unless_present = "lerobot")]
-        mcap: Option<PathBuf>,
-        /// Output LeRobot dataset directory (format v3.0).
-        #[arg(long)]
-        lerobot: Option<PathBuf>,
-        /// LeRobot: observation keys concatenated into `observation.state`, in order.
-        #[arg(long, value_delimiter = ',', default_value = "robot0_eef_pos,robot0_eef_quat,robot0_gripper_qpos,object")]
-        state_keys: Vec<String>,
-        /// LeRobot: the task instruction of every frame. Default: the task's, from env_args.
-        #[arg(long)]
-        instruction: Option<String>,
-        /// LeRobot: the ffmpeg that encodes camera streams. Default: $MIMICGEN_FFMPEG, else the
-        /// one scripts/setup.sh unpacked into the cache, else `ffmpeg` on the PATH.
-        #[arg(long)]
-        ffmpeg: Option<PathBuf>,
-        /// Replace an existing output (the MCAP file, the LeRobot directory).
-        #[arg(long)]
-        overwrite: bool,
-    },
+    Export(export::ExportArgs),
     /// Measure HDF5 write and read of a synthetic dataset (seconds and peak memory).
     BenchIo {
         /// Number of demos.
@@ -198,20 +159,6 @@ observation.images.<camera> (H.264, encoded by the ffmpeg scripts/setup.sh insta
         /// Directory for the temporary dataset (default: the system temp dir).
         #[arg(long)]
         dir: Option<PathBuf>,
-    },
-}
-
-#[derive(Subcommand)]
-enum SpecCommand {
-    /// Validate a task spec and print a summary of its subtasks.
-    Check {
-        /// A `.toml` spec or a MimicGen experiment `.json`.
-        file: PathBuf,
-    },
-    /// Print a task spec as TOML (e.g. to convert a MimicGen JSON config).
-    Convert {
-        /// A `.toml` spec or a MimicGen experiment `.json`.
-        file: PathBuf,
     },
 }
 
@@ -260,108 +207,10 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
-        Command::Spec { command: SpecCommand::Check { file } } => {
-            let spec = mimicgen_pipeline::check_spec_file(&file)?;
-            outln!("{}: task {:?}, {} subtasks", file.display(), spec.name, spec.subtasks.len());
-            for (i, s) in spec.subtasks.iter().enumerate() {
-                let transit = match s.transit {
-                    mimicgen_engine::spec::Transit::Interpolate => {
-                        format!("interp {} + fixed {}", s.num_interpolation_steps, s.num_fixed_steps)
-                    }
-                    mimicgen_engine::spec::Transit::Plan => format!("planned transit to {} m from the object", s.approach_m),
-                };
-                outln!(
-                    "  subtask {i}: relative to {:<8} ends on {:<10} offsets {:<10} selection {} , noise {}, {transit}",
-                    s.object_ref.as_deref().unwrap_or("world"),
-                    s.term_signal.as_deref().unwrap_or("demo end"),
-                    s.term_offset_range.map_or_else(|| "-".to_owned(), |(a, b)| format!("[{a}, {b}]")),
-                    s.selection.name(),
-                    s.action_noise,
-                );
-            }
-            let g = &spec.generation;
-            outln!(
-                "  generation: {} {}, per-subtask selection {}, interpolate from last target {}, seed {}",
-                g.num_trials,
-                if g.guarantee { "successes" } else { "attempts" },
-                g.select_src_per_subtask,
-                g.interpolate_from_last_target_pose,
-                g.seed
-            );
-            Ok(ExitCode::SUCCESS)
-        }
-        Command::Spec { command: SpecCommand::Convert { file } } => {
-            // The loader's errors name the file and line themselves.
-            let spec = mimicgen_engine::TaskSpec::load(&file)?;
-            out!("{}", spec.to_toml_string()?);
-            Ok(ExitCode::SUCCESS)
-        }
-        Command::Info { file, json, recover } => {
-            let ds = DemoReader::open_with(&file, ReadOptions { recover })?;
-            let info = DatasetInfo::of(&ds)?;
-            if json {
-                outln!("{}", serde_json::to_string_pretty(&info)?);
-            } else {
-                print_info(&info)?;
-            }
-            Ok(ExitCode::SUCCESS)
-        }
-        Command::Export { file, mcap, lerobot, state_keys, instruction, ffmpeg, overwrite } => {
-            let ds = DemoReader::open_with(&file, ReadOptions::default())?;
-            if let Some(mcap) = mcap {
-                check_output(&mcap, Some(&file), overwrite)?;
-                let summary = mimicgen_io::mcap_export::export(&ds, &mcap)?;
-                outln!("{}: {} demos, {} steps at 20 Hz", mcap.display(), summary.demos, summary.steps);
-                for (topic, n) in &summary.messages {
-                    outln!("  {topic:<24} {n} messages");
-                }
-            }
-            if let Some(out) = lerobot {
-                let request = mimicgen_pipeline::lerobot::ExportRequest { state_keys: Some(state_keys), instruction, ffmpeg, overwrite };
-                let bar = indicatif::ProgressBar::new(ds.demo_names().len() as u64).with_style(
-                    indicatif::ProgressStyle::with_template("exporting {bar:30} {pos}/{len} episodes, {elapsed} ({eta} left)")
-                        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-                );
-                drop(ds);
-                let summary = mimicgen_pipeline::lerobot::export(&file, &out, &request, |done, _| bar.set_position(done as u64))?;
-                bar.finish_and_clear();
-                outln!(
-                    "{}: LeRobot {} dataset, {} episodes, {} frames at 20 fps",
-                    summary.out,
-                    mimicgen_io::lerobot::CODEBASE_VERSION,
-                    summary.episodes,
-                    summary.frames
-                );
-                let state: Vec<String> = summary.state.iter().map(|(k, n)| format!("{k} ({n})")).collect();
-                outln!("  observation.state: {}", state.join(" + "));
-                outln!("  task: {:?}", summary.task);
-                for video in &summary.videos {
-                    outln!("  {video}: H.264 video");
-                }
-            }
-            Ok(ExitCode::SUCCESS)
-        }
-        Command::Merge { shards, out, overwrite } => {
-            let bar = indicatif::ProgressBar::new(0).with_style(
-                indicatif::ProgressStyle::with_template("merging {bar:30} {pos}/{len} attempts, {elapsed} ({eta} left)")
-                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-            );
-            let report = mimicgen_pipeline::merge::merge(&shards, &out, overwrite, |done, total| {
-                bar.set_length(total as u64);
-                bar.set_position(done as u64);
-            })?;
-            bar.finish_and_clear();
-            outln!("{}", serde_json::to_string_pretty(&report)?);
-            eprintln!(
-                "merged {} shards: {} of {} attempts succeeded ({:.1} %) -> {}",
-                shards.len(),
-                report.successes,
-                report.attempts,
-                100.0 * report.generation_rate,
-                report.output
-            );
-            Ok(ExitCode::SUCCESS)
-        }
+        Command::Spec { command } => spec::run(command),
+        Command::Info(args) => info::run(args),
+        Command::Export(args) => export::run(args),
+        Command::Merge(args) => merge::run(args),
         Command::BenchIo { demos, steps, dir } => {
             bench_io::run(demos, steps, dir)?;
             Ok(ExitCode::SUCCESS)
@@ -448,55 +297,4 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
     }
-}
-
-fn fmt_list(v: &[f64]) -> String {
-    let parts: Vec<String> = v.iter().map(|x| format!("{x:.3}")).collect();
-    format!("[{}]", parts.join(", "))
-}
-
-fn print_info(info: &DatasetInfo) -> anyhow::Result<()> {
-    let l = &info.lengths;
-    outln!("{}", info.file);
-    let total = info.total_attr.map_or_else(String::new, |t| format!(" (data/total says {t})"));
-    outln!("  demos {}, samples {}{total}", info.num_demos, info.num_samples);
-    outln!("  lengths: mean {:.1}, std {:.1}, min {}, max {}", l.mean, l.std, l.min, l.max);
-    outln!(
-        "  env: {}, controller {}",
-        info.env_name.as_deref().unwrap_or("(no env_args)"),
-        info.controller_type.as_deref().unwrap_or("(unknown)")
-    );
-    outln!("  actions: {} dims, min {}, max {}", info.action_dim, fmt_list(&info.action_min), fmt_list(&info.action_max));
-    if info.obs.is_empty() {
-        outln!("  obs: (none)");
-    }
-    for (key, shape) in &info.obs {
-        let dtype = info.obs_dtypes.get(key).map(String::as_str).unwrap_or_default();
-        outln!("  obs/{key}: {shape:?}{}", if dtype == "float64" || dtype.is_empty() { String::new() } else { format!(" {dtype}") });
-    }
-    outln!("  objects: {}", if info.objects.is_empty() { "(none)".to_owned() } else { info.objects.join(", ") });
-    for (name, s) in &info.signals {
-        let f = &s.first_on_step;
-        outln!(
-            "  signal {name}: first 0->1 at step min {}, mean {:.1}, max {} ({} of {} demos){}",
-            f.min,
-            f.mean,
-            f.max,
-            f.count,
-            s.demos,
-            if s.never_on.is_empty() { String::new() } else { format!("; never on in {}", s.never_on.join(", ")) }
-        );
-    }
-    if info.filter_keys.is_empty() {
-        outln!("  filter keys: (none)");
-    }
-    for (key, n) in &info.filter_keys {
-        outln!("  filter key {key}: {n} demos");
-    }
-    if info.report.is_mimicgen_source() {
-        outln!("  MimicGen source: yes (datagen_info complete)");
-    } else {
-        outln!("  MimicGen source: no: {}", info.report);
-    }
-    Ok(())
 }

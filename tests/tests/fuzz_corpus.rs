@@ -1,0 +1,65 @@
+//! The fuzz targets' saved corpus and crash reproducers (`fuzz/corpus/<target>/`,
+//! `fuzz/artifacts/<target>/`), replayed through the same harnesses `cargo fuzz` runs
+//! (`mimicgen_tests::fuzz`): no input may panic a reader or be refused without naming its file.
+//! Runs in CI with no fuzzing tool; `scripts/fuzz.sh` grows the corpus.
+#![allow(clippy::unwrap_used)] // tests fail loudly by design
+
+use std::path::PathBuf;
+
+use mimicgen_tests::{fuzz, repo_path};
+
+/// Every saved input of `target`, corpus and reproducers.
+fn inputs(target: &str) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    for dir in ["fuzz/corpus", "fuzz/artifacts"] {
+        let Ok(entries) = std::fs::read_dir(repo_path(&format!("{dir}/{target}"))) else { continue };
+        files.extend(entries.filter_map(Result::ok).map(|e| e.path()).filter(|p| p.is_file()));
+    }
+    files.sort();
+    files
+}
+
+/// Runs `harness` on every input of `target`; fails naming each input that panicked.
+fn replay(target: &str, mut harness: impl FnMut(&[u8])) {
+    let files = inputs(target);
+    assert!(files.len() >= 5 || target == "spec_json", "{target}: only {} saved inputs", files.len());
+    let failed: Vec<String> = files
+        .iter()
+        .filter_map(|path| {
+            let data = std::fs::read(path).unwrap();
+            let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| harness(&data)));
+            outcome.err().map(|_| path.display().to_string())
+        })
+        .collect();
+    assert!(failed.is_empty(), "{target}: {} of {} inputs panicked: {failed:?}", failed.len(), files.len());
+}
+
+#[test]
+fn the_spec_toml_corpus_is_read_or_refused_by_name() {
+    replay("spec_toml", fuzz::spec_toml);
+}
+
+#[test]
+fn the_mimicgen_json_corpus_is_read_or_refused_by_name() {
+    replay("spec_json", fuzz::spec_json);
+}
+
+#[test]
+fn the_task_file_corpus_is_read_or_refused_by_name() {
+    replay("task_file", fuzz::task_file);
+}
+
+#[test]
+fn the_dataset_corpus_is_read_or_refused_by_name() {
+    let seed = fuzz::dataset_seed();
+    let dir = tempfile::tempdir().unwrap();
+    let scratch = dir.path().join("mutated.hdf5");
+    replay("dataset", |data| fuzz::dataset(&seed, data, &scratch));
+}
+
+/// The harnesses catch what they are for: a refusal that does not name the file fails.
+#[test]
+#[should_panic(expected = "without naming it")]
+fn a_refusal_without_the_file_name_fails_the_harness() {
+    fuzz::check_names("a reader", "expected a table", fuzz::ORIGIN_TOML);
+}
