@@ -188,6 +188,14 @@ fn mutate(root: &mut Group, choices: &mut Choices<'_>) {
 pub fn dataset(seed: &Group, data: &[u8], scratch: &Path) {
     let mut root = seed.clone();
     mutate(&mut root, &mut Choices(data));
+    if data.is_empty() {
+        // The unedited seed is a valid source file: it must read back whole.
+        mimicgen_io::dataset::write_tree(scratch, &root).unwrap_or_else(|e| panic!("{e}"));
+        let read = RobomimicDataset::open(scratch).and_then(|d| d.to_source_dataset(&SourceSelection::default()));
+        let demos = read.unwrap_or_else(|e| panic!("the seed does not read back: {e}")).demos;
+        assert_eq!(demos.iter().map(mimicgen_engine::SourceDemo::len).collect::<Vec<_>>(), [SEED_STEPS, SEED_STEPS]);
+        return;
+    }
     let file = scratch.display().to_string();
     if let Err(e) = mimicgen_io::dataset::write_tree(scratch, &root) {
         // Our writer refusing what the edits made is not the reader's business; it must still say where.
@@ -244,8 +252,23 @@ impl Default for Seed {
     }
 }
 
-/// The seed file of [`dataset`]: the bundled prepared source demos cut to two demos (so each
-/// input writes and reads a small file).
+/// Steps each demo of the [`dataset_seed`] keeps.
+const SEED_STEPS: usize = 24;
+
+/// Every per-step dataset below `group` (first dimension `steps`) cut to [`SEED_STEPS`] rows.
+fn cut_steps(group: &mut Group, steps: usize) {
+    for node in group.members.values_mut() {
+        match node {
+            Node::Group(g) => cut_steps(g, steps),
+            Node::Dataset(d) if d.array.shape.first() == Some(&steps) => truncate(&mut d.array, SEED_STEPS),
+            Node::Dataset(_) => {}
+        }
+    }
+}
+
+/// The seed file of [`dataset`]: the bundled prepared source demos cut to two demos of
+/// [`SEED_STEPS`] steps, a valid source file small enough to write and read hundreds of times a
+/// second.
 ///
 /// # Panics
 /// When the fixture is missing or unreadable (a broken checkout).
@@ -256,6 +279,13 @@ pub fn dataset_seed() -> Group {
     if let Some(Node::Group(data)) = root.members.get_mut("data") {
         let keep = ["demo_0", "demo_1"];
         data.members.retain(|name, _| keep.contains(&name.as_str()));
+        for demo in data.members.values_mut() {
+            if let Node::Group(demo) = demo {
+                let steps = mimicgen_io::dataset::demo_steps(demo);
+                cut_steps(demo, steps);
+                demo.attrs.insert("num_samples".to_owned(), Array::int(i64::try_from(SEED_STEPS).unwrap_or_default()));
+            }
+        }
     }
     root.members.remove("mask");
     root
