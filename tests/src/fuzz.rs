@@ -180,7 +180,7 @@ fn mutate(root: &mut Group, choices: &mut Choices<'_>) {
 }
 
 /// The HDF5 dataset reader on a mutated copy of `seed` (a source-demo file): `data` picks the
-/// edits (see [`mutate`]); the copy is written to `scratch` and read back as a whole file and as
+/// edits (see `mutate`: drop, cut, poison, retype, rename); the copy is written to `scratch` and read back as a whole file and as
 /// MimicGen source demos. Refusals must name the file.
 ///
 /// # Panics
@@ -267,8 +267,8 @@ fn cut_steps(group: &mut Group, steps: usize) {
 }
 
 /// The seed file of [`dataset`]: the bundled prepared source demos cut to two demos of
-/// [`SEED_STEPS`] steps, a valid source file small enough to write and read hundreds of times a
-/// second.
+/// `SEED_STEPS` steps: a valid source file, small, whose edits reach every field the readers
+/// check.
 ///
 /// # Panics
 /// When the fixture is missing or unreadable (a broken checkout).
