@@ -19,6 +19,8 @@ if ! cargo fuzz --version 2>/dev/null | grep -q "0.13.1"; then
   cargo install cargo-fuzz --version 0.13.1 --locked
 fi
 jobs=$(( $(nproc) > 1 ? $(nproc) - 1 : 1 ))
+# The dataset target writes a scratch HDF5 file per input: in memory where the machine has tmpfs.
+[ -z "${TMPDIR:-}" ] && [ -d /dev/shm ] && [ -w /dev/shm ] && export TMPDIR=/dev/shm
 for t in "${targets[@]}"; do
   mkdir -p "fuzz/corpus/$t" "fuzz/artifacts/$t"
   new="$(mktemp -d)"

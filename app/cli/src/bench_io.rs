@@ -54,8 +54,23 @@ fn synthetic_demo(d: usize, steps: usize) -> anyhow::Result<DemoData> {
     })
 }
 
+/// `mimicgen bench-io`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct BenchIoArgs {
+    /// Number of demos.
+    #[arg(long, default_value_t = 1000)]
+    pub demos: usize,
+    /// Steps per demo.
+    #[arg(long, default_value_t = 150)]
+    pub steps: usize,
+    /// Directory for the temporary dataset (default: the system temp dir).
+    #[arg(long)]
+    pub dir: Option<PathBuf>,
+}
+
 /// Runs the benchmark and prints one line per phase.
-pub fn run(demos: usize, steps: usize, dir: Option<PathBuf>) -> anyhow::Result<()> {
+pub fn run(args: BenchIoArgs) -> anyhow::Result<()> {
+    let BenchIoArgs { demos, steps, dir } = args;
     let dir = match dir {
         Some(d) => d,
         None => std::env::temp_dir(),

@@ -1,6 +1,5 @@
 //! `mimicgen`: turn a handful of robot demonstrations into large datasets (MimicGen, CoRL 2023).
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
@@ -149,17 +148,7 @@ Every obs/<camera>_image of the dataset (generate --cameras) becomes the video f
 observation.images.<camera> (H.264, encoded by the ffmpeg scripts/setup.sh installs).")]
     Export(export::ExportArgs),
     /// Measure HDF5 write and read of a synthetic dataset (seconds and peak memory).
-    BenchIo {
-        /// Number of demos.
-        #[arg(long, default_value_t = 1000)]
-        demos: usize,
-        /// Steps per demo.
-        #[arg(long, default_value_t = 150)]
-        steps: usize,
-        /// Directory for the temporary dataset (default: the system temp dir).
-        #[arg(long)]
-        dir: Option<PathBuf>,
-    },
+    BenchIo(bench_io::BenchIoArgs),
 }
 
 /// Refuses to write `out` onto the command's own `input` (ever) or over an existing file (unless
@@ -211,8 +200,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Info(args) => info::run(args),
         Command::Export(args) => export::run(args),
         Command::Merge(args) => merge::run(args),
-        Command::BenchIo { demos, steps, dir } => {
-            bench_io::run(demos, steps, dir)?;
+        Command::BenchIo(args) => {
+            bench_io::run(args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Generate(args) => {
