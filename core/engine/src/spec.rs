@@ -3,6 +3,9 @@
 //! Two file formats load into the same types: our TOML (see `TaskSpec::from_toml_str` for an
 //! example) and the reference MimicGen's experiment JSON (its `task.task_spec` and
 //! `experiment.generation` sections), so existing configs keep working.
+//!
+//! About 500 lines with its tests (the reference's JSON is read in `spec/mimicgen_json.rs`, field
+//! lines found in `spec/text.rs`).
 
 use std::path::Path;
 

@@ -1,5 +1,8 @@
 //! Reading robomimic / MimicGen HDF5 datasets: the whole file losslessly ([`RobomimicDataset`]),
 //! and the part MimicGen needs as engine types ([`RobomimicDataset::to_source_dataset`]).
+//!
+//! About 500 lines: the lossless file and the streaming reader share their checks (one demo group
+//! is read in `source_demo.rs`).
 
 use std::collections::BTreeMap;
 use std::fmt;
