@@ -2,12 +2,9 @@
 //! undo and redo. Pure state; the model turns commands into calls here.
 
 use mimicgen_engine::SubtaskMarks;
-use mimicgen_engine::segment::approach_start;
+use mimicgen_engine::segment::{MIN_APPROACH_STEPS, approach_start};
 
 use crate::protocol::DemoView;
-
-/// Fewest steps a segment keeps after its start (as the engine's segmentation asks).
-const MIN_SEGMENT_STEPS: usize = 2;
 
 /// One demo's marks before a change, kept for undo.
 #[derive(Debug, Clone, PartialEq)]
@@ -169,7 +166,7 @@ impl Annotation {
 pub fn start_range(ends: &[usize], len: usize, subtask: usize) -> std::ops::RangeInclusive<usize> {
     let first = if subtask == 0 { 0 } else { ends.get(subtask - 1).copied().unwrap_or(len) };
     let end = ends.get(subtask).copied().unwrap_or(len);
-    first..=end.saturating_sub(MIN_SEGMENT_STEPS).max(first)
+    first..=end.saturating_sub(MIN_APPROACH_STEPS).max(first)
 }
 
 /// Where the approach detector starts `subtask`'s segment in `demo` (the first step within

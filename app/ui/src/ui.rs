@@ -215,11 +215,12 @@ pub fn timeline(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
         let object = file.and_then(|f| f.subtask_objects.get(k).cloned().flatten());
         let (planned, approach_m) = model.approach(k);
         let detected = detected_start(demo, object.as_deref(), &ends, k, approach_m);
+        let marked = starts.get(k).copied().flatten();
         ui.horizontal(|ui| {
             let object = object.as_deref().unwrap_or("no object");
             let Some(&end) = ends.get(k) else {
                 ui.label(RichText::new(format!("subtask {k} ({object}) ends with the demo")).color(subtask_color(k)));
-                segment_start(ui, k, starts.get(k).copied().flatten(), detected, planned, model.cursor, commands);
+                segment_start(ui, k, marked, detected, planned, model.cursor, commands);
                 return;
             };
             let signal = file.and_then(|f| f.signal_names.get(k)).map_or("", String::as_str);
@@ -238,9 +239,9 @@ pub fn timeline(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
             if let Some(stored) = demo.stored_ends.as_ref().and_then(|s| s.get(k)) {
                 ui.label(format!("stored signal: step {}", stored - 1));
             }
-            segment_start(ui, k, starts.get(k).copied().flatten(), detected, planned, model.cursor, commands);
+            segment_start(ui, k, marked, detected, planned, model.cursor, commands);
         });
-        shown_starts.push(match starts.get(k).copied().flatten() {
+        shown_starts.push(match marked {
             Some(marked) => Some((marked, true)),
             None => detected.filter(|_| planned).map(|d| (d, false)),
         });

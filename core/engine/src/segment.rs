@@ -153,8 +153,9 @@ impl Segmentation {
     }
 }
 
-/// Fewest steps a planned subtask's segment keeps after its approach start.
-const MIN_APPROACH_STEPS: usize = 2;
+/// Fewest steps a planned subtask's segment keeps after its approach start (a hand-marked start
+/// must leave them too).
+pub const MIN_APPROACH_STEPS: usize = 2;
 
 /// The approach start of every subtask of `demo` whose transit is planned: where the demo's
 /// hand-marked start says (`manual_subtask_starts`), else the first step at which the end effector

@@ -51,24 +51,18 @@ impl Generator {
     /// for ends or starts that do not fit the demo.
     pub fn with_marks(&self, marks: &SubtaskMarks) -> Result<Self, EngineError> {
         let mut dataset = self.dataset.clone();
-        let find = |field: &str, name: &String| {
-            let available = || self.dataset.demos.iter().map(|d| d.name.clone()).collect();
-            let found = dataset.demos.iter().position(|d| &d.name == name);
-            found.ok_or_else(|| EngineError::UnknownName { field: field.to_owned(), name: name.clone(), available: available() })
+        let unknown = |field: &str, name: &String| EngineError::UnknownName {
+            field: field.to_owned(),
+            name: name.clone(),
+            available: self.dataset.demos.iter().map(|d| d.name.clone()).collect(),
         };
-        let mut ends = Vec::new();
         for (name, demo_ends) in &marks.ends {
-            ends.push((find("subtask ends", name)?, demo_ends));
+            let demo = dataset.demos.iter_mut().find(|d| &d.name == name).ok_or_else(|| unknown("subtask ends", name))?;
+            demo.manual_subtask_ends = Some(demo_ends.clone());
         }
-        let mut starts = Vec::new();
         for (name, demo_starts) in &marks.starts {
-            starts.push((find("segment starts", name)?, demo_starts));
-        }
-        for (i, demo_ends) in ends {
-            dataset.demos[i].manual_subtask_ends = Some(demo_ends.clone());
-        }
-        for (i, demo_starts) in starts {
-            dataset.demos[i].manual_subtask_starts = Some(demo_starts.clone());
+            let demo = dataset.demos.iter_mut().find(|d| &d.name == name).ok_or_else(|| unknown("segment starts", name))?;
+            demo.manual_subtask_starts = Some(demo_starts.clone());
         }
         let segmentation = Segmentation::new(&dataset.demos, &self.spec)?;
         Ok(Self { spec: self.spec.clone(), dataset, segmentation })
