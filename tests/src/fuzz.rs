@@ -2,6 +2,10 @@
 //! what `tests/fuzz_corpus.rs` runs on every saved corpus file and crash reproducer in CI. Each
 //! harness panics when the reader does (a bug) or when it refuses the input without naming the
 //! file (the errors' contract); a refusal that names it is a pass.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "test support: the edits index arrays they just sized, and a panic fails the run as a bug would"
+)]
 
 use std::path::Path;
 

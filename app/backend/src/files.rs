@@ -22,7 +22,7 @@ const CHUNK: usize = 64;
 /// What the timeline draws of one demo.
 pub(crate) fn demo_view(d: &SourceDemo, a: &DemoAnnotation) -> DemoView {
     let eef: Vec<_> = d.eef_poses.iter().map(|p| p.translation.vector).collect();
-    let mut eef_speed: Vec<f64> = eef.windows(2).map(|w| (w[1] - w[0]).norm() * CONTROL_HZ).collect();
+    let mut eef_speed: Vec<f64> = eef.iter().zip(eef.iter().skip(1)).map(|(a, b)| (b - a).norm() * CONTROL_HZ).collect();
     eef_speed.push(eef_speed.last().copied().unwrap_or_default());
     DemoView {
         name: a.demo.clone(),

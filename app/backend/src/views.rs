@@ -32,13 +32,13 @@ pub(crate) fn diagnostics(attempt: &Attempt, subtasks: &[mimicgen_engine::Subtas
             let first = plan.first_step;
             let end = attempt.plans.get(k + 1).map_or(t.len(), |p| p.first_step).min(t.len());
             let last = end.checked_sub(1).filter(|&l| l >= first)?;
-            let target_error_mm = mm(t.target_poses[last].translation.vector - t.eef_poses[last].translation.vector);
+            let target_error_mm = mm(t.target_poses.get(last)?.translation.vector - t.eef_poses.get(last)?.translation.vector);
             let track = |name: &Option<String>| name.as_ref().and_then(|n| t.object_poses.get(n));
-            let object_moved_mm =
-                track(&subtasks.get(k)?.object_ref).map(|poses| mm(poses[last].translation.vector - poses[first].translation.vector));
-            let held_object_slip_mm = k.checked_sub(1).and_then(|j| track(&subtasks.get(j)?.object_ref)).map(|poses| {
-                let eef_from_obj = |s: usize| t.eef_poses[s].inverse() * poses[s];
-                mm(eef_from_obj(last).translation.vector - eef_from_obj(first).translation.vector)
+            let moved = |poses: &Vec<Pose>| Some(mm(poses.get(last)?.translation.vector - poses.get(first)?.translation.vector));
+            let object_moved_mm = track(&subtasks.get(k)?.object_ref).and_then(moved);
+            let held_object_slip_mm = k.checked_sub(1).and_then(|j| track(&subtasks.get(j)?.object_ref)).and_then(|poses| {
+                let eef_from_obj = |s: usize| Some(t.eef_poses.get(s)?.inverse() * poses.get(s)?);
+                Some(mm(eef_from_obj(last)?.translation.vector - eef_from_obj(first)?.translation.vector))
             });
             Some(SubtaskDiagnostics { subtask: k, steps: (first, end), target_error_mm, object_moved_mm, held_object_slip_mm })
         })
@@ -48,6 +48,7 @@ pub(crate) fn diagnostics(attempt: &Attempt, subtasks: &[mimicgen_engine::Subtas
 /// Turns a plan (and an executed attempt) into what the preview screen draws.
 pub(crate) fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<&Attempt>) -> PreviewView {
     let demos = &previewer.generator().dataset().demos;
+    let name = |d: usize| demos.get(d).map_or_else(|| format!("demo {d}"), |demo| demo.name.clone());
     let spec = previewer.generator().spec();
     // Once executed, the segments the attempt really ran: from subtask 1 on, the selection sees
     // where the objects are then, which a plan made before executing cannot know.
@@ -64,7 +65,7 @@ pub(crate) fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<
                 .iter()
                 .flatten()
                 .enumerate()
-                .map(|(demo, &distance)| RankView { demo, name: demos[demo].name.clone(), distance })
+                .map(|(demo, &distance)| RankView { demo, name: name(demo), distance })
                 .collect();
             ranking.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.demo.cmp(&b.demo)));
             let bridge = s.waypoints.iter().take_while(|(_, k)| *k == WaypointKind::Interpolation).map(|(p, _)| point(p)).collect();
@@ -72,7 +73,7 @@ pub(crate) fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<
             SubtaskPreview {
                 object: subtask.object_ref.clone(),
                 src_demo: s.src_demo,
-                src_demo_name: demos[s.src_demo].name.clone(),
+                src_demo_name: name(s.src_demo),
                 src_span: s.src_span,
                 ranking,
                 source_path: s.source_poses.iter().map(point).collect(),

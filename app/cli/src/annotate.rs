@@ -136,12 +136,12 @@ pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
     distances.sort_unstable();
     #[allow(clippy::cast_precision_loss)]
     let summary = (!distances.is_empty()).then(|| {
-        let at = |q: f64| distances[((distances.len() - 1) as f64 * q).round() as usize];
+        let at = |q: f64| distances.get(((distances.len() - 1) as f64 * q).round() as usize).copied().unwrap_or_default();
         serde_json::json!({
             "boundaries": distances.len(),
             "median_steps": at(0.5),
             "p90_steps": at(0.9),
-            "worst_steps": distances[distances.len() - 1],
+            "worst_steps": distances.last().copied().unwrap_or_default(),
             "within_5_steps": distances.iter().filter(|&&d| d <= 5).count() as f64 / distances.len() as f64,
         })
     });

@@ -49,7 +49,7 @@ fn percentile(sorted_ms: &[f64], p: f64) -> f64 {
     }
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, clippy::cast_precision_loss)]
     let i = ((sorted_ms.len() - 1) as f64 * p).round() as usize;
-    sorted_ms[i]
+    sorted_ms.get(i).copied().unwrap_or(f64::NAN)
 }
 
 fn summary(mut ms: Vec<f64>) -> serde_json::Value {

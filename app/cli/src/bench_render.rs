@@ -1,5 +1,6 @@
 //! `mimicgen bench-render`: what a camera frame costs, drawn several ways, and whether the ways
 //! give the same pixels.
+#![allow(clippy::indexing_slicing, reason = "the per-way tables (best, images, rigs) have one entry per WAYS, indexed by its positions")]
 
 use std::path::PathBuf;
 use std::sync::{Arc, Barrier};

@@ -1,5 +1,6 @@
 //! `mimicgen bench-transit`: interpolated against planned transit on the same attempts, as the
 //! rates, obstacle contacts and planning costs BENCHMARKS.md reports.
+#![allow(clippy::indexing_slicing, reason = "reading a serde_json::Value by key or index gives Null where it has none; it never panics")]
 
 use std::ops::ControlFlow;
 use std::sync::Arc;
@@ -131,7 +132,7 @@ pub fn run(args: &BenchTransitArgs) -> anyhow::Result<()> {
                 subtask.transit = transit;
             }
             let dataset = SourceDataset {
-                demos: pipeline.generator().dataset().demos[..sources].to_vec(),
+                demos: pipeline.generator().dataset().demos.iter().take(sources).cloned().collect(),
                 env_args: pipeline.generator().dataset().env_args.clone(),
             };
             let generator = Generator::new(spec, dataset)?;

@@ -1,6 +1,7 @@
 //! A run whose disk fills: it stops with an error naming the output, leaves no file that claims
 //! to be complete, and resumes to the same dataset once there is room. Needs a small tmpfs, so
 //! root (or CAP_SYS_ADMIN); where mounting is impossible the test says so on stderr and passes.
+#![allow(clippy::indexing_slicing, reason = "test helpers: an index out of range fails the test, as it should")]
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 
 use std::path::{Path, PathBuf};

@@ -280,7 +280,9 @@ fn coverage(py: Python<'_>, path: PathBuf, task: Option<String>, variant: Option
         .detach(|| mimicgen_pipeline::coverage::dataset_coverage(&path, task.as_deref(), variant.as_deref(), bins))
         .map_err(pipeline_error)?;
     let mut value = serde_json::to_value(&found).map_err(error)?;
-    value["support_coverage"] = serde_json::json!(found.coverage.support_coverage());
+    if let Some(fields) = value.as_object_mut() {
+        fields.insert("support_coverage".to_owned(), serde_json::json!(found.coverage.support_coverage()));
+    }
     json_of(&value)
 }
 
@@ -348,7 +350,7 @@ fn event_json(event: &Event) -> Option<String> {
     let value = match event {
         Event::Started(info) => {
             let mut v = serde_json::to_value(info.as_ref()).ok()?;
-            v["kind"] = "started".into();
+            v.as_object_mut()?.insert("kind".to_owned(), "started".into());
             v
         }
         Event::Attempt(a) => serde_json::json!({

@@ -38,7 +38,8 @@ fn pose(value: &Bound<'_, PyAny>, what: &str) -> PyResult<Pose> {
 
 fn matrix<'py>(py: Python<'py>, p: &Pose) -> PyResult<Bound<'py, PyAny>> {
     let m = pose_to_matrix(p);
-    let rows: Vec<f64> = (0..4).flat_map(|r| (0..4).map(move |c| m[(r, c)])).collect();
+    // Row-major (nalgebra stores columns first).
+    let rows: Vec<f64> = m.transpose().iter().copied().collect();
     Ok(PyArray1::from_vec(py, rows).reshape([4, 4])?.into_any())
 }
 

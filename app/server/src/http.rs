@@ -60,32 +60,18 @@ impl Head {
 }
 
 fn percent_decode(s: &str) -> String {
-    let bytes = s.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        match bytes[i] {
-            b'%' if i + 2 < bytes.len() => {
-                let hex = std::str::from_utf8(&bytes[i + 1..i + 3]).ok().and_then(|h| u8::from_str_radix(h, 16).ok());
-                match hex {
-                    Some(b) => {
-                        out.push(b);
-                        i += 3;
-                    }
-                    None => {
-                        out.push(b'%');
-                        i += 1;
-                    }
-                }
-            }
-            b'+' => {
-                out.push(b' ');
-                i += 1;
-            }
-            b => {
+    let hex = |h: &[u8]| std::str::from_utf8(h).ok().and_then(|h| u8::from_str_radix(h, 16).ok());
+    let mut rest = s.as_bytes();
+    let mut out = Vec::with_capacity(rest.len());
+    while let Some((&first, tail)) = rest.split_first() {
+        rest = tail;
+        match (first, tail) {
+            (b'%', [h, l, after @ ..]) if let Some(b) = hex(&[*h, *l]) => {
                 out.push(b);
-                i += 1;
+                rest = after;
             }
+            (b'+', _) => out.push(b' '),
+            (b, _) => out.push(b),
         }
     }
     String::from_utf8_lossy(&out).into_owned()
@@ -125,8 +111,9 @@ pub fn read_head(stream: &mut TcpStream) -> Result<Head, HeadError> {
                         .iter()
                         .map(|h| (h.name.to_ascii_lowercase(), String::from_utf8_lossy(h.value).into_owned()))
                         .collect(),
-                    raw: buf[..len].to_vec(),
-                    rest: buf[len..].to_vec(),
+                    // httparse's length is of the bytes it parsed, so within `buf`.
+                    raw: buf.get(..len).unwrap_or_default().to_vec(),
+                    rest: buf.get(len..).unwrap_or_default().to_vec(),
                 };
                 return Ok(head);
             }
@@ -142,6 +129,7 @@ pub fn read_head(stream: &mut TcpStream) -> Result<Head, HeadError> {
         }
         match stream.read(&mut chunk) {
             Ok(0) => return Err(HeadError::Closed),
+            #[allow(clippy::indexing_slicing, reason = "Read::read returns at most the buffer's length")]
             Ok(n) => buf.extend_from_slice(&chunk[..n]),
             Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
                 return Err(HeadError::Bad(408, "request head too slow"));
@@ -270,5 +258,14 @@ mod tests {
         assert_eq!(head.param("token").as_deref(), Some("x+y z"));
         assert_eq!(head.param("b"), None);
         assert_eq!(head.cookie("mimicgen_token").as_deref(), Some("abc"));
+    }
+
+    #[test]
+    fn percent_escapes_cut_short_or_not_hex_are_kept_as_written() {
+        for (query, decoded) in
+            [("%41%4", "A%4"), ("%", "%"), ("%zz%41", "%zzA"), ("a%2", "a%2"), ("%e2%9c%93", "\u{2713}"), ("%ff", "\u{fffd}")]
+        {
+            assert_eq!(percent_decode(query), decoded, "{query}");
+        }
     }
 }

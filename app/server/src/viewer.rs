@@ -154,6 +154,7 @@ pub fn proxy(mut client: TcpStream, head: &Head, port: u16) -> std::io::Result<(
         if n == 0 {
             break;
         }
+        #[allow(clippy::indexing_slicing, reason = "Read::read returns at most the buffer's length")]
         client.write_all(&buf[..n])?;
     }
     let _ = client.shutdown(std::net::Shutdown::Both);

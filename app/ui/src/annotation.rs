@@ -105,12 +105,10 @@ impl Annotation {
     /// needs).
     pub fn set_end(&mut self, demo: &DemoView, subtask: usize, end: usize) {
         let mut ends = self.ends(&demo.name);
-        if subtask >= ends.len() {
-            return;
-        }
-        let low = if subtask == 0 { 2 } else { ends[subtask - 1] + 2 };
+        let low = subtask.checked_sub(1).and_then(|previous| ends.get(previous)).map_or(2, |&e| e + 2);
         let high = ends.get(subtask + 1).map_or(demo.len.saturating_sub(1), |&e| e.saturating_sub(2));
-        ends[subtask] = end.clamp(low, high.max(low));
+        let Some(slot) = ends.get_mut(subtask) else { return };
+        *slot = end.clamp(low, high.max(low));
         let starts = self.starts(&demo.name);
         self.change(demo, ends, &starts);
     }

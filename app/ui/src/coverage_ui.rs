@@ -117,15 +117,15 @@ fn coverage_block(ui: &mut egui::Ui, figures: &CoverageFigures, rows: &[AttemptR
     let title = figures.title.as_str();
     ui.label(summary);
     let mut charts = vec![source_demo_chart(title, rows)];
-    for (k, dim) in h_good.dimensions.iter().enumerate() {
+    for (k, ((dim, good), bad)) in h_good.dimensions.iter().zip(&h_good.histograms).zip(&h_bad.histograms).enumerate() {
         #[allow(clippy::cast_precision_loss)]
         let width = (dim.high - dim.low) / HISTOGRAM_BINS as f64;
         #[allow(clippy::cast_precision_loss)]
         let bars = |h: &[usize]| -> Vec<Bar> {
             h.iter().enumerate().map(|(b, &n)| Bar::new(dim.low + (b as f64 + 0.5) * width, n as f64).width(width * 0.9)).collect()
         };
-        let succeeded = BarChart::new("successes", bars(&h_good.histograms[k])).color(SUCCESS);
-        let failed = BarChart::new("failures", bars(&h_bad.histograms[k])).color(FAILURE).stack_on(&[&succeeded]);
+        let succeeded = BarChart::new("successes", bars(good)).color(SUCCESS);
+        let failed = BarChart::new("failures", bars(bad)).color(FAILURE).stack_on(&[&succeeded]);
         let coordinate = match dim.coordinate {
             Coordinate::X => "x (m)",
             Coordinate::Y => "y (m)",
@@ -169,11 +169,10 @@ fn source_demo_chart(title: &str, rows: &[AttemptRow]) -> SmallBars<'static> {
         let mut used = r.sources.clone();
         used.sort_unstable();
         used.dedup();
+        // `demos` is one past the largest source, so every slot exists.
         for d in used {
-            if r.success {
-                good[d] += 1;
-            } else {
-                bad[d] += 1;
+            if let Some(count) = if r.success { &mut good } else { &mut bad }.get_mut(d) {
+                *count += 1;
             }
         }
     }

@@ -318,8 +318,12 @@ impl AppModel {
             Command::SetPreviewSource { subtask, demo } => {
                 let num_demos = self.file.as_ref().map_or(0, |f| f.demos.len());
                 if subtask < self.file.as_ref().map_or(0, |f| f.subtask_objects.len()) && demo.is_none_or(|d| d < num_demos) {
-                    self.preview.sources.resize(subtask + 1, None);
-                    self.preview.sources[subtask] = demo;
+                    if self.preview.sources.len() <= subtask {
+                        self.preview.sources.resize(subtask + 1, None);
+                    }
+                    if let Some(slot) = self.preview.sources.get_mut(subtask) {
+                        *slot = demo;
+                    }
                     return self.preview_request(false);
                 }
             }
@@ -517,7 +521,8 @@ impl AppModel {
                 self.preview.view = Some(*view);
             }
             Reply::SideBySide(views) => {
-                if let Some(pair) = self.side_by_side.as_mut().filter(|p| p.indices == [views[0].index, views[1].index]) {
+                let [a, b] = &*views;
+                if let Some(pair) = self.side_by_side.as_mut().filter(|p| p.indices == [a.index, b.index]) {
                     self.status = format!("re-ran attempts {} and {}", pair.indices[0], pair.indices[1]);
                     pair.views = Some(views);
                 }

@@ -2,6 +2,10 @@
 //! every subtask (with the selection's ranking), the transformed segments and interpolation
 //! bridges seen from above and from the side, the source segments beside them, and the executed
 //! path after "try it". Reads the model, returns commands.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "`axes` are the coordinate pairs a view plots, (0, 1) or (0, 2), into 3-vectors and the 3 axis names"
+)]
 
 use egui::{Color32, RichText};
 use egui_plot::{Corner, Legend, Line, LineStyle, MarkerShape, Plot, PlotPoint, PlotPoints, Points, Text};

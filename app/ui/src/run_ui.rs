@@ -263,7 +263,12 @@ fn scene_plot(ui: &mut egui::Ui, run: &RunState, size: egui::Vec2) {
                         .filter_map(|r| r.objects.iter().find(|o| &o.name == name).map(|o| [o.position[0], o.position[1]]))
                         .collect();
                     let label = format!("{name} ({})", if success { "success" } else { "failure" });
-                    plot.points(Points::new(label, points).shape(shapes[k % shapes.len()]).radius(2.5).color(color));
+                    plot.points(
+                        Points::new(label, points)
+                            .shape(shapes.get(k % shapes.len()).copied().unwrap_or(MarkerShape::Circle))
+                            .radius(2.5)
+                            .color(color),
+                    );
                 }
             }
         });
@@ -332,7 +337,7 @@ fn attempt_table(ui: &mut egui::Ui, model: &AppModel, run: &RunState, state: &mu
         }
     }
     egui::ScrollArea::vertical().id_salt("attempts").show_rows(ui, 18.0, rows.len(), |ui, range| {
-        for row in &rows[range] {
+        for row in rows.get(range).unwrap_or_default() {
             let sources: Vec<String> = row.sources.iter().map(|d| format!("demo_{d}")).collect();
             let text = format!(
                 "{:>5}  {:<10} {:>4} steps  sources {}  {}",

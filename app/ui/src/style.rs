@@ -15,6 +15,7 @@ const SUBTASK_COLORS: [Color32; 6] = [
 /// The colour of subtask `k`.
 #[must_use]
 pub fn subtask_color(k: usize) -> Color32 {
+    #[allow(clippy::indexing_slicing, reason = "k % len is below len")]
     SUBTASK_COLORS[k % SUBTASK_COLORS.len()]
 }
 

@@ -164,8 +164,7 @@ pub fn demo_list(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command
     };
     ui.heading(format!("{} demos", file.demos.len()));
     egui::ScrollArea::vertical().show_rows(ui, 18.0, file.demos.len(), |ui, rows| {
-        for i in rows {
-            let d = &file.demos[i];
+        for (i, d) in file.demos.iter().enumerate().skip(rows.start).take(rows.len()) {
             let ends = model.annotation.marks.ends.get(&d.name);
             let edited = ends.is_some_and(|e| d.stored_ends.as_ref() != Some(e));
             let text = format!("{}  {} steps{}", d.name, d.len, if edited { "  (edited)" } else { "" });

@@ -46,6 +46,7 @@ fn rgb(c: [u8; 3]) -> rerun::Color {
 /// The colour of subtask `k`.
 #[must_use]
 pub fn subtask_color(k: usize) -> rerun::Color {
+    #[allow(clippy::indexing_slicing, reason = "k % len is below len")]
     rgb(SUBTASK_COLORS[k % SUBTASK_COLORS.len()])
 }
 
@@ -146,7 +147,7 @@ pub fn log_demo(rec: &RecordingStream, root: &str, demo: &SourceDemo, demo_index
     let mut cuts: Vec<usize> = ends.iter().map(|(t, _)| *t).filter(|&t| t > 0 && t < n).collect();
     cuts.push(n);
     for (k, &end) in cuts.iter().enumerate() {
-        let strip: Vec<[f32; 3]> = demo.eef_poses[start.min(n)..(end + 1).min(n)].iter().map(point).collect();
+        let strip: Vec<[f32; 3]> = demo.eef_poses.get(start.min(n)..(end + 1).min(n)).unwrap_or_default().iter().map(point).collect();
         rec.log(
             format!("{root}/eef_path/subtask_{k}"),
             &rerun::LineStrips3D::new([strip])
@@ -160,7 +161,7 @@ pub fn log_demo(rec: &RecordingStream, root: &str, demo: &SourceDemo, demo_index
     let marks: Vec<(usize, String)> = ends.iter().filter(|(t, _)| *t < n).cloned().collect();
     rec.log(
         format!("{root}/subtask_ends"),
-        &rerun::Points3D::new(marks.iter().map(|(t, _)| point(&demo.eef_poses[*t])))
+        &rerun::Points3D::new(marks.iter().filter_map(|(t, _)| demo.eef_poses.get(*t)).map(point))
             .with_radii([0.008])
             .with_colors(marks.iter().enumerate().map(|(k, _)| subtask_color(k)))
             .with_labels(marks.iter().map(|(t, s)| format!("{s} ends subtask at step {t}")))

@@ -84,7 +84,9 @@ impl RunLogger {
             if self.source_names.len() <= index {
                 self.source_names.resize(index + 1, String::new());
             }
-            self.source_names[index].clone_from(&demo.name);
+            if let Some(name) = self.source_names.get_mut(index) {
+                name.clone_from(&demo.name);
+            }
             self.demo_frames.insert(index, self.frame);
             record::log_demo(&self.rec, "world/demo", demo, index, self.frame)?;
             let n = demo.sim.states.len();

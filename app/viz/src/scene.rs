@@ -188,9 +188,9 @@ impl SceneLogger {
         let mut quaternions: Vec<Vec<rerun::Quaternion>> = vec![Vec::with_capacity(rows.len()); self.geoms.len()];
         for &t in &rows {
             let poses = self.poser.poses(states.row(t)).map_err(|e| VizError::Sim { what: self.root.clone(), reason: e.to_string() })?;
-            for (i, (xpos, xmat)) in poses.iter().enumerate() {
-                translations[i].push(f32s(*xpos));
-                quaternions[i].push(rerun::Quaternion::from_xyzw(xyzw_from_xmat(xmat)));
+            for ((xpos, xmat), (translation, quaternion)) in poses.iter().zip(translations.iter_mut().zip(quaternions.iter_mut())) {
+                translation.push(f32s(*xpos));
+                quaternion.push(rerun::Quaternion::from_xyzw(xyzw_from_xmat(xmat)));
             }
         }
         let times: Vec<TimeColumn> = index

@@ -99,14 +99,16 @@ pub fn coverage(scenes: &[BTreeMap<String, Pose>], dimensions: &[Dimension], bin
     let mut hit = BTreeSet::new();
     for scene in scenes {
         let mut cell = Vec::with_capacity(dims.len());
-        for (i, d) in dims.iter().enumerate() {
+        for (d, histogram) in dims.iter().zip(&mut histograms) {
             let value = d.value(scene).ok_or_else(|| EngineError::UnknownName {
                 field: "coverage dimension".to_owned(),
                 name: d.object.clone(),
                 available: scene.keys().cloned().collect(),
             })?;
             let b = d.bin(value, bins);
-            histograms[i][b] += 1;
+            if let Some(count) = histogram.get_mut(b) {
+                *count += 1;
+            }
             cell.push(b);
         }
         hit.insert(cell);

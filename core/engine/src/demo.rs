@@ -66,10 +66,17 @@ impl Rows {
         self.len() == 0
     }
 
-    /// Row `i`. Panics if `i >= len()`, like slice indexing.
+    /// Row `i`. Panics if `i >= len()`, like slice indexing ([`Self::get`] does not).
     #[must_use]
+    #[allow(clippy::indexing_slicing, reason = "documented to panic past len(), as slice indexing does")]
     pub fn row(&self, i: usize) -> &[f64] {
         &self.data[i * self.width..(i + 1) * self.width]
+    }
+
+    /// Row `i`, `None` past `len()`.
+    #[must_use]
+    pub fn get(&self, i: usize) -> Option<&[f64]> {
+        self.data.get(i * self.width..(i + 1) * self.width).filter(|_| i < self.len())
     }
 
     /// Appends a row; its length must equal `width()`.
@@ -95,11 +102,12 @@ impl Rows {
 
     /// Iterates over rows.
     pub fn iter(&self) -> impl ExactSizeIterator<Item = &[f64]> + '_ {
-        (0..self.len()).map(move |i| self.row(i))
+        (0..self.len()).map(move |i| self.get(i).unwrap_or_default())
     }
 
-    /// Rows `start..end` as a new array.
+    /// Rows `start..end` as a new array. Panics past `len()`, like slice indexing.
     #[must_use]
+    #[allow(clippy::indexing_slicing, reason = "documented to panic past len(), as slice indexing does")]
     pub fn slice(&self, start: usize, end: usize) -> Self {
         Self { width: self.width, data: self.data[start * self.width..end * self.width].to_vec() }
     }

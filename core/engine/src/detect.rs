@@ -48,13 +48,18 @@ fn closed(command: f64) -> bool {
 /// # Errors
 /// [`EngineError::Segmentation`] naming the demo and subtask when the gripper commands do not
 /// show the close or open a subtask needs, or the demo has no gripper actions.
+#[allow(
+    clippy::indexing_slicing,
+    reason = "`command` and `w` have n entries (checked at the top); every step indexed is below n: the searches run \
+              below n, `still` to n - 2, and `start` is 0 or an earlier proposal's end, at most n - 1"
+)]
 pub fn propose_subtask_ends(demo: &SourceDemo, spec: &TaskSpec, finger_width_m: Option<&[f64]>) -> Result<Vec<Proposal>, EngineError> {
     let n = demo.len();
     let fail = |subtask: usize, reason: String| EngineError::Segmentation { demo: demo.name.clone(), subtask, reason };
     if demo.gripper_actions.width() == 0 || demo.gripper_actions.len() != n {
         return Err(fail(0, "has no gripper actions to read open and close commands from".to_owned()));
     }
-    let command: Vec<f64> = (0..n).map(|t| demo.gripper_actions.row(t)[0]).collect();
+    let command: Vec<f64> = demo.gripper_actions.iter().filter_map(|row| row.first().copied()).collect();
     let width = finger_width_m.filter(|w| w.len() == n);
     let mut proposals = Vec::new();
     let mut start = 0usize;
@@ -74,11 +79,10 @@ pub fn propose_subtask_ends(demo: &SourceDemo, spec: &TaskSpec, finger_width_m: 
                 let stop = (moving..n.saturating_sub(2)).find(|&t| still(t) && still(t + 1) && w[t] > MIN_GRASP_WIDTH_M);
                 match stop {
                     Some(t) => {
-                        let near = subtask
-                            .object_ref
-                            .as_ref()
-                            .and_then(|name| demo.object_poses.get(name))
-                            .map(|poses| (demo.eef_poses[t].translation.vector - poses[t].translation.vector).norm());
+                        let near =
+                            subtask.object_ref.as_ref().and_then(|name| demo.object_poses.get(name)).and_then(|poses| {
+                                Some((demo.eef_poses.get(t)?.translation.vector - poses.get(t)?.translation.vector).norm())
+                            });
                         let (confidence, where_) = match near {
                             Some(d) if d < NEAR_M => {
                                 (0.9, format!(", {:.0} mm from {}", d * 1e3, subtask.object_ref.as_deref().unwrap_or("")))

@@ -6,6 +6,11 @@
 //! task succeeds when `cubeA` rests on `cubeB`. Success is therefore exact, which lets tests check
 //! the generation loop (rates, attribution, determinism) without a simulator. It is a reference
 //! for tests, benchmarks and docs: real generation runs on the MuJoCo backend.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "states and actions are checked for length where they come in (set_state, step); configurations are \
+              the 4 numbers of its own configuration space"
+)]
 
 use std::collections::BTreeMap;
 

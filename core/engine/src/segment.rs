@@ -23,7 +23,8 @@ pub type Span = (usize, usize);
 /// First step `t >= from` (and `t >= 1`) where `signal[t-1] == 0` and `signal[t] != 0`.
 #[must_use]
 pub fn first_rising_edge(signal: &[i64], from: usize) -> Option<usize> {
-    (from.max(1)..signal.len()).find(|&t| signal[t - 1] == 0 && signal[t] != 0)
+    // Window i holds steps i and i + 1; t = i + 1 >= max(from, 1).
+    signal.windows(2).enumerate().skip(from.saturating_sub(1)).find_map(|(i, w)| matches!(w, &[0, now] if now != 0).then_some(i + 1))
 }
 
 /// The end (exclusive) of a subtask that starts at `start` and whose signal is `signal`: one past
@@ -66,12 +67,12 @@ impl Segmentation {
             let mut demo_ends = Vec::with_capacity(num);
             if let Some(manual) = &demo.manual_subtask_ends {
                 if manual.len() + 1 != num {
-                    return Err(fail(0, format!("{} manual boundaries given, the task needs {}", manual.len(), num - 1)));
+                    return Err(fail(0, format!("{} manual boundaries given, the task needs {}", manual.len(), num.saturating_sub(1))));
                 }
                 demo_ends.extend_from_slice(manual);
             } else {
                 let mut prev = 0;
-                for (i, s) in spec.subtasks.iter().enumerate().take(num - 1) {
+                for (i, s) in spec.subtasks.iter().enumerate().take(num.saturating_sub(1)) {
                     let name = s
                         .term_signal
                         .as_deref()
@@ -85,18 +86,18 @@ impl Segmentation {
             }
             demo_ends.push(demo.len());
             let mut start_latest = 0i64;
-            for (i, &end) in demo_ends.iter().enumerate() {
+            for (i, (&end, &(lo, hi))) in demo_ends.iter().zip(&offsets).enumerate() {
                 let end = i64::try_from(end).unwrap_or(i64::MAX);
-                let end_earliest = end + offsets[i].0;
+                let end_earliest = end + lo;
                 if end_earliest <= start_latest {
                     return Err(fail(
                         i,
                         format!("segment can be empty: it starts as late as step {start_latest} and may end at step {end_earliest}"),
                     ));
                 }
-                let end_latest = end + offsets[i].1;
+                let end_latest = end + hi;
                 if end_latest > i64::try_from(demo.len()).unwrap_or(i64::MAX) {
-                    return Err(fail(i, format!("boundary {end} plus offset {} runs past the demo's {} steps", offsets[i].1, demo.len())));
+                    return Err(fail(i, format!("boundary {end} plus offset {hi} runs past the demo's {} steps", demo.len())));
                 }
                 start_latest = end_latest;
             }
@@ -107,10 +108,11 @@ impl Segmentation {
     }
 
     /// Where the approach to each planned subtask's object begins in demo `d` (`None` for
-    /// interpolated subtasks): the segment of such a subtask is replayed from there.
+    /// interpolated subtasks): the segment of such a subtask is replayed from there. Empty for a
+    /// demo the segmentation does not have.
     #[must_use]
     pub fn approach_starts(&self, d: usize) -> &[Option<usize>] {
-        &self.approaches[d]
+        self.approaches.get(d).map_or(&[], Vec::as_slice)
     }
 
     /// Number of demos.
@@ -119,10 +121,10 @@ impl Segmentation {
         self.ends.len()
     }
 
-    /// Nominal spans of demo `d`, one per subtask.
+    /// Nominal spans of demo `d`, one per subtask (none for a demo the segmentation does not have).
     #[must_use]
     pub fn nominal_spans(&self, d: usize) -> Vec<Span> {
-        spans_from_ends(&self.ends[d])
+        self.ends.get(d).map(|ends| spans_from_ends(ends)).unwrap_or_default()
     }
 
     /// Spans of every demo with freshly drawn boundary offsets (one draw per demo per subtask).
@@ -170,15 +172,14 @@ fn approach_starts(
 ) -> Result<Vec<Option<usize>>, (usize, String)> {
     let mut prev_end = 0;
     let mut out = Vec::with_capacity(spec.subtasks.len());
-    for (i, s) in spec.subtasks.iter().enumerate() {
-        let (start, end) = (prev_end, ends[i]);
+    for (i, ((s, &end), &(lo, _))) in spec.subtasks.iter().zip(ends).zip(offsets).enumerate() {
+        let start = prev_end;
         prev_end = end;
         if s.transit != Transit::Plan {
             out.push(None);
             continue;
         }
-        let latest_start =
-            usize::try_from(i64::try_from(end).unwrap_or(i64::MAX) + offsets[i].0).unwrap_or(end).saturating_sub(MIN_APPROACH_STEPS);
+        let latest_start = usize::try_from(i64::try_from(end).unwrap_or(i64::MAX) + lo).unwrap_or(end).saturating_sub(MIN_APPROACH_STEPS);
         let marked = demo.manual_subtask_starts.as_ref().and_then(|m| m.get(i).copied().flatten());
         if let Some(m) = marked {
             if m < start || m > latest_start {

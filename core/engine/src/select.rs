@@ -29,7 +29,9 @@ pub fn source_distances(
     object: Option<&str>,
     scene: SceneContext<'_>,
 ) -> Option<Vec<f64>> {
-    let src_object_pose = |d: usize| object.and_then(|name| demos[d].object_poses.get(name)).map(|poses| poses[spans[d][subtask].0]);
+    // Where demo d's segment starts this attempt (None for a demo or subtask `spans` lacks).
+    let start = |d: usize| spans.get(d).and_then(|s| s.get(subtask)).map(|&(start, _)| start);
+    let src_object_pose = |d: usize| demos.get(d)?.object_poses.get(object?)?.get(start(d)?).copied();
     match strategy {
         SelectionStrategy::Random => None,
         SelectionStrategy::NearestNeighborObject { .. } => {
@@ -43,7 +45,9 @@ pub fn source_distances(
         SelectionStrategy::NearestNeighborRobotDistance { .. } => Some(
             (0..demos.len())
                 .map(|d| {
-                    let world_from_eef_src = demos[d].eef_poses[spans[d][subtask].0];
+                    let Some(&world_from_eef_src) = demos.get(d).zip(start(d)).and_then(|(demo, t)| demo.eef_poses.get(t)) else {
+                        return f64::INFINITY;
+                    };
                     let start = match (scene.world_from_obj, src_object_pose(d)) {
                         (Some(world_from_obj_new), Some(world_from_obj_src)) => {
                             world_from_obj_new * world_from_obj_src.inverse() * world_from_eef_src
@@ -90,10 +94,10 @@ fn strategy_k(strategy: &SelectionStrategy) -> usize {
 
 /// Uniform pick among the `k` smallest distances (ties broken by index).
 fn nearest_k_pick<R: Rng + ?Sized>(distances: &[f64], k: usize, rng: &mut R) -> usize {
-    let mut order: Vec<usize> = (0..distances.len()).collect();
-    order.sort_by(|&a, &b| distances[a].total_cmp(&distances[b]).then(a.cmp(&b)));
-    let k = k.clamp(1, order.len());
-    order[rng.random_range(0..k)]
+    let mut order: Vec<(usize, f64)> = distances.iter().copied().enumerate().collect();
+    order.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+    let k = k.min(order.len()).max(1);
+    order.get(rng.random_range(0..k)).map_or(0, |&(d, _)| d)
 }
 
 #[cfg(test)]

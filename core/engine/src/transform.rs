@@ -70,7 +70,10 @@ pub fn subtask_waypoints(
     let transformed_from = if num_interp > 0 || num_fixed > 0 {
         let bridge = interpolate_poses(start, first, num_interp);
         for pose in bridge.into_iter().skip(1).chain(std::iter::repeat_n(*first, num_fixed)) {
-            out.push((Waypoint { pose, gripper: gripper[0].clone(), noise: interp_noise }, WaypointKind::Interpolation));
+            out.push((
+                Waypoint { pose, gripper: gripper.first().cloned().unwrap_or_default(), noise: interp_noise },
+                WaypointKind::Interpolation,
+            ));
         }
         1
     } else {

@@ -12,6 +12,12 @@
 //! Every random number comes from the caller's generator (the attempt's stream), and the budget is
 //! a number of samples, not a time: the same seed gives the same path on any machine and with any
 //! number of workers.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "indices are the planner's own: a tree's node and parent indices are ones it handed out (every node is pushed \
+              with its parent), shortcut and time_parameterise index paths of at least two configurations (the start and \
+              the goal, kept by shortcutting), and `cumulative` has one entry per configuration"
+)]
 
 use std::time::Instant;
 

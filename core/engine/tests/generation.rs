@@ -442,3 +442,16 @@ fn a_slow_attempt_holds_back_the_others_only_a_bounded_window() {
     // window, and no further.
     assert_eq!(tally.most_ahead.load(Ordering::SeqCst), window);
 }
+
+/// A shard read from a file is checked as one given on the command line: `count = 0` would divide
+/// by zero wherever the shard decides which attempts are its own.
+#[test]
+fn a_stored_shard_of_zero_shares_is_refused() {
+    use mimicgen_engine::Shard;
+    let read = |json: &str| serde_json::from_str::<Shard>(json);
+    assert_eq!(read(r#"{"part": 1, "count": 3}"#).unwrap(), Shard::new(1, 3).unwrap());
+    for bad in [r#"{"part": 0, "count": 0}"#, r#"{"part": 3, "count": 3}"#] {
+        let err = read(bad).unwrap_err().to_string();
+        assert!(err.contains("does not exist"), "{bad}: {err}");
+    }
+}

@@ -1,5 +1,6 @@
 //! Planned transit (SkillGen) end to end on the kinematic pick-and-place environment, with and
 //! without a post standing between the cubes.
+#![allow(clippy::indexing_slicing, reason = "test helpers: an index out of range fails the test, as it should")]
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 
 use std::ops::ControlFlow;

@@ -129,9 +129,9 @@ impl DatasetInfo {
                     action_max = vec![f64::NEG_INFINITY; width];
                 }
                 for row in values.chunks_exact(width) {
-                    for (i, v) in row.iter().enumerate().take(action_min.len()) {
-                        action_min[i] = action_min[i].min(*v);
-                        action_max[i] = action_max[i].max(*v);
+                    for ((lo, hi), v) in action_min.iter_mut().zip(action_max.iter_mut()).zip(row) {
+                        *lo = lo.min(*v);
+                        *hi = hi.max(*v);
                     }
                 }
             }

@@ -134,7 +134,11 @@ pub fn export_lerobot(
             let keys: Vec<&str> = obs.members.keys().map(String::as_str).collect();
             invalid(&group, &format!("obs/{key}"), format!("missing: the observations are {}", keys.join(", ")))
         })?;
-        state_widths.push(d.array.shape.get(1..).unwrap_or_default().iter().product::<usize>());
+        let width = d.array.shape.get(1..).unwrap_or_default().iter().product::<usize>();
+        if width == 0 {
+            return Err(invalid(&group, &format!("obs/{key}"), format!("has shape {:?}: no values per step", d.array.shape)));
+        }
+        state_widths.push(width);
     }
     let action_dim = first.dataset("actions").and_then(|d| d.array.shape.get(1).copied()).unwrap_or(0);
     if action_dim == 0 {
@@ -146,8 +150,12 @@ pub fn export_lerobot(
         let (Some(camera), Values::U8(_), [_, h, w, 3]) = (key.strip_suffix("_image"), &d.array.values, d.array.shape.as_slice()) else {
             continue;
         };
-        if h % 2 != 0 || w % 2 != 0 {
-            return Err(invalid(&group, &format!("obs/{key}"), format!("is {h}x{w}: H.264 in yuv420p needs even heights and widths")));
+        if *h == 0 || *w == 0 || h % 2 != 0 || w % 2 != 0 {
+            return Err(invalid(
+                &group,
+                &format!("obs/{key}"),
+                format!("is {h}x{w}: H.264 in yuv420p needs even, non-zero heights and widths"),
+            ));
         }
         videos.push(VideoStream {
             key: key.clone(),
@@ -161,6 +169,9 @@ pub fn export_lerobot(
     }
     drop(first);
     let state_dim: usize = state_widths.iter().sum();
+    if state_dim == 0 {
+        return Err(invalid(&group, "obs", "no state keys were given: the state would be empty".into()));
+    }
     let list = |name: &str, n: usize| {
         Field::new(
             name,
@@ -260,11 +271,12 @@ impl Stats {
             self.sum = vec![0.0; row.len()];
             self.sum_sq = vec![0.0; row.len()];
         }
-        for (i, &v) in row.iter().enumerate().take(self.min.len()) {
-            self.min[i] = self.min[i].min(v);
-            self.max[i] = self.max[i].max(v);
-            self.sum[i] += v;
-            self.sum_sq[i] += v * v;
+        let columns = self.min.iter_mut().zip(self.max.iter_mut()).zip(self.sum.iter_mut().zip(self.sum_sq.iter_mut()));
+        for (((min, max), (sum, sum_sq)), &v) in columns.zip(row) {
+            *min = min.min(v);
+            *max = max.max(v);
+            *sum += v;
+            *sum_sq += v * v;
         }
         self.count += 1;
     }
@@ -406,11 +418,12 @@ impl Exporter<'_> {
             let d = obs.dataset(key).ok_or_else(|| err(&field, "missing".into()))?;
             let v = d.array.values.to_f64().ok_or_else(|| err(&field, "is not numeric".into()))?;
             let width = v.len() / steps.max(1);
-            if d.array.shape.first() != Some(&steps) || width * steps != v.len() || offset + width > self.state_dim {
+            if d.array.shape.first() != Some(&steps) || width == 0 || width * steps != v.len() || offset + width > self.state_dim {
                 return Err(err(&field, format!("shape {:?} does not fit {steps} steps of the first demo's width", d.array.shape)));
             }
-            for t in 0..steps {
-                state[t * self.state_dim + offset..t * self.state_dim + offset + width].copy_from_slice(&v[t * width..(t + 1) * width]);
+            for (state_row, values) in state.chunks_exact_mut(self.state_dim).zip(v.chunks_exact(width)) {
+                #[allow(clippy::indexing_slicing, reason = "offset + width <= state_dim, checked above")]
+                state_row[offset..offset + width].copy_from_slice(values);
             }
             offset += width;
         }
@@ -432,13 +445,13 @@ impl Exporter<'_> {
         let fps = f64::from(self.options.fps);
         let mut state_col = FixedSizeListBuilder::new(Float32Builder::new(), i32::try_from(self.state_dim).unwrap_or(i32::MAX));
         let mut action_col = FixedSizeListBuilder::new(Float32Builder::new(), i32::try_from(self.action_dim).unwrap_or(i32::MAX));
-        for t in 0..steps {
-            let row = &state[t * self.state_dim..(t + 1) * self.state_dim];
+        for (state_row, action_row) in state.chunks_exact(self.state_dim).zip(action_values.chunks_exact(self.action_dim)) {
+            let row = state_row;
             #[allow(clippy::cast_possible_truncation)]
             state_col.values().append_slice(&row.iter().map(|&v| v as f32).collect::<Vec<_>>());
             state_col.append(true);
             self.state_stats.add(row);
-            let row = &action_values[t * self.action_dim..(t + 1) * self.action_dim];
+            let row = action_row;
             #[allow(clippy::cast_possible_truncation)]
             action_col.values().append_slice(&row.iter().map(|&v| v as f32).collect::<Vec<_>>());
             action_col.append(true);
@@ -446,16 +459,16 @@ impl Exporter<'_> {
         }
         let timestamps: Vec<f32> = (0..steps).map(|t| (t as f64 / fps) as f32).collect();
         let index = |offset: usize| (0..steps).map(|t| i64::try_from(offset + t).unwrap_or(i64::MAX)).collect::<Vec<i64>>();
-        for t in 0..steps {
+        for (t, ((&timestamp, &reward), &done)) in timestamps.iter().zip(&rewards).zip(&dones).enumerate() {
             let ep = episode_index as f64;
             for (key, value) in [
-                ("timestamp", f64::from(timestamps[t])),
+                ("timestamp", f64::from(timestamp)),
                 ("frame_index", t as f64),
                 ("episode_index", ep),
                 ("index", (from + t) as f64),
                 ("task_index", 0.0),
-                ("next.reward", rewards[t]),
-                ("next.done", f64::from(u8::from(dones[t]))),
+                ("next.reward", reward),
+                ("next.done", f64::from(u8::from(done))),
             ] {
                 self.scalar_stats.entry(key).or_default().add(&[value]);
             }
@@ -531,17 +544,17 @@ impl Exporter<'_> {
                     video.stats.add(&means.map(|m| m / n));
                 }
                 video.frames_in_file += steps;
-                meta[format!("videos/{}/chunk_index", video.feature)] = json!(video.slot.chunk);
-                meta[format!("videos/{}/file_index", video.feature)] = json!(video.slot.file);
-                meta[format!("videos/{}/from_timestamp", video.feature)] = json!(start as f64 / fps);
-                meta[format!("videos/{}/to_timestamp", video.feature)] = json!((start + steps) as f64 / fps);
+                set(&mut meta, format!("videos/{}/chunk_index", video.feature), json!(video.slot.chunk));
+                set(&mut meta, format!("videos/{}/file_index", video.feature), json!(video.slot.file));
+                set(&mut meta, format!("videos/{}/from_timestamp", video.feature), json!(start as f64 / fps));
+                set(&mut meta, format!("videos/{}/to_timestamp", video.feature), json!((start + steps) as f64 / fps));
             }
             Ok(())
         })();
         self.videos = videos;
         result?;
-        meta["meta/episodes/chunk_index"] = json!(0);
-        meta["meta/episodes/file_index"] = json!(0);
+        set(&mut meta, "meta/episodes/chunk_index".to_owned(), json!(0));
+        set(&mut meta, "meta/episodes/file_index".to_owned(), json!(0));
         self.episodes.push(meta);
         self.frames += steps;
         Ok(())
@@ -712,4 +725,11 @@ fn write_parquet(path: &Path, batch: &RecordBatch) -> Result<()> {
     writer.write(batch).map_err(|e| fs_error(path, "writing parquet", &e))?;
     writer.close().map_err(|e| fs_error(path, "finishing parquet", &e))?;
     Ok(())
+}
+
+/// Sets `key` in a JSON object (what `meta` is built as); does nothing to any other value.
+fn set(meta: &mut serde_json::Value, key: String, value: serde_json::Value) {
+    if let serde_json::Value::Object(map) = meta {
+        map.insert(key, value);
+    }
 }

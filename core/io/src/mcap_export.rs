@@ -107,7 +107,7 @@ fn stamp(log_time: u64) -> Value {
     json!({"sec": log_time / 1_000_000_000, "nsec": log_time % 1_000_000_000})
 }
 
-fn pose_msg(log_time: u64, m: &[f64]) -> Value {
+fn pose_msg(log_time: u64, m: &[f64; 16]) -> Value {
     let rot = quat_xyzw_of([[m[0], m[1], m[2]], [m[4], m[5], m[6]], [m[8], m[9], m[10]]]);
     json!({
         "timestamp": stamp(log_time),
@@ -186,7 +186,7 @@ pub fn export(ds: &impl DemoSource, out: impl AsRef<Path>) -> Result<ExportSumma
         for t in 0..steps {
             let log_time = (step0 + t as u64) * STEP_NANOS;
             for (topic, v) in &pose_streams {
-                if let Some(m) = v.get(t * 16..t * 16 + 16) {
+                if let Some(m) = v.get(t * 16..t * 16 + 16).and_then(|m| <&[f64; 16]>::try_from(m).ok()) {
                     out.write(topic, "foxglove.PoseInFrame", &pose_schema, log_time, &pose_msg(log_time, m))?;
                 }
             }
@@ -198,8 +198,8 @@ pub fn export(ds: &impl DemoSource, out: impl AsRef<Path>) -> Result<ExportSumma
                     out.write(topic, "mimicgen.Vector", &vector, log_time, &record(json!(row)))?;
                 }
             }
-            if let Some(s) = &subtask {
-                out.write("/subtask", "mimicgen.Label", &label, log_time, &record(json!(s[t])))?;
+            if let Some(k) = subtask.as_ref().and_then(|s| s.get(t)) {
+                out.write("/subtask", "mimicgen.Label", &label, log_time, &record(json!(k)))?;
             }
             if let Some(v) = src_labels.as_ref().and_then(|v| v.get(t)) {
                 out.write("/source_demo", "mimicgen.Label", &label, log_time, &record(json!(v)))?;

@@ -231,7 +231,9 @@ pub fn image_dataset(stream: &ImageStream) -> Dataset {
     };
     let mut d = Dataset::new(Array { shape: full.clone(), values });
     if steps > 0 {
-        full[0] = 1;
+        if let Some(rows) = full.first_mut() {
+            *rows = 1;
+        }
         d.chunks = Some(full);
         d.deflate = Some(4);
     }
@@ -246,7 +248,10 @@ pub fn observations_from_group(obs: &Group) -> (BTreeMap<String, Observation>, B
     for (key, node) in &obs.members {
         let Node::Dataset(d) = node else { continue };
         let shape = &d.array.shape;
-        let image_shape = (shape.len() == 4).then(|| [shape[1], shape[2], shape[3]]);
+        let image_shape = match shape.as_slice() {
+            &[_, h, w, c] => Some([h, w, c]),
+            _ => None,
+        };
         match (&d.array.values, image_shape) {
             (Values::U8(p), Some(shape)) => {
                 images.insert(key.clone(), ImageStream { shape, pixels: Pixels::Rgb(p.clone()) });
@@ -271,12 +276,8 @@ fn rows_array(rows: &Rows) -> Array {
 fn poses_array(poses: &[Pose]) -> Array {
     let mut data = Vec::with_capacity(poses.len() * 16);
     for p in poses {
-        let m = pose_to_matrix(p);
-        for r in 0..4 {
-            for c in 0..4 {
-                data.push(m[(r, c)]);
-            }
-        }
+        // Row-major, as robomimic stores poses (nalgebra's own storage is column-major).
+        data.extend(pose_to_matrix(p).transpose().iter());
     }
     Array::f64(vec![poses.len(), 4, 4], data)
 }
@@ -305,8 +306,10 @@ pub fn split_train_valid(names: &[String], fraction: f64, seed: u64) -> (Vec<Str
     let mut order: Vec<usize> = (0..names.len()).collect();
     order.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed));
     let mut is_valid = vec![false; names.len()];
-    for &i in &order[..num_valid] {
-        is_valid[i] = true;
+    for &i in order.iter().take(num_valid) {
+        if let Some(v) = is_valid.get_mut(i) {
+            *v = true;
+        }
     }
     let (valid, train): (Vec<_>, Vec<_>) = names.iter().cloned().zip(is_valid).partition(|(_, v)| *v);
     (train.into_iter().map(|(n, _)| n).collect(), valid.into_iter().map(|(n, _)| n).collect())

@@ -1,4 +1,5 @@
 //! Reading, writing and round-tripping robomimic / MimicGen datasets, including malformed files.
+#![allow(clippy::indexing_slicing, reason = "test helpers: an index out of range fails the test, as it should")]
 #![allow(clippy::unwrap_used, clippy::float_cmp)] // tests fail loudly by design; exact equality is the point
 
 use std::collections::BTreeMap;

@@ -1,6 +1,7 @@
 //! LeRobot export: the parquet frames, episode table, task table and info LeRobot's loader reads,
 //! the camera streams as videos that decode back to the dataset's images, and bad input refused
 //! with the field named.
+#![allow(clippy::indexing_slicing, reason = "test helpers: an index out of range fails the test, as it should")]
 #![allow(clippy::unwrap_used, clippy::float_cmp)] // tests fail loudly by design; exact equality is the point
 
 use std::collections::BTreeMap;

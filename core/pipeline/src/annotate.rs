@@ -205,7 +205,7 @@ pub fn propose_streaming(
     let mut batch = Vec::with_capacity(chunk);
     let first_annotation = proposer.annotate(&first)?;
     batch.push((first, first_annotation));
-    for name in &names[1..] {
+    for name in names.iter().skip(1) {
         if batch.len() >= chunk.max(1) {
             on_chunk(std::mem::take(&mut batch));
         }

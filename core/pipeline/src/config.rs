@@ -219,7 +219,7 @@ pub(crate) fn check_controller(env_args: Option<&str>, file: &Path) -> Result<()
     let file = file.display().to_string();
     let value: serde_json::Value = serde_json::from_str(text)
         .map_err(|e| PipelineError::input(file.clone(), "data attribute env_args", format!("is not JSON: {e}")))?;
-    let kwargs = &value["env_kwargs"];
+    let kwargs = value.get("env_kwargs").unwrap_or(&serde_json::Value::Null);
     let differs = |field: &str, got: &serde_json::Value, want: &str| {
         PipelineError::input(
             file.clone(),

@@ -38,7 +38,9 @@ fn read_shard(path: &Path) -> Result<ShardFiles, PipelineError> {
     let report: Report =
         serde_json::from_str(&text).map_err(|e| PipelineError::input(report_path.display().to_string(), "report", e.to_string()))?;
     let description = mimicgen_io::root_string_attrs(path, &[RUN_ATTR])?
-        .remove(0)
+        .into_iter()
+        .next()
+        .flatten()
         .ok_or_else(|| PipelineError::input(file.clone(), RUN_ATTR, "missing: this dataset was not written by `mimicgen generate`"))?;
     let description: RunDescription =
         serde_json::from_str(&description).map_err(|e| PipelineError::input(file.clone(), RUN_ATTR, e.to_string()))?;
@@ -58,6 +60,14 @@ fn read_shard(path: &Path) -> Result<ShardFiles, PipelineError> {
             attempt_log_path(path).display().to_string(),
             "index",
             format!("attempt {} is not in shard {shard}", r.index),
+        ));
+    }
+    let sources = report.per_source_demo.len();
+    if let Some((r, d)) = records.iter().find_map(|r| r.sources.iter().find(|&&d| d >= sources).map(|&d| (r, d))) {
+        return Err(PipelineError::input(
+            attempt_log_path(path).display().to_string(),
+            "sources",
+            format!("attempt {} names source demo {d}, but the run has {sources} (its report's per_source_demo)", r.index),
         ));
     }
     Ok(ShardFiles { path: path.to_path_buf(), shard, description, report, records })
@@ -88,8 +98,8 @@ fn check_set(shards: &[ShardFiles]) -> Result<(), PipelineError> {
     }
     let mut parts: Vec<usize> = shards.iter().map(|s| s.shard.part).collect();
     parts.sort_unstable();
-    if let Some(w) = parts.windows(2).find(|w| w[0] == w[1]) {
-        return Err(PipelineError::input("", "SHARD", format!("shard {}/{count} is given twice", w[0])));
+    if let Some(part) = parts.windows(2).find_map(|w| if let &[a, b] = w { (a == b).then_some(a) } else { None }) {
+        return Err(PipelineError::input("", "SHARD", format!("shard {part}/{count} is given twice")));
     }
     let missing: Vec<String> = (0..count).filter(|p| !parts.contains(p)).map(|p| format!("{p}/{count}")).collect();
     if !missing.is_empty() {
@@ -106,6 +116,11 @@ fn check_set(shards: &[ShardFiles]) -> Result<(), PipelineError> {
 /// [`PipelineError::Input`] naming the file and field: a shard that is missing, given twice,
 /// from another run, cancelled, or that lacks an attempt the whole run made; outputs that exist
 /// without `overwrite`; read and write errors.
+#[allow(
+    clippy::indexing_slicing,
+    reason = "check_set leaves exactly the parts 0..count, once each; sorted by part, shards[p] is part p, and readers, \
+              failed_readers and cursors have one entry per shard, so every `[index % count]` and `[part]` is in bounds"
+)]
 pub fn merge(
     shard_paths: &[PathBuf],
     out: &Path,

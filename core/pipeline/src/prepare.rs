@@ -82,7 +82,7 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
             env.reset_to_state(state).map_err(|e| PipelineError::input(file.clone(), format!("data/{name}/states[{t}]"), e.to_string()))?;
             info.eef_poses.push(env.eef_pose());
             info.target_poses.push(env.action_to_target_pose(action));
-            info.gripper_actions.push(&action[6.min(action.len())..]).map_err(|e| PipelineError::engine(file.clone(), e))?;
+            info.gripper_actions.push(action.get(6..).unwrap_or_default()).map_err(|e| PipelineError::engine(file.clone(), e))?;
             for (object, pose) in env.object_poses() {
                 info.object_poses.entry(object).or_default().push(pose);
             }

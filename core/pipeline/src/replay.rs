@@ -14,7 +14,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use mimicgen_engine::Environment as _;
-use mimicgen_engine::action::{DeltaPoseScale, POSE_ACTION_DIM};
+use mimicgen_engine::action::DeltaPoseScale;
 use mimicgen_engine::pose::{Mat4, Pose, pose_from_matrix};
 use mimicgen_io::RobomimicDataset;
 use mimicgen_sim::{Scene, SimEnv};
@@ -99,7 +99,7 @@ fn poses(demo: &mimicgen_io::tree::Group, field: &str, file: &str, name: &str) -
         )
     })?;
     let values = d.array.values.to_f64().ok_or_else(|| PipelineError::input(file, at.clone(), "is not numeric"))?;
-    if d.array.shape.len() != 3 || d.array.shape[1..] != [4, 4] {
+    if !matches!(d.array.shape.as_slice(), [_, 4, 4]) {
         return Err(PipelineError::input(file, at, format!("has shape {:?}, not (steps, 4, 4)", d.array.shape)));
     }
     values
@@ -123,7 +123,7 @@ fn observe(env: &SimEnv) -> StepTrace {
     let qpos = env.physics().data().qpos();
     StepTrace {
         eef: flat(&env.eef_pose()),
-        fingers: scene.robot.finger_qpos.iter().map(|&i| qpos[i]).collect(),
+        fingers: scene.robot.finger_qpos.iter().filter_map(|&i| qpos.get(i).copied()).collect(),
         objects: env.object_poses().iter().map(|(name, pose)| (name.clone(), flat(pose))).collect(),
         contacts: env.physics().contact_count(),
         pads: scene.objects.iter().enumerate().map(|(i, o)| (o.name.clone(), env.physics().pad_contacts(i))).collect(),
@@ -176,6 +176,15 @@ pub fn replay(
             ReplayMode::Actions => None,
             ReplayMode::Targets => Some((poses(demo, "eef_pose", &file, name)?, poses(demo, "target_pose", &file, name)?)),
         };
+        if let Some((field, n)) = targets.as_ref().and_then(|(eefs, targets)| {
+            [("eef_pose", eefs.len()), ("target_pose", targets.len())].into_iter().find(|&(_, n)| n != actions.len())
+        }) {
+            return Err(PipelineError::input(
+                file.clone(),
+                format!("{at}/datagen_info/{field}"),
+                format!("has {n} steps but actions has {}", actions.len()),
+            ));
+        }
         let first = states.iter().next().ok_or_else(|| PipelineError::input(file.clone(), format!("{at}/states"), "is empty"))?;
         let mut env = SimEnv::new(scene, Arc::clone(&task));
         env.reset_to_state(first).map_err(|e| PipelineError::input(file.clone(), format!("{at}/states[0]"), e.to_string()))?;
@@ -201,13 +210,14 @@ pub fn replay(
         };
         for (t, stored) in actions.iter().enumerate() {
             let mut action = stored.to_vec();
-            if let Some((eefs, targets)) = &targets {
+            // Both lists have one pose per action (checked above).
+            if let Some((Some(eef), Some(target))) = targets.as_ref().map(|(eefs, targets)| (eefs.get(t), targets.get(t))) {
                 // The attempt's noise is what the stored action adds to the clean action from
                 // the stored end effector to the target; add it to the clean action from here.
-                let clean_then = scale.action_from_target(&eefs[t], &targets[t]);
-                let clean_now = env.target_pose_to_action(&targets[t]);
-                for k in 0..POSE_ACTION_DIM.min(action.len()) {
-                    action[k] = clean_now[k] + (stored[k] - clean_then[k]);
+                let clean_then = scale.action_from_target(eef, target);
+                let clean_now = env.target_pose_to_action(target);
+                for (((a, &s), now), then) in action.iter_mut().zip(stored).zip(clean_now).zip(clean_then) {
+                    *a = now + (s - then);
                 }
             }
             if let Err(e) = env.step(&action) {

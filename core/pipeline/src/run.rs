@@ -123,7 +123,7 @@ impl Pipeline {
             // The first instance's scene, compiled above, is the run's scene.
             _ if let Some((_, first)) = instances.first() => (Arc::clone(first), first.xml.clone()),
             // Another arm than the sources': the task's scene composed with it (robot transfer).
-            (Some(xml), Some(robot)) if !xml.contains(&format!("\"{}\"", robot.arm_joints[0])) => {
+            (Some(xml), Some(robot)) if robot.arm_joints.first().is_some_and(|joint| !xml.contains(&format!("\"{joint}\""))) => {
                 composed(Scene::for_task_with_robot(task.as_ref(), robot)?)
             }
             // A variant with objects the sources' scene lacks (C0's clutter): the task's scene.
@@ -255,7 +255,7 @@ impl Pipeline {
         if self.config.resume {
             let stored = DatasetWriter::partial_root_attrs(out, &[RUN_ATTR, PROGRESS_ATTR])?;
             let file = partial.display().to_string();
-            let (Some(stored_run), Some(progress)) = (&stored[0], &stored[1]) else {
+            let [Some(stored_run), Some(progress)] = stored.as_slice() else {
                 return Err(PipelineError::input(
                     file,
                     RUN_ATTR,

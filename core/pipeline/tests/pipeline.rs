@@ -1,4 +1,5 @@
 //! The pipeline end to end on the MuJoCo backend: workers, observations, outputs, cancel, inputs.
+#![allow(clippy::indexing_slicing, reason = "test helpers: an index out of range fails the test, as it should")]
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 
 use std::path::{Path, PathBuf};
@@ -448,8 +449,16 @@ fn merged_shards_equal_the_single_process_run() {
     let other = dir.path().join("other.hdf5");
     run(&RunConfig { shard: Some(Shard::new(1, 2).unwrap()), seed: Some(4), ..base(other.clone(), false) }).unwrap();
     let first = dir.path().join("shard_false_0of2.hdf5");
-    let err = merge(&[first, other], &dir.path().join("y.hdf5"), false, |_, _| {}).unwrap_err().to_string();
+    let err = merge(&[first.clone(), other], &dir.path().join("y.hdf5"), false, |_, _| {}).unwrap_err().to_string();
     assert!(err.contains("other.hdf5") && err.contains("spec"), "{err}");
+    // An attempt log naming a source demo the run does not have is refused, naming the log.
+    let log = mimicgen_pipeline::attempt_log_path(&first);
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(text.contains("\"sources\":["), "{text}");
+    std::fs::write(&log, text.replacen("\"sources\":[", "\"sources\":[99999999999,", 1)).unwrap();
+    let second = dir.path().join("shard_false_1of2.hdf5");
+    let err = merge(&[first, second], &dir.path().join("z.hdf5"), false, |_, _| {}).unwrap_err().to_string();
+    assert!(err.contains("attempts.jsonl") && err.contains("source demo 99999999999"), "{err}");
 }
 
 /// robosuite's own human demonstrations (its raw collection format, no `env_args`) read like a

@@ -5,7 +5,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use mimicgen_engine::spec::Transit;
-use mimicgen_engine::{SelectionStrategy, TaskSpec};
+use mimicgen_engine::{SelectionStrategy, SubtaskSpec, TaskSpec};
 use serde::{Deserialize, Serialize};
 
 use crate::RunError;
@@ -153,22 +153,14 @@ impl SpecOverrides {
     /// strategy, `--nn-k` on a subtask with random selection, a negative or non-finite noise, an
     /// empty offset range.
     pub fn apply(&self, spec: &mut TaskSpec) -> Result<(), RunError> {
-        let count = spec.subtasks.len();
-        let targets = |flag: &str, subtask: Option<usize>| -> Result<std::ops::Range<usize>, RunError> {
-            match subtask {
-                None => Ok(0..count),
-                Some(k) if k < count => Ok(k..k + 1),
-                Some(k) => Err(RunError::flag(flag, format!("names subtask {k}, but the task has {count} (0 to {})", count - 1))),
-            }
-        };
         for s in &self.selection {
-            for k in targets("--selection", s.subtask)? {
-                let (nn_k, pos_weight, rot_weight) = match spec.subtasks[k].selection {
+            for (_, sub) in scoped(&mut spec.subtasks, "--selection", s.subtask)? {
+                let (nn_k, pos_weight, rot_weight) = match sub.selection {
                     SelectionStrategy::Random => (3, 1.0, 1.0),
                     SelectionStrategy::NearestNeighborObject { nn_k, pos_weight, rot_weight }
                     | SelectionStrategy::NearestNeighborRobotDistance { nn_k, pos_weight, rot_weight } => (nn_k, pos_weight, rot_weight),
                 };
-                spec.subtasks[k].selection = match s.value.as_str() {
+                sub.selection = match s.value.as_str() {
                     "random" => SelectionStrategy::Random,
                     "nearest_neighbor_object" => SelectionStrategy::NearestNeighborObject { nn_k, pos_weight, rot_weight },
                     "nearest_neighbor_robot_distance" => SelectionStrategy::NearestNeighborRobotDistance { nn_k, pos_weight, rot_weight },
@@ -185,8 +177,8 @@ impl SpecOverrides {
             if s.value == 0 {
                 return Err(RunError::flag("--nn-k", "must be at least 1"));
             }
-            for k in targets("--nn-k", s.subtask)? {
-                match &mut spec.subtasks[k].selection {
+            for (k, sub) in scoped(&mut spec.subtasks, "--nn-k", s.subtask)? {
+                match &mut sub.selection {
                     SelectionStrategy::Random => {
                         // Applied to all subtasks, it is meant for those that use a neighbour strategy.
                         if s.subtask.is_some() {
@@ -207,8 +199,8 @@ impl SpecOverrides {
             if !s.value.is_finite() || s.value < 0.0 {
                 return Err(RunError::flag("--action-noise", format!("must be a finite standard deviation >= 0, got {}", s.value)));
             }
-            for k in targets("--action-noise", s.subtask)? {
-                spec.subtasks[k].action_noise = s.value;
+            for (_, sub) in scoped(&mut spec.subtasks, "--action-noise", s.subtask)? {
+                sub.action_noise = s.value;
             }
         }
         for s in &self.offset_range {
@@ -216,34 +208,34 @@ impl SpecOverrides {
             if lo > hi {
                 return Err(RunError::flag("--offset-range", format!("{lo},{hi} is empty (LO must not exceed HI)")));
             }
-            for k in targets("--offset-range", s.subtask)? {
-                spec.subtasks[k].term_offset_range = Some((lo, hi));
+            for (_, sub) in scoped(&mut spec.subtasks, "--offset-range", s.subtask)? {
+                sub.term_offset_range = Some((lo, hi));
             }
         }
         for s in &self.interpolation_steps {
-            for k in targets("--interpolation-steps", s.subtask)? {
-                spec.subtasks[k].num_interpolation_steps = s.value;
+            for (_, sub) in scoped(&mut spec.subtasks, "--interpolation-steps", s.subtask)? {
+                sub.num_interpolation_steps = s.value;
             }
         }
         for s in &self.fixed_steps {
-            for k in targets("--fixed-steps", s.subtask)? {
-                spec.subtasks[k].num_fixed_steps = s.value;
+            for (_, sub) in scoped(&mut spec.subtasks, "--fixed-steps", s.subtask)? {
+                sub.num_fixed_steps = s.value;
             }
         }
         for s in &self.transit {
-            for k in targets("--transit", s.subtask)? {
-                if s.value == Transit::Plan && spec.subtasks[k].object_ref.is_none() {
+            for (k, sub) in scoped(&mut spec.subtasks, "--transit", s.subtask)? {
+                if s.value == Transit::Plan && sub.object_ref.is_none() {
                     return Err(RunError::flag("--transit", format!("subtask {k} has no object_ref to approach; plan only the others")));
                 }
-                spec.subtasks[k].transit = s.value;
+                sub.transit = s.value;
             }
         }
         for s in &self.approach_m {
             if !s.value.is_finite() || s.value <= 0.0 {
                 return Err(RunError::flag("--approach-m", format!("must be a positive distance in metres, got {}", s.value)));
             }
-            for k in targets("--approach-m", s.subtask)? {
-                spec.subtasks[k].approach_m = s.value;
+            for (_, sub) in scoped(&mut spec.subtasks, "--approach-m", s.subtask)? {
+                sub.approach_m = s.value;
             }
         }
         if let Some(on) = self.select_src_per_subtask {
@@ -251,6 +243,23 @@ impl SpecOverrides {
         }
         Ok(())
     }
+}
+
+/// The subtasks a flag scoped to `subtask` sets (every one for `None`), each with its index.
+fn scoped<'a>(
+    subtasks: &'a mut [SubtaskSpec],
+    flag: &str,
+    subtask: Option<usize>,
+) -> Result<impl Iterator<Item = (usize, &'a mut SubtaskSpec)>, RunError> {
+    let count = subtasks.len();
+    let (skip, take) = match subtask {
+        None => (0, count),
+        Some(k) if k < count => (k, 1),
+        Some(k) => {
+            return Err(RunError::flag(flag, format!("names subtask {k}, but the task has {count} (0 to {})", count.saturating_sub(1))));
+        }
+    };
+    Ok(subtasks.iter_mut().enumerate().skip(skip).take(take))
 }
 
 #[cfg(test)]

@@ -50,8 +50,8 @@ impl DataTask {
         let mut instances = Vec::new();
         for (i, object) in file.objects.iter().enumerate() {
             for instance in object.instances.iter().filter(|x| x.variants.contains(&variant)) {
-                let mut models: Vec<ObjectModel> = file.objects.iter().map(|o| o.model.clone()).collect();
-                models[i] = instance.model.clone();
+                let models: Vec<ObjectModel> =
+                    file.objects.iter().enumerate().map(|(j, o)| if j == i { &instance.model } else { &o.model }.clone()).collect();
                 instances.push((instance.label.clone(), models));
             }
         }
@@ -91,8 +91,8 @@ impl DataTask {
             Predicate::Grasped(o) => env.is_grasping(index(o)),
             Predicate::Lifted { object, above_m } => self.position(env, object).z > self.file.table_top_z + above_m,
             Predicate::Contact([a, b]) => {
-                let objects = &env.scene().objects;
-                env.in_contact(&objects[index(a)].geoms, &objects[index(b)].geoms)
+                let geoms = |name: &str| env.scene().objects.get(index(name)).map(|o| o.geoms.as_slice()).unwrap_or_default();
+                env.in_contact(geoms(a), geoms(b))
             }
             Predicate::Inside { object, of, of_point_m, xy_m, dz_m } => {
                 let point = match self.index(of) {
@@ -137,6 +137,10 @@ impl DataTask {
         }
     }
 
+    #[allow(
+        clippy::indexing_slicing,
+        reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays"
+    )]
     fn observe(&self, term: &ObsTerm, env: &SimState, out: &mut Vec<f64>) {
         // `check` refused every name that is not an object where an object is needed.
         let index = |name: &str| self.index(name).unwrap_or_default();
@@ -168,6 +172,10 @@ impl DataTask {
 }
 
 /// Position of joint `name` and whether it is a hinge; `None` if the scene has no such joint.
+#[allow(
+    clippy::indexing_slicing,
+    reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays"
+)]
 fn joint_position(env: &SimState, name: &str) -> Option<(f64, bool)> {
     use mujoco_rs::prelude::*;
     let model = &env.scene().model;
@@ -222,7 +230,7 @@ impl Task for DataTask {
         let mut poses = vec![Pose::identity(); self.file.objects.len()];
         let mut placed: Vec<(f64, f64, f64)> = Vec::new();
         for i in self.file.placement_order() {
-            let (object, region) = (&self.file.objects[i], self.regions[i]);
+            let (Some(object), Some(&region)) = (self.file.objects.get(i), self.regions.get(i)) else { continue };
             let mut found = None;
             for _ in 0..10_000 {
                 let (x, y) = (uniform(rng, region.x), uniform(rng, region.y));
@@ -236,8 +244,9 @@ impl Task for DataTask {
             })?;
             let yaw = uniform(rng, region.yaw_deg).to_radians();
             placed.push((x, y, object.radius_m));
-            poses[i] =
-                pose_from_parts(Vec3::new(x, y, self.file.table_top_z + object.height_m), Rot::from_axis_angle(&Vec3::z_axis(), yaw));
+            #[allow(clippy::indexing_slicing, reason = "placement_order gives indices of file.objects, which `poses` has one entry for")]
+            let slot = &mut poses[i];
+            *slot = pose_from_parts(Vec3::new(x, y, self.file.table_top_z + object.height_m), Rot::from_axis_angle(&Vec3::z_axis(), yaw));
         }
         Ok(poses)
     }

@@ -1,5 +1,9 @@
 //! What a viewer needs of a compiled scene, without MuJoCo types: the visible geoms' shapes and
 //! colours, and their world poses at recorded states.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays; a state is checked against the model's nq before it is read"
+)]
 
 use std::collections::BTreeMap;
 use std::sync::Arc;

@@ -18,6 +18,10 @@
 //! those body pairs excluded (and their other geom pairs kept as explicit pairs with MuJoCo's own
 //! mixed parameters). Every task and arm gets it; only the simulation changes, never the
 //! `model_file` written.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays; contact geoms are ids MuJoCo reported for this model"
+)]
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

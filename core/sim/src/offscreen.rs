@@ -12,6 +12,10 @@
 //!   same, the wrist camera's frame costs a fraction.
 //!
 //! A GL context belongs to the thread that made it, so the caller keeps one of these per thread.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays; render flags index MuJoCo's fixed-size flag arrays by their enum"
+)]
 
 use std::num::NonZeroU32;
 

@@ -1,6 +1,10 @@
 //! robosuite's OSC_POSE controller (operational-space control, Khatib 1987), step for step:
 //! the goal is set once per control step from a delta action, and torques are recomputed at every
 //! physics step from the current state.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays; the action is taken as its first six numbers, padded (step checks 7)"
+)]
 
 use std::sync::Arc;
 
@@ -77,7 +81,8 @@ impl Osc {
     /// Sets the goal from the pose part of an action (clipped to `[-1, 1]`), relative to the
     /// current end-effector pose. `data` must be forwarded.
     pub fn set_goal(&mut self, data: &MjData<Arc<MjModel>>, robot: &RobotIndices, action: &[f64]) {
-        let a: Vec<f64> = action.iter().take(6).map(|v| v.clamp(-1.0, 1.0)).collect();
+        // The first six numbers (0 for any the action lacks; `step` checks it has seven).
+        let a: [f64; 6] = std::array::from_fn(|i| action.get(i).map_or(0.0, |v| v.clamp(-1.0, 1.0)));
         let xpos = data.site_xpos()[robot.eef_site];
         let rot = Matrix3::from_row_slice(&data.site_xmat()[robot.eef_site]);
         let s = self.config.scale;

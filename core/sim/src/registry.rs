@@ -182,9 +182,9 @@ pub fn task_from_env_args(env_args: Option<&str>) -> Result<(Arc<dyn Task>, Stri
 pub fn env_args_for_variant(source_env_args: Option<&str>, name: &str, variant: &str) -> String {
     let ours: serde_json::Value = serde_json::from_str(&env_args(name, variant)).unwrap_or_default();
     match source_env_args.and_then(|a| serde_json::from_str::<serde_json::Value>(a).ok()) {
-        Some(mut theirs) if theirs.is_object() => {
-            theirs["env_name"] = ours["env_name"].clone();
-            theirs.to_string()
+        Some(serde_json::Value::Object(mut theirs)) => {
+            theirs.insert("env_name".to_owned(), ours.get("env_name").cloned().unwrap_or_default());
+            serde_json::Value::Object(theirs).to_string()
         }
         _ => ours.to_string(),
     }
@@ -194,13 +194,12 @@ pub fn env_args_for_variant(source_env_args: Option<&str>, name: &str, variant: 
 /// it is not a JSON object.
 fn with_env_kwargs(env_args: &str, edit: impl FnOnce(&mut serde_json::Value)) -> String {
     let mut args: serde_json::Value = serde_json::from_str(env_args).unwrap_or_default();
-    if !args.is_object() {
-        return env_args.to_owned();
+    let Some(fields) = args.as_object_mut() else { return env_args.to_owned() };
+    let kwargs = fields.entry("env_kwargs").or_insert_with(|| serde_json::json!({}));
+    if !kwargs.is_object() {
+        *kwargs = serde_json::json!({});
     }
-    if !args["env_kwargs"].is_object() {
-        args["env_kwargs"] = serde_json::json!({});
-    }
-    edit(&mut args["env_kwargs"]);
+    edit(kwargs);
     args.to_string()
 }
 

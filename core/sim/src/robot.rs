@@ -304,5 +304,5 @@ pub fn for_simulation(xml: &str, robot: &RobotModel) -> String {
 /// The arm whose joints `has_joint` finds in a scene (Panda for a scene with none of them).
 #[must_use]
 pub fn detect(has_joint: impl Fn(&str) -> bool) -> &'static RobotModel {
-    ROBOTS.iter().find(|r| has_joint(r.arm_joints[0])).unwrap_or(&PANDA)
+    ROBOTS.iter().find(|r| r.arm_joints.first().is_some_and(|&joint| has_joint(joint))).unwrap_or(&PANDA)
 }

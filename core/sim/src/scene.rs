@@ -1,4 +1,8 @@
 //! A compiled robosuite-style scene: the MuJoCo model plus every name resolved to an index once.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays"
+)]
 
 use std::sync::Arc;
 

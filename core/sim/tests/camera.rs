@@ -1,5 +1,6 @@
 //! Camera observations: robosuite's cameras render offscreen (EGL), upright, follow the state, and
 //! bad requests name what is wrong.
+#![allow(clippy::indexing_slicing, reason = "test helpers: an index out of range fails the test, as it should")]
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 
 use std::collections::BTreeMap;

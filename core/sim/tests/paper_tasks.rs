@@ -3,6 +3,7 @@
 //! meshes), described only by their task files: scenes compose and rest, nothing succeeds at
 //! reset, the bundled scripted demos end in success with their signals in order, and generation
 //! from them succeeds.
+#![allow(clippy::indexing_slicing, reason = "test helpers: an index out of range fails the test, as it should")]
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 
 use std::ops::ControlFlow;

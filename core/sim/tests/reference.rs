@@ -1,4 +1,5 @@
 //! Our backend against the reference's own files (robosuite 1.4.1 on MuJoCo 2.3.2).
+#![allow(clippy::indexing_slicing, reason = "test helpers: an index out of range fails the test, as it should")]
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 
 use std::sync::Arc;

@@ -177,7 +177,7 @@ impl Generator {
                 {
                     follow_object(env, subtask.object_ref.as_deref(), plan, &mut waypoints, i);
                 }
-                let (waypoint, kind) = &waypoints[i];
+                let Some((waypoint, kind)) = waypoints.get(i) else { break };
                 let signals = match execute_step(env, waypoint, StepLabels { kind: *kind, ..labels }, &mut attempt.trajectory, &mut rng) {
                     Ok(signals) => signals,
                     Err(e) => {
@@ -246,7 +246,7 @@ impl Generator {
             };
             let (mut planned, mut waypoints) =
                 self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
-            if subtask == 0 && self.spec.subtasks[0].transit == Transit::Plan {
+            if subtask == 0 && self.spec.subtasks.first().is_some_and(|s| s.transit == Transit::Plan) {
                 // Only the first transit can be planned ahead: the robot's joints at a later
                 // subtask's start are known once the attempt gets there.
                 let _ = self.bridge_by_plan(env, subtask, &mut planned, &mut waypoints, &mut rng).map_err(fatal)?;
@@ -271,7 +271,6 @@ impl Generator {
         rng: &mut R,
     ) -> Result<Result<(), FailureReason>, EnvError> {
         let Some((goal, _)) = waypoints.first().cloned() else { return Ok(Ok(())) };
-        let spec = &self.spec.subtasks[subtask];
         let planned = plan_transit(env.transit_space()?.as_mut(), &goal.pose, &self.spec.generation.planner, rng);
         let path = match planned {
             Ok(path) => path,
@@ -281,7 +280,7 @@ impl Generator {
             }
         };
         plan.transit = Some(path.stats);
-        let noise = spec.bridge_noise();
+        let noise = self.spec.subtasks.get(subtask).map_or(0.0, crate::SubtaskSpec::bridge_noise);
         // The path ends at the goal, held a few steps for the arm to catch up with it.
         let hold = std::iter::repeat_n(goal.pose, self.spec.generation.planner.hold_steps);
         let bridge = path
@@ -309,6 +308,11 @@ impl Generator {
 
     /// Selects, transforms and bridges one subtask's segment (the part of an attempt before
     /// execution). Draws the selection's random numbers even when the source is forced.
+    #[allow(
+        clippy::indexing_slicing,
+        reason = "a span lies inside its demo, start < end <= len (Segmentation::new checks every boundary against the \
+                  demo's length), and a validated demo has every per-step field len long (Generator::new validates)"
+    )]
     fn plan_subtask<R: Rng + ?Sized>(
         &self,
         here: &PlanInput,
@@ -316,7 +320,7 @@ impl Generator {
         rng: &mut R,
     ) -> Result<(SubtaskPlan, Vec<(Waypoint, WaypointKind)>), String> {
         let settings = &self.spec.generation;
-        let subtask = &self.spec.subtasks[here.subtask];
+        let subtask = self.spec.subtasks.get(here.subtask).ok_or_else(|| format!("the spec has no subtask {}", here.subtask))?;
         let is_first = here.subtask == 0;
         let demos = &self.dataset.demos;
         let world_from_obj_new = match &subtask.object_ref {
@@ -338,8 +342,10 @@ impl Generator {
             }
         };
         let demo_index = here.forced.unwrap_or(demo_index);
-        let demo = &demos[demo_index];
-        let (start, end) = spans[demo_index][here.subtask];
+        let (demo, &(start, end)) = demos
+            .get(demo_index)
+            .zip(spans.get(demo_index).and_then(|s| s.get(here.subtask)))
+            .ok_or_else(|| format!("source demo {demo_index} has no span for subtask {}", here.subtask))?;
         let mut source_poses = Vec::with_capacity(end - start + 1);
         let mut gripper: Vec<Vec<f64>> = Vec::with_capacity(end - start + 1);
         if is_first || settings.transform_first_robot_pose {
@@ -348,7 +354,17 @@ impl Generator {
         }
         source_poses.extend_from_slice(&demo.target_poses[start..end]);
         gripper.extend((start..end).map(|t| demo.gripper_actions.row(t).to_vec()));
-        let world_from_obj_src = subtask.object_ref.as_ref().map(|name| demo.object_poses[name][start]);
+        let world_from_obj_src = subtask
+            .object_ref
+            .as_ref()
+            .map(|name| {
+                demo.object_poses
+                    .get(name)
+                    .and_then(|poses| poses.get(start))
+                    .copied()
+                    .ok_or_else(|| format!("{} has no pose of {name:?}", demo.name))
+            })
+            .transpose()?;
         let transformed = match (&world_from_obj_new, &world_from_obj_src) {
             (Some(new), Some(src)) => transform_segment(new, src, &source_poses),
             _ => source_poses.clone(),
@@ -398,7 +414,7 @@ fn follow_object<E: Environment + ?Sized>(
     let (Some(name), Some(planned)) = (object, plan.world_from_obj_new) else { return };
     let Some(now) = env.object_poses().get(name).copied() else { return };
     let moved = now * planned.inverse();
-    for (w, _) in &mut waypoints[from..] {
+    for (w, _) in waypoints.iter_mut().skip(from) {
         w.pose = moved * w.pose;
     }
     for pose in &mut plan.transformed_poses {

@@ -111,8 +111,10 @@ impl RunStats {
             if d >= self.per_source_demo.len() {
                 self.per_source_demo.resize(d + 1, DemoUse::default());
             }
-            self.per_source_demo[d].attempts += 1;
-            self.per_source_demo[d].successes += usize::from(success);
+            if let Some(demo) = self.per_source_demo.get_mut(d) {
+                demo.attempts += 1;
+                demo.successes += usize::from(success);
+            }
         }
         if let Some(failure) = failure {
             match self.failures.iter_mut().find(|f| f.subtask == failure.subtask && f.reason == failure.reason) {
@@ -130,6 +132,7 @@ impl RunStats {
 /// randomness depends only on the run seed and its index, so shards run anywhere make the
 /// attempts a single run makes, and joined in index order they give its dataset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "ShardParts")]
 pub struct Shard {
     /// Which share, `0..count`.
     pub part: usize,
@@ -168,6 +171,21 @@ impl Shard {
     #[must_use]
     pub fn first_at_or_after(&self, start: usize) -> usize {
         start + (self.part + self.count - start % self.count) % self.count
+    }
+}
+
+/// A shard as a file stores it, checked by [`Shard::new`] when read (a count of 0 would divide by 0).
+#[derive(Deserialize)]
+struct ShardParts {
+    part: usize,
+    count: usize,
+}
+
+impl TryFrom<ShardParts> for Shard {
+    type Error = String;
+
+    fn try_from(parts: ShardParts) -> Result<Self, String> {
+        Self::new(parts.part, parts.count)
     }
 }
 
