@@ -6,13 +6,16 @@
 # replayed by tests/tests/fuzz_corpus.rs in CI (cargo test), which needs none of this.
 #   bash scripts/fuzz.sh                 # every target, 5 minutes each
 #   bash scripts/fuzz.sh 60 spec_toml    # one target, one minute
+# dataset_bytes edits an HDF5 file's bytes, so it reaches libhdf5's C parser: a crash there (an
+# AddressSanitizer report or SEGV with libhdf5 frames) cannot be replayed in CI without killing the
+# test process; move such a reproducer to fuzz/known_crashes/<target>/ with a line in its README.
 # cargo-fuzz needs nightly flags: RUSTC_BOOTSTRAP=1 lets the pinned stable toolchain take them.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 seconds="${1:-300}"
 shift || true
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(spec_toml spec_json task_file dataset)
+[ ${#targets[@]} -eq 0 ] && targets=(spec_toml spec_json task_file dataset dataset_bytes)
 export RUSTC_BOOTSTRAP=1
 export CARGO_TARGET_DIR="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}/fuzz-target"
 if ! cargo fuzz --version 2>/dev/null | grep -q "0.13.1"; then

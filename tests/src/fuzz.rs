@@ -200,11 +200,49 @@ pub fn dataset(seed: &Group, data: &[u8], scratch: &Path) {
         assert_eq!(demos.iter().map(mimicgen_engine::SourceDemo::len).collect::<Vec<_>>(), [SEED_STEPS, SEED_STEPS]);
         return;
     }
-    let file = scratch.display().to_string();
     if let Err(e) = mimicgen_io::dataset::write_tree(scratch, &root) {
         // Our writer refusing what the edits made is not the reader's business; it must still say where.
-        return check_names("the tree writer", &e.to_string(), &file);
+        return check_names("the tree writer", &e.to_string(), &scratch.display().to_string());
     }
+    read_back(scratch);
+}
+
+/// Most byte edits [`dataset_bytes`] applies to one copy.
+const MAX_BYTE_EDITS: usize = 64;
+
+/// The HDF5 reader on a byte-level mutation of `seed`, the bytes of the [`dataset_seed`] file as
+/// our writer wrote it ([`dataset_seed_bytes`]): `data` is a list of 5-byte edits, each a
+/// little-endian offset (wrapped to the file's length) and the byte to write there. Unlike
+/// [`dataset`]'s edits, which our writer turns into well-formed files, these reach libhdf5's own
+/// parser (superblock, object headers, B-trees, heaps) before ours. Refusals must name the file.
+///
+/// # Panics
+/// When a reader panics, refuses without naming the file, or the unedited seed does not read
+/// back whole.
+pub fn dataset_bytes(seed: &[u8], data: &[u8], scratch: &Path) {
+    let mut bytes = seed.to_vec();
+    let len = bytes.len().max(1);
+    for edit in data.chunks_exact(5).take(MAX_BYTE_EDITS) {
+        if let &[a, b, c, d, value] = edit
+            && let Some(byte) = bytes.get_mut(usize::try_from(u32::from_le_bytes([a, b, c, d])).unwrap_or_default() % len)
+        {
+            *byte = value;
+        }
+    }
+    std::fs::write(scratch, &bytes).unwrap_or_else(|e| panic!("writing the scratch file {}: {e}", scratch.display()));
+    if data.len() < 5 {
+        let read = RobomimicDataset::open(scratch).and_then(|d| d.to_source_dataset(&SourceSelection::default()));
+        let demos = read.unwrap_or_else(|e| panic!("the seed's bytes do not read back: {e}")).demos;
+        assert_eq!(demos.iter().map(mimicgen_engine::SourceDemo::len).collect::<Vec<_>>(), [SEED_STEPS, SEED_STEPS]);
+        return;
+    }
+    read_back(scratch);
+}
+
+/// Reads the file at `scratch` every way a user's file is read: whole, as MimicGen source demos,
+/// and demo by demo as a run streams them.
+fn read_back(scratch: &Path) {
+    let file = scratch.display().to_string();
     let opened = match RobomimicDataset::open(scratch) {
         Ok(d) => d,
         Err(e) => return check_names("the dataset reader", &e.to_string(), &file),
@@ -230,11 +268,13 @@ pub fn dataset(seed: &Group, data: &[u8], scratch: &Path) {
     }
 }
 
-/// What [`dataset`] mutates, and where it writes each copy.
+/// What [`dataset`] and [`dataset_bytes`] mutate, and where they write each copy.
 #[derive(Debug)]
 pub struct Seed {
     /// The seed file's tree (see [`dataset_seed`]).
     pub root: Group,
+    /// The seed file's bytes (see [`dataset_seed_bytes`]).
+    pub bytes: Vec<u8>,
     /// A scratch file of this process.
     pub scratch: std::path::PathBuf,
 }
@@ -246,7 +286,8 @@ impl Seed {
     /// As [`dataset_seed`].
     #[must_use]
     pub fn new() -> Self {
-        Self { root: dataset_seed(), scratch: std::env::temp_dir().join(format!("mimicgen_fuzz_{}.hdf5", std::process::id())) }
+        let scratch = std::env::temp_dir().join(format!("mimicgen_fuzz_{}.hdf5", std::process::id()));
+        Self { root: dataset_seed(), bytes: dataset_seed_bytes(&scratch), scratch }
     }
 }
 
@@ -268,6 +309,16 @@ fn cut_steps(group: &mut Group, steps: usize) {
             Node::Dataset(_) => {}
         }
     }
+}
+
+/// The bytes of the [`dataset_seed`] file as our writer writes it (through `scratch`).
+///
+/// # Panics
+/// As [`dataset_seed`], or when `scratch` cannot be written and read.
+#[must_use]
+pub fn dataset_seed_bytes(scratch: &Path) -> Vec<u8> {
+    mimicgen_io::dataset::write_tree(scratch, &dataset_seed()).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::read(scratch).unwrap_or_else(|e| panic!("reading {}: {e}", scratch.display()))
 }
 
 /// The seed file of [`dataset`]: the bundled prepared source demos cut to two demos of

@@ -57,9 +57,30 @@ fn the_dataset_corpus_is_read_or_refused_by_name() {
     replay("dataset", |data| fuzz::dataset(&seed, data, &scratch));
 }
 
+#[test]
+fn the_dataset_bytes_corpus_is_read_or_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let scratch = dir.path().join("mutated.hdf5");
+    let seed = fuzz::dataset_seed_bytes(&scratch);
+    replay("dataset_bytes", |data| fuzz::dataset_bytes(&seed, data, &scratch));
+}
+
 /// The harnesses catch what they are for: a refusal that does not name the file fails.
 #[test]
 #[should_panic(expected = "without naming it")]
 fn a_refusal_without_the_file_name_fails_the_harness() {
     fuzz::check_names("a reader", "expected a table", fuzz::ORIGIN_TOML);
+}
+
+/// A damaged header that claims more elements than the file stores is refused, naming the file
+/// and the dataset, before the reader allocates them (this input once asked for 44 TB and aborted).
+#[test]
+fn a_dataset_claiming_more_than_its_file_stores_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scratch = dir.path().join("damaged.hdf5");
+    let seed = fuzz::dataset_seed_bytes(&scratch);
+    let input = std::fs::read(repo_path("fuzz/artifacts/dataset_bytes/crash-037a2a2f7cc88e34ca658ec711499ff6163c3f88")).unwrap();
+    fuzz::dataset_bytes(&seed, &input, &scratch);
+    let err = mimicgen_io::RobomimicDataset::open(&scratch).unwrap_err().to_string();
+    assert!(err.contains("damaged.hdf5") && err.contains("the file is damaged") && err.contains("claims shape"), "{err}");
 }

@@ -306,9 +306,29 @@ fn read_attrs(file: &str, loc: &hdf5::Location, loc_path: &str) -> Result<BTreeM
 }
 
 /// Reads one dataset or attribute with its own element type.
+/// How many times its stored size an array may be in memory (see [`read_array`]).
+const MAX_INFLATION: u64 = 4096;
+
 pub(crate) fn read_array(file: &str, group: &str, field: &str, c: &hdf5::Container) -> Result<Array> {
     let err = |e: &hdf5::Error| IoError::hdf5(file, group, field, e);
     let desc = c.dtype().and_then(|t| t.to_descriptor()).map_err(|e| err(&e))?;
+    // A damaged header can claim more elements than the file stores (we saw 10^18 bytes): refuse
+    // before the reader allocates them. Compression can make a dataset this much larger in memory
+    // than on disk (deflate stops near 1000:1); small ones may be all fill value.
+    let claimed = c.shape().iter().try_fold(desc.size() as u64, |bytes, &d| bytes.checked_mul(d as u64));
+    let stored = c.storage_size();
+    if claimed.is_none_or(|bytes| bytes > stored.saturating_mul(MAX_INFLATION).saturating_add(1 << 20)) {
+        return Err(IoError::Invalid {
+            file: file.to_owned(),
+            group: group.to_owned(),
+            field: field.to_owned(),
+            reason: format!(
+                "claims shape {:?} of {}-byte elements, but the file stores {stored} bytes of it: the file is damaged",
+                c.shape(),
+                desc.size()
+            ),
+        });
+    }
     let r = c.as_reader();
     let values = match desc {
         TypeDescriptor::Float(FloatSize::U8) => Values::F64(r.read_raw().map_err(|e| err(&e))?),
