@@ -30,7 +30,7 @@ for t in "${targets[@]}"; do
   echo "fuzz: $t for ${seconds}s on $jobs job(s)"
   # -fork keeps going after a crash (each is saved); the new corpus is merged in minimised.
   cargo fuzz run --fuzz-dir fuzz "$t" "$new" "fuzz/corpus/$t" -- \
-    -max_total_time="$seconds" -fork="$jobs" -ignore_crashes=1 -max_len=4096 -rss_limit_mb=4096 \
+    -max_total_time="$seconds" -fork="$jobs" -ignore_crashes=1 -ignore_timeouts=1 -timeout=60 -max_len=4096 -rss_limit_mb=4096 \
     -artifact_prefix="fuzz/artifacts/$t/" 2>&1 | grep -E "^#|INFO: fuzzed|CRASH|panicked|ERROR|stat::" | tail -n 20 || true
   merged="$(mktemp -d)"
   cargo fuzz run --fuzz-dir fuzz "$t" "$merged" "fuzz/corpus/$t" "$new" -- -merge=1 2>&1 | grep -E "MERGE-OUTER: [0-9]+ new files" || true
