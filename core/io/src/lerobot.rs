@@ -446,16 +446,14 @@ impl Exporter<'_> {
         let mut state_col = FixedSizeListBuilder::new(Float32Builder::new(), i32::try_from(self.state_dim).unwrap_or(i32::MAX));
         let mut action_col = FixedSizeListBuilder::new(Float32Builder::new(), i32::try_from(self.action_dim).unwrap_or(i32::MAX));
         for (state_row, action_row) in state.chunks_exact(self.state_dim).zip(action_values.chunks_exact(self.action_dim)) {
-            let row = state_row;
             #[allow(clippy::cast_possible_truncation)]
-            state_col.values().append_slice(&row.iter().map(|&v| v as f32).collect::<Vec<_>>());
+            state_col.values().append_slice(&state_row.iter().map(|&v| v as f32).collect::<Vec<_>>());
             state_col.append(true);
-            self.state_stats.add(row);
-            let row = action_row;
+            self.state_stats.add(state_row);
             #[allow(clippy::cast_possible_truncation)]
-            action_col.values().append_slice(&row.iter().map(|&v| v as f32).collect::<Vec<_>>());
+            action_col.values().append_slice(&action_row.iter().map(|&v| v as f32).collect::<Vec<_>>());
             action_col.append(true);
-            self.action_stats.add(row);
+            self.action_stats.add(action_row);
         }
         let timestamps: Vec<f32> = (0..steps).map(|t| (t as f64 / fps) as f32).collect();
         let index = |offset: usize| (0..steps).map(|t| i64::try_from(offset + t).unwrap_or(i64::MAX)).collect::<Vec<i64>>();

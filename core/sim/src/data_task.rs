@@ -224,13 +224,17 @@ impl Task for DataTask {
         self.file.objects.iter().enumerate().filter_map(|(i, o)| o.obstacle.then_some(i)).collect()
     }
 
+    #[allow(
+        clippy::indexing_slicing,
+        reason = "placement_order gives indices of file.objects, and regions and poses have one entry per object"
+    )]
     fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
         // robosuite's `UniformRandomSampler`: objects one by one, each position redrawn (up to
         // 10 000 times) until its circle clears those of the objects placed before it.
         let mut poses = vec![Pose::identity(); self.file.objects.len()];
         let mut placed: Vec<(f64, f64, f64)> = Vec::new();
         for i in self.file.placement_order() {
-            let (Some(object), Some(&region)) = (self.file.objects.get(i), self.regions.get(i)) else { continue };
+            let (object, region) = (&self.file.objects[i], self.regions[i]);
             let mut found = None;
             for _ in 0..10_000 {
                 let (x, y) = (uniform(rng, region.x), uniform(rng, region.y));
@@ -244,9 +248,8 @@ impl Task for DataTask {
             })?;
             let yaw = uniform(rng, region.yaw_deg).to_radians();
             placed.push((x, y, object.radius_m));
-            #[allow(clippy::indexing_slicing, reason = "placement_order gives indices of file.objects, which `poses` has one entry for")]
-            let slot = &mut poses[i];
-            *slot = pose_from_parts(Vec3::new(x, y, self.file.table_top_z + object.height_m), Rot::from_axis_angle(&Vec3::z_axis(), yaw));
+            poses[i] =
+                pose_from_parts(Vec3::new(x, y, self.file.table_top_z + object.height_m), Rot::from_axis_angle(&Vec3::z_axis(), yaw));
         }
         Ok(poses)
     }
