@@ -659,9 +659,12 @@ mod tests {
         assert_eq!(m.apply(Command::SetPreviewSource { subtask: 0, demo: Some(3) }), None, "there is one demo");
         let Some(Request::Preview(p)) = m.apply(Command::SetPreviewSource { subtask: 1, demo: Some(0) }) else { panic!() };
         assert_eq!(p.sources, vec![None, Some(0)]);
+        // Choosing subtask 0's source keeps the later subtasks' choices.
+        let Some(Request::Preview(p)) = m.apply(Command::SetPreviewSource { subtask: 0, demo: Some(0) }) else { panic!() };
+        assert_eq!(p.sources, vec![Some(0), Some(0)]);
         let Some(Request::Preview(p)) = m.apply(Command::TryIt) else { panic!("no try asked") };
         assert!(p.execute);
-        assert_eq!(m.in_flight, 4);
+        assert_eq!(m.in_flight, 5);
         m.on_reply(Reply::Failed { what: "w".into(), error: "e".into() });
         assert!(m.busy.is_some(), "busy until every request is answered");
     }
