@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One-time (idempotent) setup of everything the build and tests need beyond cargo:
-#   - Debian: libhdf5-dev (the HDF5 C library our dataset crate links), pkg-config, and EGL with
+#   - Debian (pinned in scripts/debian_pins.sh): libhdf5-dev (the HDF5 C library our dataset crate links), pkg-config, and EGL with
 #     Mesa's software renderer (libegl1, libegl-mesa0, libgl1-mesa-dri, libgl1: MuJoCo renders
 #     camera observations offscreen through them, no display or GPU needed), iproute2 (`ip netns`:
 #     scripts/test_ray_hosts.sh makes two hosts from network namespaces); with --viewer
@@ -13,27 +13,11 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 cache="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}"
 mkdir -p "$cache"
 
-debian_packages=(libhdf5-dev=1.10.8+repack1-1 pkg-config
-  libegl1=1.6.0-1 libegl-mesa0=22.3.6-1+deb12u2 libgl1-mesa-dri=22.3.6-1+deb12u2 libgl1=1.6.0-1
-  iproute2=6.1.0-3)
-viewer_packages=(libudev-dev=252.39-1~deb12u2)
-[ "${1:-}" = "--viewer" ] && debian_packages+=("${viewer_packages[@]}")
-missing=()
-for p in "${debian_packages[@]}"; do
-  name="${p%%=*}"
-  dpkg-query -W -f='${Status}' "$name" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "setup: installing Debian packages: ${missing[*]}"
-  sudo_cmd=""
-  [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
-  $sudo_cmd apt-get update -qq
-  if ! DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null; then
-    # A security update can replace a pinned systemd-family version; take the archive's then.
-    echo "setup: pinned versions unavailable, installing the archive's: ${missing[*]%%=*}" >&2
-    DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]%%=*}" >/dev/null
-  fi
-fi
+# shellcheck source=debian_pins.sh
+source "$here/debian_pins.sh"
+pins=("${DEBIAN_SETUP_PINS[@]}")
+[ "${1:-}" = "--viewer" ] && pins+=("${DEBIAN_VIEWER_PINS[@]}")
+install_pinned setup "${pins[@]}"
 
 venv="$cache/venv"
 stamp="$venv/.requirements.sha256"

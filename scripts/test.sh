@@ -3,6 +3,9 @@
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh
+# Every Debian pin still in the archive? A banner names those that are not (a fresh machine would
+# get other versions); not a failure.
+echo "== Debian pins";       bash scripts/debian_pins.sh --check
 export MIMICGEN_CACHE="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}"
 export MIMICGEN_PYTHON="${MIMICGEN_PYTHON:-$MIMICGEN_CACHE/venv/bin/python}"
 # Build outputs live outside the clone, so a fresh clone on the same machine builds incrementally.

@@ -5,8 +5,10 @@
 # mount namespace), so the nodes share no working directory, Ray session or object store files;
 # only the virtual environment (and this checkout) stay visible, as a node image would.
 # The driver runs on the head (scripts/ray_hosts.py):
-#   test (default): shards run on both nodes, the worker node is lost while one of its shards runs,
-#     after one has finished there, and the merged dataset must equal the single-process run with
+#   test (default): shards run on both nodes, placed by the test (two on the worker node, the rest
+#     on the head), and the worker node is lost while the second of its shards runs, after the
+#     first came back: that shard holds its files until the loss, so the kill cannot miss it
+#     whatever Ray's scheduler does. The merged dataset must equal the single-process run with
 #     the same seed (demos, arrays, failed attempts). Twice, on a fresh cluster each time: the node
 #     "killed" (SIGKILL to every process in its namespace) and the node "vanished" (its link down,
 #     then the same SIGKILL: the head hears nothing more from it, as when a machine dies).
@@ -132,12 +134,12 @@ start_cluster() {
   start_node "$worker_ns" "$worker_cpu" "$logs/worker.log" --address="$head_ip:$port" --node-ip-address="$worker_ip"
   say "Ray head (pid $head_pid, CPU 0) and worker node (pid $!, CPU $worker_cpu) starting"
   # The head's mount namespace is ready when its working directory exists there.
-  for _ in $(seq 100); do
+  for _ in $(seq 600); do
     nsenter --target "$head_pid" --mount -- test -d /tmp/node 2>/dev/null && return
     kill -0 "$head_pid" 2>/dev/null || { cat "$logs/head.log" >&2; die "the head node exited while starting"; }
     sleep 0.1
   done
-  die "the head node's namespaces were not ready after 10 s"
+  die "the head node's namespaces were not ready after 60 s"
 }
 
 # The driver runs on the head host: in the head's network and mount namespaces, on its CPU.

@@ -2,7 +2,7 @@
 # The browser app's tests: `mimicgen serve` driven in Debian's headless chromium by Playwright
 # (tests/web/app.test.mjs: annotate, save, the file browser, the 3D view and its time cursor, a
 # run, a failed attempt side by side, a run that survives its tab). Installs what it needs,
-# pinned: Debian's chromium and fonts-liberation, playwright-core from tests/web/package-lock.json;
+# pinned: Debian's chromium and fonts-liberation (scripts/debian_pins.sh), playwright-core from tests/web/package-lock.json;
 # builds the WebAssembly bundle (scripts/build_web.sh) and the mimicgen binary.
 #   bash scripts/test_web.sh                     # as CI runs it (scripts/test.sh)
 #   MIMICGEN_WEB_SHOTS=docs/img bash scripts/test_web.sh   # also writes the docs' screenshots
@@ -10,22 +10,9 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 export MIMICGEN_CACHE="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$MIMICGEN_CACHE/target}"
-packages=(chromium=156.0.8078.79-1~deb12u1 fonts-liberation=1:1.07.4-11)
-missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "${p%%=*}" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "test_web: installing Debian packages: ${missing[*]}"
-  sudo_cmd=""
-  [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
-  $sudo_cmd apt-get update -qq
-  if ! DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null; then
-    # Debian replaces chromium's version with each security update; take the archive's then.
-    echo "test_web: pinned versions unavailable, installing the archive's: ${missing[*]%%=*}" >&2
-    DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]%%=*}" >/dev/null
-  fi
-fi
+# shellcheck source=debian_pins.sh
+source scripts/debian_pins.sh
+install_pinned test_web "${DEBIAN_WEB_PINS[@]}"
 if [ ! -d tests/web/node_modules/playwright-core ]; then
   echo "test_web: npm ci (playwright-core, no browser download)"
   (cd tests/web && PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 npm ci --silent --no-audit --no-fund)

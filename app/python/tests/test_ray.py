@@ -41,3 +41,19 @@ def test_ray_shards_give_the_single_process_dataset_even_after_a_retry(cluster, 
         fa, fb = mg.Dataset(str(single).replace(".hdf5", suffix)), mg.Dataset(str(out).replace(".hdf5", suffix))
         assert fa.demo_names == fb.demo_names
     assert not Path(tmp_path / ".ray.hdf5.shards").exists()
+
+
+def test_shard_options_place_shards_but_leave_cpus_and_retries_to_generate(cluster, tmp_path):
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+    node = ray.get_runtime_context().get_node_id()
+    placed = []
+
+    def on_this_node(part):
+        placed.append(part)
+        return {"scheduling_strategy": NodeAffinitySchedulingStrategy(node, soft=False)}
+
+    got = mgray.generate(tmp_path / "placed.hdf5", shards=2, num_demos=2, seed=5, shard_options=on_this_node, progress=False)
+    assert placed == [0, 1] and got["attempts"] == 2
+    with pytest.raises(mg.MimicgenError, match=r"shard_options\(0\): num_cpus"):
+        mgray.generate(tmp_path / "cpus.hdf5", shards=2, num_demos=2, seed=5, shard_options=lambda part: {"num_cpus": 2})

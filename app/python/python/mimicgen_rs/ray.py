@@ -21,7 +21,7 @@ import os
 import sys
 import tempfile
 import time
-from typing import Any, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional
 
 import mimicgen_rs
 
@@ -47,6 +47,7 @@ def generate(
     overwrite: bool = False,
     max_retries: int = 3,
     progress: bool = True,
+    shard_options: Optional[Callable[[int], Dict[str, Any]]] = None,
     **kwargs: Any,
 ) -> Dict[str, Any]:
     """Run ``mimicgen_rs.generate(out, **kwargs)`` as ``shards`` Ray tasks and merge them.
@@ -56,6 +57,17 @@ def generate(
     files. Returns the merged run's report (the same counts as a single process's), plus
     ``shards``: by shard, the address of the node whose try made its files (``node``) and that
     try's own run time (``wall_time_s``).
+
+    ``shard_options(i)``, when given, returns Ray task options for shard ``i`` (those of
+    ``.options()``: ``scheduling_strategy``, ``resources``, ...), e.g. to keep shards on the nodes
+    that hold a large ``source`` file:
+
+        from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+        near = lambda i: {"scheduling_strategy": NodeAffinitySchedulingStrategy(node_ids[i % 2], soft=True)}
+        mimicgen_rs.ray.generate("out.hdf5", shards=8, num_demos=1000, shard_options=near)
+
+    With ``soft=True`` a shard whose node dies is retried on another; with ``soft=False`` the retry
+    waits for that node (and fails if it is gone). ``num_cpus`` and ``max_retries`` are set here.
     """
     import ray
 
@@ -68,7 +80,13 @@ def generate(
         if kwargs.get(key) is not None:
             kwargs[key] = os.path.abspath(os.fspath(kwargs[key]))
     task = ray.remote(max_retries=max_retries, num_cpus=1)(_run_shard)
-    pending = {task.remote(i, shards, kwargs): i for i in range(shards)}
+    pending = {}
+    for i in range(shards):
+        options = dict(shard_options(i)) if shard_options is not None else {}
+        for key in ("num_cpus", "max_retries"):
+            if key in options:
+                raise mimicgen_rs.MimicgenError(f"shard_options({i}): {key} is set by mimicgen_rs.ray.generate (max_retries: its own argument)")
+        pending[(task.options(**options) if options else task).remote(i, shards, kwargs)] = i
     started = time.monotonic()
     results: Dict[int, Dict[str, Any]] = {}
     while pending:
