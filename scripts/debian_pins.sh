@@ -17,7 +17,8 @@ DEBIAN_SETUP_PINS=(libhdf5-dev=1.10.8+repack1-1 pkg-config=1.8.1-1
   libegl1=1.6.0-1 libegl-mesa0=22.3.6-1+deb12u2 libgl1-mesa-dri=22.3.6-1+deb12u2 libgl1=1.6.0-1
   iproute2=6.1.0-3)
 DEBIAN_VIEWER_PINS=(libudev-dev=252.39-1~deb12u2)
-DEBIAN_WEB_PINS=(chromium=150.0.7871.100-1~deb12u1 fonts-liberation=1:1.07.4-11)
+# chromium-common must be pinned beside chromium: apt takes the newest of a package left unpinned.
+DEBIAN_WEB_PINS=(chromium=150.0.7871.100-1~deb12u1 chromium-common=150.0.7871.100-1~deb12u1 fonts-liberation=1:1.07.4-11)
 
 pins_banner() { # lines...
   {
@@ -65,7 +66,12 @@ install_pinned() {
     fi
   done
   export DEBIAN_FRONTEND=noninteractive
-  [ ${#pinned[@]} -eq 0 ] || pins_apt apt-get install -y -qq --no-install-recommends "${pinned[@]}" >/dev/null
+  if [ ${#pinned[@]} -gt 0 ] && ! pins_apt apt-get install -y -qq --no-install-recommends "${pinned[@]}" >/dev/null; then
+    pins_banner "$who: PIN NOT HELD: apt could not install ${pinned[*]} together" \
+      "(a dependency the pins do not name moved on); installing the archive's candidates." \
+      "Update the pins in scripts/debian_pins.sh."
+    floating+=("${pinned[@]%%=*}")
+  fi
   [ ${#floating[@]} -eq 0 ] || pins_apt apt-get install -y -qq --no-install-recommends "${floating[@]}" >/dev/null
 }
 
