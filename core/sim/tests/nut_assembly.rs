@@ -29,11 +29,12 @@ fn the_nuts_rest_in_their_strips_and_the_pegs_stay_put() {
     assert!((poses["round_peg"].translation.vector - nalgebra::Vector3::new(0.23, -0.1, 0.85)).norm() < 1e-12);
     assert!(!task.is_success(env.physics()));
     assert!(registry::task("nut_assembly", "D2").is_err());
-    // D1: both nuts anywhere in front of the pegs, never overlapping.
+    // D1: both nuts anywhere in front of the pegs, kept apart as robosuite's sampler keeps them:
+    // by the sum of their horizontal radii (0.11 m each, the x of the horizontal_radius_site).
     let wide: Arc<dyn Task> = registry::task("nut_assembly", "D1").unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
     for _ in 0..200 {
         let poses = wide.sample_scene(&mut rng).unwrap();
-        assert!((poses[0].translation.vector - poses[1].translation.vector).xy().norm() >= 0.25);
+        assert!((poses[0].translation.vector - poses[1].translation.vector).xy().norm() > 0.22);
     }
 }
