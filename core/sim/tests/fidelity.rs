@@ -102,11 +102,15 @@ fn rows(table: &Value) -> Vec<Row> {
 
 fn check(table: &Value, tasks: &Path) -> Vec<String> {
     let mut problems = Vec::new();
+    // Each task file read and parsed once, however many rows name it.
+    let mut docs = std::collections::BTreeMap::<String, Value>::new();
     for row in rows(table) {
-        let path = tasks.join(&row.file);
-        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {}: {e}", row.label, path.display()));
-        let doc: Value = toml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let ours = match lookup(&doc, &row.field) {
+        let doc = docs.entry(row.file.clone()).or_insert_with(|| {
+            let path = tasks.join(&row.file);
+            let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {}: {e}", row.label, path.display()));
+            toml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        });
+        let ours = match lookup(doc, &row.field) {
             Ok(v) => v,
             Err(e) => {
                 problems.push(format!("{}: {}: {e}", row.label, row.file));
