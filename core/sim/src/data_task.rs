@@ -25,6 +25,9 @@ pub struct DataTask {
     regions: Vec<Region>,
     /// The variant's object instances: `(label, every object's model)`; empty when it has none.
     instances: Vec<(String, Vec<ObjectModel>)>,
+    /// The conditions of every [`Predicate::Ever`] in the signals and success, in the order of
+    /// [`SimState`]'s history flags.
+    remembered: Vec<Predicate>,
 }
 
 impl DataTask {
@@ -55,7 +58,11 @@ impl DataTask {
                 instances.push((instance.label.clone(), models));
             }
         }
-        Ok(Self { file, variant, regions, instances })
+        let mut remembered = Vec::new();
+        for predicate in file.signals.values().chain([&file.success]) {
+            collect_ever(predicate, &mut remembered);
+        }
+        Ok(Self { file, variant, regions, instances, remembered })
     }
 
     /// The task file.
@@ -103,7 +110,7 @@ impl DataTask {
                     None => self.position(env, of),
                 };
                 let d = self.position(env, object) - point;
-                d.x.abs() < *xy_m && d.y.abs() < *xy_m && d.z >= dz_m[0] && d.z <= dz_m[1]
+                xy_m.holds(d.x, d.y) && d.z >= dz_m[0] && d.z <= dz_m[1]
             }
             Predicate::Near { object, point_m, of, of_point_m, within_m } => {
                 let point = |name: &str, p: &[f64; 3]| {
@@ -130,6 +137,10 @@ impl DataTask {
             Predicate::Upright { object, tolerance_deg } => {
                 let z = env.object_pose(index(object)).rotation * Vec3::z();
                 z.z >= tolerance_deg.to_radians().cos()
+            }
+            Predicate::Ever(p) => {
+                let flag = self.remembered.iter().position(|r| r == p.as_ref());
+                flag.and_then(|i| env.ever.get(i)).copied().unwrap_or(false)
             }
             Predicate::All(all) => all.iter().all(|p| self.holds(p, env)),
             Predicate::Any(any) => any.iter().any(|p| self.holds(p, env)),
@@ -168,6 +179,21 @@ impl DataTask {
                 out.extend([sign * q.i, sign * q.j, sign * q.k, sign * q.w]);
             }
         }
+    }
+}
+
+/// Adds the condition of every [`Predicate::Ever`] in `predicate` to `out`, each once.
+fn collect_ever(predicate: &Predicate, out: &mut Vec<Predicate>) {
+    match predicate {
+        Predicate::Ever(p) => {
+            collect_ever(p, out);
+            if !out.contains(p) {
+                out.push(p.as_ref().clone());
+            }
+        }
+        Predicate::All(all) | Predicate::Any(all) => all.iter().for_each(|p| collect_ever(p, out)),
+        Predicate::Not(p) => collect_ever(p, out),
+        _ => {}
     }
 }
 
@@ -247,7 +273,10 @@ impl Task for DataTask {
                 reason: format!("cannot place {} in {region:?} clear of the objects placed before it", object.name),
             })?;
             let yaw = uniform(rng, region.yaw_deg).to_radians();
-            placed.push((x, y, object.radius_m));
+            // A fixture of radius 0 (a bin the objects start in) keeps nothing clear.
+            if object.radius_m > 0.0 {
+                placed.push((x, y, object.radius_m));
+            }
             poses[i] =
                 pose_from_parts(Vec3::new(x, y, self.file.table_top_z + object.height_m), Rot::from_axis_angle(&Vec3::z_axis(), yaw));
         }
@@ -260,6 +289,17 @@ impl Task for DataTask {
 
     fn is_success(&self, env: &SimState) -> bool {
         self.holds(&self.file.success, env)
+    }
+
+    fn record_history(&self, env: &mut SimState) {
+        if self.remembered.is_empty() {
+            return;
+        }
+        let now: Vec<bool> = self.remembered.iter().map(|p| self.holds(p, env)).collect();
+        env.ever.resize(now.len(), false);
+        for (flag, holds) in env.ever.iter_mut().zip(now) {
+            *flag |= holds;
+        }
     }
 
     fn unmet_success(&self, env: &SimState) -> Option<String> {

@@ -92,7 +92,7 @@ impl SimEnv {
         let osc = Osc::new(OscConfig::default(), scene.robot.model.init_qpos.to_vec(), nv);
         let obstacle_side = obstacle_sides(&scene, task.as_ref());
         Self {
-            state: SimState { scene, data },
+            state: SimState { scene, data, ever: Vec::new() },
             task,
             osc,
             gripper_command: [0.0; 2],
@@ -147,7 +147,15 @@ impl SimEnv {
     pub fn reset_to_state(&mut self, state: &[f64]) -> Result<(), EnvError> {
         self.gripper_command = [0.0; 2];
         self.osc.initial_joint = self.state.scene.robot.model.init_qpos.to_vec();
+        self.state.ever.clear();
         self.set_state(state)
+    }
+
+    /// Notes what the task remembers of the episode (its `ever` conditions) in the present
+    /// state, as every step does: for stored states restored one by one, as robomimic's
+    /// `reset_to` then `is_success` would.
+    pub fn record_history(&mut self) {
+        self.task.record_history(&mut self.state);
     }
 
     /// Makes the arm's present joint positions the controller's null-space posture, as a reset
@@ -349,6 +357,7 @@ impl Environment for SimEnv {
             self.use_instance(k);
         }
         self.state.data.reset();
+        self.state.ever.clear();
         self.warnings_seen = 0;
         let noise = Normal::new(0.0, ARM_INIT_NOISE).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
         let robot = self.state.scene.robot.clone();
@@ -435,6 +444,7 @@ impl Environment for SimEnv {
             self.physics_step(action[6])?;
         }
         self.state.data.forward();
+        self.task.record_history(&mut self.state);
         Ok(())
     }
 

@@ -17,6 +17,9 @@ use crate::scene::{Scene, pose_from_xpos_xmat};
 pub struct SimState {
     pub(crate) scene: Arc<Scene>,
     pub(crate) data: MjData<Arc<MjModel>>,
+    /// For each of the task's [`crate::task_file::Predicate::Ever`] conditions, whether it has
+    /// held at some step since the episode's reset.
+    pub(crate) ever: Vec<bool>,
 }
 
 impl std::fmt::Debug for SimState {

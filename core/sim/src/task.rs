@@ -35,6 +35,9 @@ pub trait Task: Send + Sync {
     fn signals(&self, env: &SimState) -> BTreeMap<String, i64>;
     /// Whether the task is achieved in the current state.
     fn is_success(&self, env: &SimState) -> bool;
+    /// Notes what the task remembers of the episode so far (conditions that must have held at
+    /// some earlier step); the environment calls it after every step.
+    fn record_history(&self, _env: &mut SimState) {}
     /// The parts of the success condition that do not hold in the current state, in words;
     /// `None` when achieved or when the task cannot say.
     fn unmet_success(&self, _env: &SimState) -> Option<String> {

@@ -82,7 +82,8 @@ pub struct ObjectDef {
     pub model: ObjectModel,
     /// Height of its origin above the table top at reset (m).
     pub height_m: f64,
-    /// Radius of the circle kept clear of every object placed before it (m).
+    /// Radius of the circle kept clear of every object placed before it (m); 0 keeps nothing
+    /// clear, not even later objects off its centre (a bin the objects start in).
     #[serde(default)]
     pub radius_m: f64,
     /// Where each variant places it.
@@ -147,8 +148,8 @@ pub enum Predicate {
     },
     /// The two objects' collision geoms touch.
     Contact([String; 2]),
-    /// `object`'s origin is within `xy_m` of `of`'s along world x and y, and its height above
-    /// `of`'s origin is within `dz_m` (robosuite's `on_peg`).
+    /// `object`'s origin is within `xy_m` of `of`'s along world x and y (one bound for both, or
+    /// `[x, y]`), and its height above `of`'s origin is within `dz_m` (robosuite's `on_peg`).
     Inside {
         /// The object.
         object: String,
@@ -158,7 +159,7 @@ pub enum Predicate {
         #[serde(default)]
         of_point_m: [f64; 3],
         /// Largest |dx| and |dy| (m).
-        xy_m: f64,
+        xy_m: XyBound,
         /// Range of z(object) - z(of) (m).
         #[serde(default = "any_height")]
         dz_m: [f64; 2],
@@ -227,12 +228,38 @@ pub enum Predicate {
         /// Speed (m/s).
         max_speed_m_s: f64,
     },
+    /// It held at some step since the episode's reset (robosuite's history flags, e.g. Kitchen's
+    /// "the stove was on with the pot on it and the bread in the pot"). The environment checks it
+    /// after every step.
+    Ever(Box<Predicate>),
     /// Every one holds.
     All(Vec<Predicate>),
     /// At least one holds.
     Any(Vec<Predicate>),
     /// It does not hold.
     Not(Box<Predicate>),
+}
+
+/// A bound on |dx| and |dy| (m): one number for both, or `[x, y]`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum XyBound {
+    /// The same bound along x and y.
+    Both(f64),
+    /// `[x, y]`.
+    PerAxis([f64; 2]),
+}
+
+impl XyBound {
+    /// Whether `|dx|` and `|dy|` are both under their bounds.
+    #[must_use]
+    pub fn holds(self, dx: f64, dy: f64) -> bool {
+        let [x, y] = match self {
+            Self::Both(both) => [both; 2],
+            Self::PerAxis(per_axis) => per_axis,
+        };
+        dx.abs() < x && dy.abs() < y
+    }
 }
 
 fn any_height() -> [f64; 2] {
@@ -438,6 +465,7 @@ impl Predicate {
             Self::Apart { object, from, min_m } => format!("{object} at least {min_m:.3} m from {from}"),
             Self::AtRest { object, .. } => format!("{object} at rest"),
             Self::Upright { object, .. } => format!("{object} upright"),
+            Self::Ever(p) => format!("once ({})", p.words()),
             Self::All(all) => list(all, " and "),
             Self::Any(all) => format!("any of ({})", list(all, ", ")),
             Self::Not(p) => format!("not ({})", p.words()),
@@ -449,7 +477,7 @@ impl Predicate {
         match self {
             Self::Joint { joint, .. } => vec![joint],
             Self::All(all) | Self::Any(all) => all.iter().flat_map(Self::joints).collect(),
-            Self::Not(p) => p.joints(),
+            Self::Not(p) | Self::Ever(p) => p.joints(),
             _ => Vec::new(),
         }
     }
@@ -465,7 +493,7 @@ impl Predicate {
             Self::Near { object, of: other, .. } | Self::Aligned { object, with: other, .. } => vec![(object, false), (other, false)],
             Self::Inside { object, of: other, .. } | Self::Apart { object, from: other, .. } => vec![(object, true), (other, true)],
             Self::All(all) | Self::Any(all) => all.iter().flat_map(Self::names).collect(),
-            Self::Not(p) => p.names(),
+            Self::Not(p) | Self::Ever(p) => p.names(),
         }
     }
 }
@@ -554,9 +582,9 @@ mod tests {
             ObjectModel::Compound { hinge: Some(h), .. } => h.range_deg,
             _ => None,
         };
-        assert_eq!(file.objects.iter().find_map(|o| range(&o.model)), Some([-100.0, 0.0]), "the lid opens by 100 deg");
+        assert_eq!(file.objects.iter().find_map(|o| range(&o.model)), Some([-120.0, 0.0]), "the lid opens by 120 deg (the reference's)");
         for bad in ["[-100.0, -5.0]", "[0.0, -100.0]", "[-100.0, nan]"] {
-            let broken = coffee.replacen("range_deg = [-100.0, 0.0]", &format!("range_deg = {bad}"), 1);
+            let broken = coffee.replacen("range_deg = [-120.0, 0.0]", &format!("range_deg = {bad}"), 1);
             assert_ne!(broken, coffee);
             let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
             assert!(err.contains("my.task.toml") && err.contains("\"machine\"") && err.contains("hinge.range_deg"), "{bad}: {err}");

@@ -16,6 +16,8 @@ apart = { apart = { object = "cubeA", from = "cubeB", min_m = 0.1 } }
 near = { near = { object = "cubeA", point_m = [0.0, 0.0, -0.02], of = "cubeB", of_point_m = [0.0, 0.0, 0.025], within_m = 0.005 } }
 on_top = { inside = { object = "cubeA", of = "cubeB", xy_m = 0.01, dz_m = [0.04, 0.05] } }
 either = { any = [{ lifted = { object = "cubeA", above_m = 0.5 } }, { contact = ["cubeA", "cubeB"] }] }
+in_row = { inside = { object = "cubeA", of = "cubeB", xy_m = [0.2, 0.01] } }
+was_stacked = { ever = { contact = ["cubeA", "cubeB"] } }
 "#;
 
 fn task() -> Arc<dyn Task> {
@@ -43,15 +45,21 @@ fn predicates_read_the_scene() {
     settle(&mut env, 10);
     let s = task.signals(env.physics());
     assert_eq!((s["aligned"], s["at_rest"], s["apart"], s["near"], s["on_top"], s["either"]), (1, 1, 1, 0, 0, 0), "{s:?}");
+    // 15 cm apart along x, level in y: inside a bound of [0.2, 0.01]; never touched yet.
+    assert_eq!((s["in_row"], s["was_stacked"]), (1, 0), "{s:?}");
     // Stacked, turned 20 deg: near and on top, touching, not aligned.
     env.place_object(0, &pose_from_parts(Vec3::new(0.05, 0.0, 0.8705), yaw(30.0)));
     settle(&mut env, 10);
     let s = task.signals(env.physics());
-    assert_eq!((s["aligned"], s["apart"], s["near"], s["on_top"], s["either"]), (0, 0, 1, 1, 1), "{s:?}");
-    // Dropped from 10 cm: moving, not at rest.
+    assert_eq!((s["aligned"], s["apart"], s["near"], s["on_top"], s["either"], s["was_stacked"]), (0, 0, 1, 1, 1, 1), "{s:?}");
+    // Dropped from 10 cm: moving, not at rest; 10 cm off in y, out of the row; they touched once.
     env.place_object(0, &pose_from_parts(Vec3::new(-0.1, 0.1, 0.92), yaw(0.0)));
     settle(&mut env, 2);
-    assert_eq!(task.signals(env.physics())["at_rest"], 0);
+    let s = task.signals(env.physics());
+    assert_eq!((s["at_rest"], s["either"], s["in_row"], s["was_stacked"]), (0, 0, 0, 1), "{s:?}");
+    // A reset forgets the episode's history.
+    mimicgen_engine::Environment::reset(&mut env, &mut rand_chacha::ChaCha8Rng::seed_from_u64(2)).unwrap();
+    assert_eq!(task.signals(env.physics())["was_stacked"], 0);
 }
 
 #[test]

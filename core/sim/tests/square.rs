@@ -47,10 +47,14 @@ fn the_peg_moves_between_episodes_and_stays_put_within_one() {
         &task.object_models(),
         task.table_top_z(),
     );
+    // (Both pegs: robosuite's NutAssemblySquare builds the round one too.)
     let plain = mimicgen_sim::mjcf_edit::edit_body(&xml, "peg1", &[], &["mocap"]).unwrap();
+    let plain = mimicgen_sim::mjcf_edit::edit_body(&plain, "peg2", &[], &["mocap"]).unwrap();
     assert!(!plain.contains("mocap"));
     let scene = Scene::compile(&plain, "robosuite-like", &task.objects(), 20.0).unwrap();
-    assert!(scene.objects[1].mocap.is_some());
+    let names: Vec<&str> = scene.objects.iter().map(|o| o.name.as_str()).collect();
+    assert_eq!(names, ["square_nut", "square_peg", "round_nut", "round_peg"]);
+    assert!(scene.objects[1].mocap.is_some() && scene.objects[3].mocap.is_some());
 }
 
 #[test]
@@ -129,5 +133,27 @@ fn bundled_demos_succeed_and_generated_demos_carry_their_peg() {
         if (peg - d0_scene_peg).xy().norm() > 0.03 {
             assert!(!ends_on_peg(&mut check));
         }
+    }
+}
+
+/// robosuite's NutAssemblySquare builds Nut Assembly's whole scene and clears the round nut to
+/// (10, 10, 10) at every reset (`clear_objects`); MimicGen's D1 and D2 move the round peg to
+/// x = -10. Ours does the same, so our states carry the round nut's free joint and robosuite loads
+/// our `model_file`s (`scripts/test.sh` replays generated Square D0 demos there).
+#[test]
+fn the_round_nut_and_peg_are_where_robosuite_leaves_them() {
+    for variant in ["D0", "D1", "D2"] {
+        let task: Arc<dyn Task> = registry::task("square", variant).unwrap();
+        let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+        let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+        env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
+        let index = |name: &str| scene.objects.iter().position(|o| o.name == name).unwrap();
+        let nut = index("round_nut");
+        assert!(scene.objects[nut].qpos_adr.is_some(), "{variant}: the round nut has a free joint");
+        let at = env.physics().object_pose(nut).translation.vector;
+        assert!((at - Vec3::new(10.0, 10.0, 10.0)).norm() < 1e-9, "{variant}: round nut at {at:?}");
+        let x = env.physics().object_pose(index("round_peg")).translation.vector.x;
+        let want = if variant == "D0" { 0.23 } else { -10.0 };
+        assert!((x - want).abs() < 1e-9, "{variant}: round peg at x {x}, want {want}");
     }
 }
