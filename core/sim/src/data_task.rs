@@ -48,7 +48,7 @@ impl DataTask {
         let regions = file
             .objects
             .iter()
-            .map(|o| o.place.get(&variant).copied().unwrap_or(Region { x: [0.0; 2], y: [0.0; 2], yaw_deg: [0.0; 2] }))
+            .map(|o| o.place.get(&variant).copied().unwrap_or(Region { x: [0.0; 2], y: [0.0; 2], yaw_deg: [0.0; 2], flip: false }))
             .collect();
         let mut instances = Vec::new();
         for (i, object) in file.objects.iter().enumerate() {
@@ -273,12 +273,17 @@ impl Task for DataTask {
                 reason: format!("cannot place {} in {region:?} clear of the objects placed before it", object.name),
             })?;
             let yaw = uniform(rng, region.yaw_deg).to_radians();
+            // Drawn only where a region flips, so other tasks' scenes keep their random streams.
+            let flipped = region.flip && rng.random_bool(0.5);
             // A fixture of radius 0 (a bin the objects start in) keeps nothing clear.
             if object.radius_m > 0.0 {
                 placed.push((x, y, object.radius_m));
             }
-            poses[i] =
-                pose_from_parts(Vec3::new(x, y, self.file.table_top_z + object.height_m), Rot::from_axis_angle(&Vec3::z_axis(), yaw));
+            let mut world_from_object = Rot::from_axis_angle(&Vec3::z_axis(), yaw);
+            if flipped {
+                world_from_object *= Rot::from_axis_angle(&Vec3::x_axis(), PI);
+            }
+            poses[i] = pose_from_parts(Vec3::new(x, y, self.file.table_top_z + object.height_m), world_from_object);
         }
         Ok(poses)
     }

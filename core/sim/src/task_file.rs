@@ -126,6 +126,11 @@ pub struct Region {
     /// Yaw range (deg).
     #[serde(default = "any_yaw")]
     pub yaw_deg: [f64; 2],
+    /// Half the resets (a seeded draw) turn the object 180 deg about its own x axis before its
+    /// yaw: robosuite's placement sampler does this to the hammer of Hammer Cleanup (it composes
+    /// the hammer's two possible initial orientations with the sampled rotation).
+    #[serde(default)]
+    pub flip: bool,
 }
 
 fn any_yaw() -> [f64; 2] {
