@@ -57,6 +57,29 @@ fn settled(task: &str) -> (Arc<dyn mimicgen_sim::Task>, SimEnv) {
     (task, env)
 }
 
+/// `task`'s task file from `core/sim/tasks`, parsed.
+fn task_file(task: &str) -> mimicgen_sim::TaskFile {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("tasks/{task}.task.toml"));
+    mimicgen_sim::TaskFile::from_toml_str(&std::fs::read_to_string(&path).unwrap(), task).unwrap()
+}
+
+/// The geoms of `file`'s compound object `name`.
+fn compound_geoms(file: &mimicgen_sim::TaskFile, name: &str) -> Vec<mimicgen_sim::compose::Part> {
+    match &file.objects.iter().find(|o| o.name == name).unwrap().model {
+        mimicgen_sim::compose::ObjectModel::Compound { geoms, .. } => geoms.clone(),
+        other => panic!("{name}: not a compound: {other:?}"),
+    }
+}
+
+/// Restores `demo`'s stored states at `steps` in order, each noted as a step would note it (the
+/// task's `ever` conditions: Kitchen remembers the stove being on with the pot and bread on it).
+fn restore_in_order(env: &mut SimEnv, demo: &mimicgen_engine::demo::SourceDemo, steps: std::ops::Range<usize>) {
+    for t in steps {
+        env.set_state(demo.sim.states.row(t)).unwrap();
+        env.record_history();
+    }
+}
+
 /// The bundled demos of `task` end in success with `signals` turning on in this order, and a few
 /// generated attempts in `variant` succeed.
 fn bundled_demos_succeed_and_generate(task_name: &str, signals: &[&str], variant: &str) {
@@ -74,12 +97,7 @@ fn bundled_demos_succeed_and_generate(task_name: &str, signals: &[&str], variant
         env.reset_to_state(demo.sim.states.row(0)).unwrap();
         assert!(!task.is_success(env.physics()), "{} starts unsolved", demo.name);
         assert!(task.unmet_success(env.physics()).is_some(), "{}: an unsolved state names what is unmet", demo.name);
-        // The stored states in order, each noted as a step would (Kitchen remembers the stove
-        // being on with the pot and bread on it).
-        for t in 1..demo.len() {
-            env.set_state(demo.sim.states.row(t)).unwrap();
-            env.record_history();
-        }
+        restore_in_order(&mut env, demo, 1..demo.len());
         let poses = env.object_poses();
         let rel: Vec<_> = poses.values().map(|p| p.translation.vector).collect();
         assert!(task.is_success(env.physics()), "{} ends in success: {rel:?} obs {:?}", demo.name, task.object_obs(env.physics()));
@@ -125,16 +143,9 @@ fn threading_scenes_rest_and_its_demos_thread_the_needle() {
 /// ring's half-size, 12 mm.
 #[test]
 fn threading_shaft_has_the_reference_clearance_in_the_ring() {
-    use mimicgen_sim::compose::{ObjectModel, Part};
     use mimicgen_sim::task_file::Predicate;
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tasks/threading.task.toml");
-    let file = mimicgen_sim::TaskFile::from_toml_str(&std::fs::read_to_string(&path).unwrap(), "threading").unwrap();
-    let geoms = |name: &str| -> Vec<Part> {
-        match &file.objects.iter().find(|o| o.name == name).unwrap().model {
-            ObjectModel::Compound { geoms, .. } => geoms.clone(),
-            other => panic!("{name}: not a compound: {other:?}"),
-        }
-    };
+    let file = task_file("threading");
+    let geoms = |name: &str| compound_geoms(&file, name);
     let close = |a: &[f64], b: &[f64]| a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9);
     let needle = geoms("needle");
     let shaft = &needle[0];
@@ -219,17 +230,10 @@ fn coffee_starts_open_and_its_demos_insert_the_pod_and_shut_the_lid() {
 #[test]
 fn coffee_holder_is_the_reference_cup_and_a_pod_in_it_passes_the_5_2_mm_check() {
     use mimicgen_engine::pose::{Vec3, pose_from_parts};
-    use mimicgen_sim::compose::{ObjectModel, Part};
-    use mimicgen_sim::task_file::Predicate;
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tasks/coffee.task.toml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let file = mimicgen_sim::TaskFile::from_toml_str(&text, "coffee").unwrap();
-    let geoms = |name: &str| -> Vec<Part> {
-        match &file.objects.iter().find(|o| o.name == name).unwrap().model {
-            ObjectModel::Compound { geoms, .. } => geoms.clone(),
-            other => panic!("{name}: not a compound: {other:?}"),
-        }
-    };
+    use mimicgen_sim::compose::Part;
+    use mimicgen_sim::task_file::{Predicate, XyBound};
+    let file = task_file("coffee");
+    let geoms = |name: &str| compound_geoms(&file, name);
     let holder = [0.0, 0.1061, 0.0635];
     // The wall: 64 boxes 5.6 cm tall round the holder's axis, each turned to face it, its inner
     // face 0.02497 m from it (the reference's 0.025 cos(pi/64)).
@@ -253,12 +257,11 @@ fn coffee_holder_is_the_reference_cup_and_a_pod_in_it_passes_the_5_2_mm_check() 
     // The check: within 5.2 mm of the holder's centre (ours per axis), the pod's bottom no lower
     // than the holder's, its top under the shut lid.
     let Predicate::All(all) = &file.success else { panic!("success: {:?}", file.success) };
-    let Predicate::Inside { object, of, of_point_m, dz_m, .. } = &all[0] else { panic!("success.all[0]: {:?}", all[0]) };
+    let Predicate::Inside { object, of, of_point_m, xy_m, dz_m } = &all[0] else { panic!("success.all[0]: {:?}", all[0]) };
     assert_eq!((object.as_str(), of.as_str()), ("pod", "machine"));
     assert!(of_point_m.iter().zip(holder).all(|(a, b)| (a - b).abs() < 1e-9), "measured from the holder's centre: {of_point_m:?}");
     assert!((dz_m[0] - (0.023103 - 0.028)).abs() < 1e-9 && (dz_m[1] - (0.106 - 0.0095 - 0.023103 - 0.0635)).abs() < 1e-9, "{dz_m:?}");
-    let doc: toml::Value = toml::from_str(&text).unwrap();
-    let xy = doc["success"]["all"][0]["inside"]["xy_m"].as_float().unwrap();
+    let XyBound::Both(xy) = *xy_m else { panic!("xy_m {xy_m:?}: one bound for x and y") };
     assert!((xy - (0.0295 - 0.0243)).abs() < 1e-9, "xy_m {xy}");
 
     // Let go 2 mm above its seat, the pod sits on the cup's bottom, upright and centred: the
@@ -413,16 +416,10 @@ fn kitchen_success_needs_the_stove_once_on_under_the_pot_and_bread() {
     // remember. All of them in order: a success.
     let lit = demo.subtask_term_signals["stove_on"].iter().position(|&v| v != 0).unwrap();
     env.reset_to_state(demo.sim.states.row(0)).unwrap();
-    for t in 1..lit {
-        env.set_state(demo.sim.states.row(t)).unwrap();
-        env.record_history();
-    }
+    restore_in_order(&mut env, demo, 1..lit);
     env.set_state(demo.sim.states.row(demo.len() - 1)).unwrap();
     assert!(!task.is_success(env.physics()), "the pot and bread were never on the lit stove");
-    for t in lit..demo.len() {
-        env.set_state(demo.sim.states.row(t)).unwrap();
-        env.record_history();
-    }
+    restore_in_order(&mut env, demo, lit..demo.len());
     assert!(task.is_success(env.physics()), "{:?}", task.unmet_success(env.physics()));
 }
 
