@@ -58,9 +58,10 @@ pub struct PickPlaceScript {
     /// Steps to wait, holding still, before looking at the scene (objects that reset in the
     /// air, as robosuite's nuts do, land first).
     pub settle_steps: usize,
-    /// Before descending to grasp or place, hover until the arm has caught up with its target
-    /// (a careful operator); `false` goes on as soon as the motion has been commanded (a hasty one).
-    pub wait_for_arm: bool,
+    /// How the operator moves: a choice of the recording, not of the task, so task files
+    /// cannot set it.
+    #[serde(skip)]
+    pub style: Style,
     /// The point of the picked object that is placed (in its frame, m): its centre for a cube,
     /// a needle's tip half for threading.
     pub place_point_m: [f64; 3],
@@ -87,6 +88,23 @@ pub struct PickPlaceScript {
     pub path_yaw_rad: Option<f64>,
 }
 
+/// How the scripted operator moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Style {
+    /// Straight moves at an even speed; before descending to grasp or place it hovers until the
+    /// arm has caught up with its target.
+    #[default]
+    Careful,
+    /// As careful, but it goes on as soon as a motion has been commanded, never waiting for the arm.
+    Hasty,
+    /// Like a person at a teleoperation device: a reaction time before each pick-and-place, moves
+    /// that speed up and slow down, a hand that drifts by about a millimetre, twice the grasp
+    /// offset and yaw error, pauses partway down (hesitation), descents aimed a few millimetres
+    /// off and then corrected, and now and then no wait for the arm. Every draw is from the
+    /// recording's seeded generator.
+    Human,
+}
+
 /// One leg of a scripted motion: goal, speed (m per step), gripper command, steps to pause at the
 /// goal, and whether to wait there until the arm has arrived.
 type Leg = (Pose, f64, f64, usize, bool);
@@ -104,6 +122,51 @@ fn moves(from: &Pose, to: &Pose, speed_m: f64) -> Vec<Pose> {
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let steps = (distance / speed_m).ceil().max(1.0) as usize;
     interpolate_poses(from, to, steps - 1).into_iter().skip(1).collect()
+}
+
+/// How often a person goes on without waiting for the arm to arrive (per precise leg).
+const HUMAN_IMPATIENCE: f64 = 0.2;
+
+/// Target poses from `from` to `to` as a person moves: speeding up and slowing down (a
+/// minimum-jerk profile peaking at about 1.25 `speed_m`). A precise leg (a descent to grasp or
+/// place) is aimed a few millimetres off half of the time and then corrected, and a third of the
+/// time pauses partway (hesitation). Ends exactly at `to`.
+fn human_moves<R: Rng + ?Sized>(from: &Pose, to: &Pose, speed_m: f64, precise: bool, rng: &mut R) -> Vec<Pose> {
+    let smooth = |a: &Pose, b: &Pose, speed: f64| -> Vec<Pose> {
+        let distance = (b.translation.vector - a.translation.vector).norm().max(a.rotation.angle_to(&b.rotation) * 0.05);
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let steps = (1.5 * distance / speed).ceil().max(1.0) as usize;
+        (1..=steps)
+            .map(|i| {
+                #[allow(clippy::cast_precision_loss)]
+                let tau = i as f64 / steps as f64;
+                a.lerp_slerp(b, tau * tau * tau * (10.0 - 15.0 * tau + 6.0 * tau * tau))
+            })
+            .collect()
+    };
+    let mut targets = if precise && rng.random_bool(0.5) {
+        let heading = rng.random_range(0.0..2.0 * PI);
+        let miss = rng.random_range(0.003..0.008);
+        let aimed = pose_from_parts(
+            to.translation.vector + Vec3::new(miss * heading.cos(), miss * heading.sin(), rng.random_range(0.0..0.004)),
+            to.rotation,
+        );
+        let mut targets = smooth(from, &aimed, speed_m);
+        targets.extend(std::iter::repeat_n(aimed, rng.random_range(1..3)));
+        targets.extend(smooth(&aimed, to, 0.5 * speed_m));
+        targets
+    } else {
+        smooth(from, to, speed_m)
+    };
+    if precise && rng.random_bool(0.35) {
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, clippy::cast_precision_loss)]
+        let at = ((targets.len() as f64 * rng.random_range(0.5..0.85)) as usize).min(targets.len().saturating_sub(1));
+        if let Some(&pose) = targets.get(at) {
+            let pause = rng.random_range(3..10);
+            targets.splice(at..at, std::iter::repeat_n(pose, pause));
+        }
+    }
+    targets
 }
 
 /// Of the yaws `yaw + k * symmetry`, the one closest to `current` (rad).
@@ -137,7 +200,7 @@ impl Default for PickPlaceScript {
             place_yaw_symmetry_rad: None,
             place_yaw_offset_rad: 0.0,
             settle_steps: 0,
-            wait_for_arm: true,
+            style: Style::Careful,
             place_point_m: [0.0; 3],
             target_point_m: [0.0; 3],
             approach_m: None,
@@ -184,9 +247,14 @@ impl PickPlaceScript {
         // Grasp about one of the object's symmetric yaws, the one closest to the gripper's.
         let symmetry = self.grasp_symmetry_rad;
         let (object_yaw, eef_yaw) = (yaw_of(&world_from_pick) + self.grasp_yaw_offset_rad, yaw_of(&start));
-        let grasp_yaw = nearest_symmetric_yaw(object_yaw, eef_yaw, symmetry) + rng.random_range(-0.15..0.15);
+        let human = self.style == Style::Human;
+        if human {
+            self.react(env, traj, rng)?;
+        }
+        let yaw_error = if human { 0.3 } else { 0.15 };
+        let grasp_yaw = nearest_symmetric_yaw(object_yaw, eef_yaw, symmetry) + rng.random_range(-yaw_error..yaw_error);
         let grasp_rot = Rot::from_axis_angle(&Vec3::z_axis(), grasp_yaw - eef_yaw) * start.rotation;
-        let g = self.grasp_offset_m;
+        let g = if human { 2.0 * self.grasp_offset_m } else { self.grasp_offset_m };
         let grip_point = world_from_pick.rotation * Vec3::from(self.grasp_point_m);
         // The grip point relative to the object's centre, in the world frame; the carried object
         // keeps it while the gripper does not turn.
@@ -194,7 +262,7 @@ impl PickPlaceScript {
             + Vec3::new(rng.random_range(-g..=g), rng.random_range(-g..=g), self.grasp_height_m + rng.random_range(-g..=g) * 0.5);
         let grasp = pose_from_parts(world_from_pick.translation.vector + offset, grasp_rot);
         let above = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
-        let (fast, slow) = (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008));
+        let (fast, slow) = self.speeds(rng);
         // Hover above the grasp until the arm has caught up, then go straight down.
         let pick: Vec<Leg> = vec![
             (above(&grasp, rng.random_range(self.approach_height_m.0..self.approach_height_m.1)), fast, -1.0, rng.random_range(0..4), true),
@@ -266,10 +334,13 @@ impl PickPlaceScript {
         rng: &mut R,
     ) -> Result<(), EnvError> {
         let frame = *env.object_poses().get(&self.path_on).ok_or_else(|| env_err(&self.path_on))?;
+        if self.style == Style::Human {
+            self.react(env, traj, rng)?;
+        }
         let mut current = env.eef_pose();
         let g = self.grasp_offset_m;
         let offset = Vec3::new(rng.random_range(-g..=g), rng.random_range(-g..=g), rng.random_range(-g..=g));
-        let (fast, slow) = (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008));
+        let (fast, slow) = self.speeds(rng);
         let rotation = match self.path_yaw_rad {
             Some(yaw_offset) => {
                 let eef_yaw = yaw_of(&current);
@@ -287,6 +358,23 @@ impl PickPlaceScript {
             legs.push((goal, if k == 0 { fast } else { slow }, 1.0, rng.random_range(0..3), true));
         }
         self.follow(env, traj, rng, &mut current, legs)
+    }
+
+    /// The fast and slow speeds of one pick-and-place (m per step).
+    fn speeds<R: Rng + ?Sized>(&self, rng: &mut R) -> (f64, f64) {
+        match self.style {
+            Style::Careful | Style::Hasty => (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008)),
+            Style::Human => (rng.random_range(0.012..0.030), rng.random_range(0.004..0.010)),
+        }
+    }
+
+    /// A person's reaction time: the hand holds still, open, for a few steps.
+    fn react<E: Environment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, traj: &mut Trajectory, rng: &mut R) -> Result<(), EnvError> {
+        let hold = Waypoint { pose: env.eef_pose(), gripper: vec![-1.0], noise: 0.0 };
+        for _ in 0..rng.random_range(3..12) {
+            execute_step(env, &hold, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
+        }
+        Ok(())
     }
 
     /// The gripper pose that puts the held object `place_offset` from `target`'s centre, given
@@ -340,11 +428,26 @@ impl PickPlaceScript {
         current: &mut Pose,
         legs: Vec<Leg>,
     ) -> Result<(), EnvError> {
+        let human = self.style == Style::Human;
+        // A person's hand drifts slowly rather than shaking from step to step.
+        let mut drift = Vec3::zeros();
         for (goal, speed, gripper, pause, precise) in legs {
-            let mut targets = moves(current, &goal, speed);
+            let mut targets = if human { human_moves(current, &goal, speed, precise, rng) } else { moves(current, &goal, speed) };
             targets.extend(std::iter::repeat_n(goal, pause));
+            let wait = precise
+                && match self.style {
+                    Style::Careful => true,
+                    Style::Hasty => false,
+                    Style::Human => !rng.random_bool(HUMAN_IMPATIENCE),
+                };
             for target in targets {
-                let jitter = Vec3::new(rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4));
+                let jitter = if human {
+                    drift = drift * 0.8
+                        + Vec3::new(rng.random_range(-7e-4..7e-4), rng.random_range(-7e-4..7e-4), rng.random_range(-7e-4..7e-4));
+                    drift
+                } else {
+                    Vec3::new(rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4))
+                };
                 let waypoint = Waypoint {
                     pose: pose_from_parts(target.translation.vector + jitter, target.rotation),
                     gripper: vec![gripper],
@@ -355,7 +458,7 @@ impl PickPlaceScript {
             // Before anything that needs precision, wait (a little) until the arm is there and
             // has stopped.
             let mut last = Vec3::repeat(f64::INFINITY);
-            for _ in 0..if precise && self.wait_for_arm { SETTLE_MAX_STEPS } else { 0 } {
+            for _ in 0..if wait { SETTLE_MAX_STEPS } else { 0 } {
                 let now = env.eef_pose().translation.vector;
                 let (off, moved) = ((now - goal.translation.vector).norm(), (now - last).norm());
                 // There and still, or stopped short (touching something): go on.
@@ -387,4 +490,107 @@ pub fn record_sequence<E: Environment + ?Sized, R: Rng + ?Sized>(
         script.record_into(env, &mut traj, rng)?;
     }
     Ok(traj.to_source_demo(name))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing)]
+mod tests {
+    use rand::SeedableRng as _;
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+    use crate::env::Environment as _;
+    use crate::kinematic::{PickPlace, pick_place_script};
+
+    fn at(x: f64, y: f64, z: f64) -> Pose {
+        pose_from_parts(Vec3::new(x, y, z), Rot::identity())
+    }
+
+    /// The longest run of equal consecutive poses.
+    fn longest_hold(targets: &[Pose]) -> usize {
+        let (mut longest, mut run) = (1, 1);
+        for pair in targets.windows(2) {
+            run = if pair[0] == pair[1] { run + 1 } else { 1 };
+            longest = longest.max(run);
+        }
+        longest
+    }
+
+    #[test]
+    fn a_persons_move_speeds_up_slows_down_and_ends_at_the_goal() {
+        let (from, to) = (at(0.0, 0.0, 0.2), at(0.3, 0.1, 0.0));
+        let speed = 0.02;
+        for seed in 0..20 {
+            let targets = human_moves(&from, &to, speed, false, &mut ChaCha8Rng::seed_from_u64(seed));
+            let last = targets.last().unwrap();
+            assert!((last.translation.vector - to.translation.vector).norm() < 1e-12, "ends at the goal");
+            let steps: Vec<f64> = std::iter::once(&from)
+                .chain(&targets)
+                .collect::<Vec<_>>()
+                .windows(2)
+                .map(|p| (p[1].translation.vector - p[0].translation.vector).norm())
+                .collect();
+            let peak = steps.iter().copied().fold(0.0, f64::max);
+            assert!(peak > speed && peak < 1.5 * speed, "peak step {peak} for a speed of {speed}");
+            assert!(steps[0] < 0.2 * peak && steps[steps.len() - 1] < 0.2 * peak, "starts and stops gently: {steps:?}");
+            // An even-speed move of the careful style takes fewer steps.
+            assert!(targets.len() > moves(&from, &to, speed).len());
+        }
+    }
+
+    #[test]
+    fn a_persons_descents_are_sometimes_corrected_and_sometimes_paused() {
+        let (from, to) = (at(0.0, 0.0, 0.1), at(0.0, 0.0, 0.0));
+        let (mut corrected, mut paused) = (0, 0);
+        let trials = 400;
+        for seed in 0..trials {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let targets = human_moves(&from, &to, 0.01, true, &mut rng);
+            let off = targets.iter().map(|p| p.translation.vector.xy().norm()).fold(0.0, f64::max);
+            if off > 0.0 {
+                assert!((0.003..0.008).contains(&off), "aimed {off} m off");
+                corrected += 1;
+            }
+            // A pause holds a pose four times or more; a corrected aim holds it two or three.
+            if longest_hold(&targets) >= 4 {
+                paused += 1;
+            }
+            // Travel (as opposed to a descent) is never corrected nor paused.
+            let travel = human_moves(&from, &to, 0.01, false, &mut rng);
+            assert!(travel.iter().all(|p| p.translation.vector.xy().norm() == 0.0));
+            assert_eq!(longest_hold(&travel), 1);
+        }
+        let share = |n: u64| f64::from(u32::try_from(n).unwrap()) / f64::from(u32::try_from(trials).unwrap());
+        assert!((0.4..0.6).contains(&share(corrected)), "corrected {corrected} of {trials}");
+        assert!((0.25..0.45).contains(&share(paused)), "paused {paused} of {trials}");
+    }
+
+    /// Records `n` tries in the physics-free environment in `style`; the successful demos'
+    /// actions and the number of successes.
+    fn record(style: Style, seed: u64, n: usize) -> (Vec<Vec<Vec<f64>>>, usize) {
+        let script = PickPlaceScript { style, ..pick_place_script() };
+        let mut env = PickPlace::new(0.08);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut actions = Vec::new();
+        let mut successes = 0;
+        for _ in 0..n {
+            env.reset(&mut rng).unwrap();
+            let demo = script.record(&mut env, "demo", &mut rng).unwrap();
+            successes += usize::from(env.is_success());
+            actions.push((0..demo.sim.actions.len()).map(|t| demo.sim.actions.row(t).to_vec()).collect());
+        }
+        (actions, successes)
+    }
+
+    #[test]
+    fn human_style_demos_are_seeded_longer_than_careful_ones_and_still_succeed() {
+        let (human, human_ok) = record(Style::Human, 5, 20);
+        let (again, _) = record(Style::Human, 5, 20);
+        assert_eq!(human, again, "the same seed records the same demos");
+        let (careful, careful_ok) = record(Style::Careful, 5, 20);
+        assert!(human_ok >= 16 && careful_ok >= 16, "successes: human {human_ok}, careful {careful_ok} of 20");
+        let steps = |demos: &[Vec<Vec<f64>>]| demos.iter().map(Vec::len).sum::<usize>();
+        // Reaction, hesitation, corrections and slower starts and stops take time.
+        assert!(steps(&human) > steps(&careful) * 11 / 10, "steps: human {}, careful {}", steps(&human), steps(&careful));
+    }
 }
