@@ -152,6 +152,12 @@ def replay_demo(env, grp, name, path):
                        f"has 1 + nq {nq} + nv {nv} = {1 + nq + nv}")
     sim.set_state_from_flattened(states[0])
     sim.forward()
+    # The arm's controller holds its null-space posture at the joints the episode started from, as
+    # in the live episode that recorded the demo (robosuite's reset with initialization noise, and
+    # ours). robomimic's reset_to leaves it at the noiseless init_qpos, which starts the arm up to
+    # 2 cm off its recorded path before anything is touched.
+    for robot in env.robots:
+        robot.controller.update_initial_joints(np.array(sim.data.qpos[robot._ref_joint_pos_indexes]))
 
     # states[t] is the state before actions[t]: compare the replayed state before the last action
     # with the last stored state (robomimic's playback compares the same pairs). Time is left out.
