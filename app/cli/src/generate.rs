@@ -12,6 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use mimicgen_engine::demo::initial_object_poses;
+use mimicgen_engine::demonstrator::Style;
 use mimicgen_engine::spec::Transit;
 use mimicgen_engine::{Environment as _, TaskSpec};
 use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, WriterOptions};
@@ -381,11 +382,33 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The scripted operator's style (`mimicgen demos --style`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DemoStyle {
+    /// Even, straight moves; waits for the arm before grasping or placing.
+    Careful,
+    /// As careful, never waiting for the arm.
+    Hasty,
+    /// A person's timing, aim and hand (reaction, hesitation, corrections, drift).
+    Human,
+}
+
+impl From<DemoStyle> for Style {
+    fn from(style: DemoStyle) -> Self {
+        match style {
+            DemoStyle::Careful => Self::Careful,
+            DemoStyle::Hasty => Self::Hasty,
+            DemoStyle::Human => Self::Human,
+        }
+    }
+}
+
 /// Arguments of `mimicgen demos`.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "\
 Examples:
   mimicgen demos --task stack --variant D0 --num-demos 10 --out my_sources.hdf5
+  mimicgen demos --task square --style human --num-demos 10 --seed 1 --out square_human.hdf5
 
 Records source demos with the scripted demonstrator (teleoperator-like variation in grasps, speeds
 and pauses; it hovers until the arm has caught up before grasping or placing, and aims the place
@@ -402,9 +425,16 @@ pub struct DemosArgs {
     /// Successful demos to record.
     #[arg(long, default_value_t = 10)]
     num_demos: usize,
-    /// Record like a hasty operator: descend to grasp or place as soon as the motion is commanded,
-    /// without waiting for the arm to catch up (source demos that transfer worse to wide variants).
-    #[arg(long)]
+    /// How the scripted operator moves. careful: even, straight moves, hovering until the arm has
+    /// caught up before grasping or placing (the bundled `<task>_D0_source.hdf5`). hasty: the same
+    /// without waiting for the arm (sources that transfer worse to wide variants). human: like a
+    /// person at a teleoperation device: reaction pauses, moves that speed up and slow down, a
+    /// drifting hand, twice the grasp offset and yaw error, hesitation partway down, descents
+    /// aimed a few mm off and corrected (the bundled `<task>_D0_human.hdf5`).
+    #[arg(long, value_enum, default_value_t = DemoStyle::Careful)]
+    style: DemoStyle,
+    /// The same as `--style hasty` (kept for older scripts).
+    #[arg(long, hide = true, conflicts_with = "style")]
     hasty: bool,
     /// Seed of the scenes and of the demonstrator's variation.
     #[arg(long, default_value_t = 1)]
@@ -428,8 +458,9 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
         Err(e) => crate::exit::usage!("{e}"),
     };
     let mut scripts = task.scripts();
+    let style = if args.hasty { Style::Hasty } else { args.style.into() };
     for script in &mut scripts {
-        script.wait_for_arm = !args.hasty;
+        script.style = style;
     }
     if scripts.is_empty() {
         crate::exit::usage!(

@@ -384,3 +384,39 @@ fn replay_repeats_a_generated_attempt_step_for_step() {
     let err = String::from_utf8_lossy(&run.stderr);
     assert!(run.status.code() == Some(2) && err.contains("datagen_info/eef_pose"), "{err}");
 }
+
+/// `mimicgen demos` reproduces every bundled scripted source file (careful and human style) byte
+/// for byte from the command its row in `core/sim/data/README.md` gives.
+#[test]
+fn demos_reproduces_every_bundled_source_file_byte_for_byte() {
+    let readme = std::fs::read_to_string(repo_path("core/sim/data/README.md")).unwrap();
+    let commands: Vec<Vec<String>> = readme
+        .split('`')
+        .filter(|s| s.starts_with("mimicgen demos ") && s.contains(" --out core/sim/data/"))
+        .map(|s| s.split_whitespace().skip(1).map(str::to_owned).collect())
+        .collect();
+    assert!(commands.len() >= 24, "12 tasks in two styles: {} commands in the README", commands.len());
+    let dir = tempfile::tempdir().unwrap();
+    // Two at a time; each command is checked whatever the other does.
+    let check = |args: &Vec<String>| -> Option<String> {
+        let out = args.iter().position(|a| a == "--out").unwrap() + 1;
+        let bundled = repo_path(&args[out]);
+        let mut args = args.clone();
+        let name = bundled.file_name().unwrap().to_owned();
+        args[out] = dir.path().join(&name).display().to_string();
+        let run = mimicgen().args(&args).output().unwrap();
+        if !run.status.success() {
+            return Some(format!("{}: {}", args.join(" "), String::from_utf8_lossy(&run.stderr)));
+        }
+        let same = std::fs::read(dir.path().join(&name)).unwrap() == std::fs::read(&bundled).unwrap();
+        (!same).then(|| format!("{} differs from {}", args.join(" "), bundled.display()))
+    };
+    let (first, second) = commands.split_at(commands.len() / 2);
+    let failures: Vec<String> = std::thread::scope(|scope| {
+        let other = scope.spawn(|| second.iter().filter_map(check).collect::<Vec<_>>());
+        let mut failures: Vec<String> = first.iter().filter_map(check).collect();
+        failures.extend(other.join().unwrap());
+        failures
+    });
+    assert!(failures.is_empty(), "{failures:#?}");
+}
