@@ -499,7 +499,6 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
 
     use super::*;
-    use crate::env::Environment as _;
     use crate::kinematic::{PickPlace, pick_place_script};
 
     fn at(x: f64, y: f64, z: f64) -> Pose {
