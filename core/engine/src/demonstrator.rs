@@ -499,7 +499,6 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
 
     use super::*;
-    use crate::kinematic::{PickPlace, pick_place_script};
 
     fn at(x: f64, y: f64, z: f64) -> Pose {
         pose_from_parts(Vec3::new(x, y, z), Rot::identity())
@@ -562,34 +561,5 @@ mod tests {
         let share = |n: u64| f64::from(u32::try_from(n).unwrap()) / f64::from(u32::try_from(trials).unwrap());
         assert!((0.4..0.6).contains(&share(corrected)), "corrected {corrected} of {trials}");
         assert!((0.25..0.45).contains(&share(paused)), "paused {paused} of {trials}");
-    }
-
-    /// Records `n` tries in the physics-free environment in `style`; the successful demos'
-    /// actions and the number of successes.
-    fn record(style: Style, seed: u64, n: usize) -> (Vec<Vec<Vec<f64>>>, usize) {
-        let script = PickPlaceScript { style, ..pick_place_script() };
-        let mut env = PickPlace::new(0.08);
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let mut actions = Vec::new();
-        let mut successes = 0;
-        for _ in 0..n {
-            env.reset(&mut rng).unwrap();
-            let demo = script.record(&mut env, "demo", &mut rng).unwrap();
-            successes += usize::from(env.is_success());
-            actions.push((0..demo.sim.actions.len()).map(|t| demo.sim.actions.row(t).to_vec()).collect());
-        }
-        (actions, successes)
-    }
-
-    #[test]
-    fn human_style_demos_are_seeded_longer_than_careful_ones_and_still_succeed() {
-        let (human, human_ok) = record(Style::Human, 5, 20);
-        let (again, _) = record(Style::Human, 5, 20);
-        assert_eq!(human, again, "the same seed records the same demos");
-        let (careful, careful_ok) = record(Style::Careful, 5, 20);
-        assert!(human_ok >= 16 && careful_ok >= 16, "successes: human {human_ok}, careful {careful_ok} of 20");
-        let steps = |demos: &[Vec<Vec<f64>>]| demos.iter().map(Vec::len).sum::<usize>();
-        // Reaction, hesitation, corrections and slower starts and stops take time.
-        assert!(steps(&human) > steps(&careful) * 11 / 10, "steps: human {}, careful {}", steps(&human), steps(&careful));
     }
 }

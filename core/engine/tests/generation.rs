@@ -3,10 +3,13 @@
 
 use std::ops::ControlFlow;
 
+use mimicgen_engine::demonstrator::{PickPlaceScript, Style};
 use mimicgen_engine::generate::FailureReason;
 use mimicgen_engine::kinematic::{self, PickPlace};
 use mimicgen_engine::transform::WaypointKind;
 use mimicgen_engine::{Attempt, Environment, Generator, Overrides, SelectionStrategy, TaskSpec, run};
+use rand::SeedableRng as _;
+use rand_chacha::ChaCha8Rng;
 
 fn collect(generator: &Generator, workers: usize, half_range_m: f64) -> (Vec<Attempt>, mimicgen_engine::RunStats) {
     let mut envs: Vec<PickPlace> = (0..workers).map(|_| PickPlace::new(half_range_m)).collect();
@@ -454,4 +457,33 @@ fn a_stored_shard_of_zero_shares_is_refused() {
         let err = read(bad).unwrap_err().to_string();
         assert!(err.contains("does not exist"), "{bad}: {err}");
     }
+}
+
+/// Records `n` tries in the physics-free environment in `style`; the successful demos'
+/// actions and the number of successes.
+fn record_in_style(style: Style, seed: u64, n: usize) -> (Vec<Vec<Vec<f64>>>, usize) {
+    let script = PickPlaceScript { style, ..kinematic::pick_place_script() };
+    let mut env = PickPlace::new(0.08);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut actions = Vec::new();
+    let mut successes = 0;
+    for _ in 0..n {
+        env.reset(&mut rng).unwrap();
+        let demo = script.record(&mut env, "demo", &mut rng).unwrap();
+        successes += usize::from(env.is_success());
+        actions.push((0..demo.sim.actions.len()).map(|t| demo.sim.actions.row(t).to_vec()).collect());
+    }
+    (actions, successes)
+}
+
+#[test]
+fn human_style_demos_are_seeded_longer_than_careful_ones_and_still_succeed() {
+    let (human, human_ok) = record_in_style(Style::Human, 5, 20);
+    let (again, _) = record_in_style(Style::Human, 5, 20);
+    assert_eq!(human, again, "the same seed records the same demos");
+    let (careful, careful_ok) = record_in_style(Style::Careful, 5, 20);
+    assert!(human_ok >= 16 && careful_ok >= 16, "successes: human {human_ok}, careful {careful_ok} of 20");
+    let steps = |demos: &[Vec<Vec<f64>>]| demos.iter().map(Vec::len).sum::<usize>();
+    // Reaction, hesitation, corrections and slower starts and stops take time.
+    assert!(steps(&human) > steps(&careful) * 11 / 10, "steps: human {}, careful {}", steps(&human), steps(&careful));
 }
