@@ -115,10 +115,20 @@ const MAX_PLACE_TURN_RAD: f64 = 2.4;
 /// The longest the script waits for that (steps).
 const SETTLE_MAX_STEPS: usize = 40;
 
+/// How far a leg goes (m): its translation, or its rotation counted at 5 cm per radian if longer.
+fn leg_length(from: &Pose, to: &Pose) -> f64 {
+    (to.translation.vector - from.translation.vector).norm().max(from.rotation.angle_to(&to.rotation) * 0.05)
+}
+
+/// A draw from the cube of half-side `half_m` about zero (m), x then y then z.
+fn uniform_jitter<R: Rng + ?Sized>(rng: &mut R, half_m: f64) -> Vec3 {
+    Vec3::new(rng.random_range(-half_m..half_m), rng.random_range(-half_m..half_m), rng.random_range(-half_m..half_m))
+}
+
 /// Target poses from `from` to `to` moving at most `speed_m` per step (and a matching share of the
 /// rotation), ending exactly at `to`.
 fn moves(from: &Pose, to: &Pose, speed_m: f64) -> Vec<Pose> {
-    let distance = (to.translation.vector - from.translation.vector).norm().max(from.rotation.angle_to(&to.rotation) * 0.05);
+    let distance = leg_length(from, to);
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let steps = (distance / speed_m).ceil().max(1.0) as usize;
     interpolate_poses(from, to, steps - 1).into_iter().skip(1).collect()
@@ -133,7 +143,7 @@ const HUMAN_IMPATIENCE: f64 = 0.2;
 /// time pauses partway (hesitation). Ends exactly at `to`.
 fn human_moves<R: Rng + ?Sized>(from: &Pose, to: &Pose, speed_m: f64, precise: bool, rng: &mut R) -> Vec<Pose> {
     let smooth = |a: &Pose, b: &Pose, speed: f64| -> Vec<Pose> {
-        let distance = (b.translation.vector - a.translation.vector).norm().max(a.rotation.angle_to(&b.rotation) * 0.05);
+        let distance = leg_length(a, b);
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let steps = (1.5 * distance / speed).ceil().max(1.0) as usize;
         (1..=steps)
@@ -236,10 +246,7 @@ impl PickPlaceScript {
         if !self.path_on.is_empty() {
             return self.record_path(env, traj, rng);
         }
-        let hold = Waypoint { pose: env.eef_pose(), gripper: vec![-1.0], noise: 0.0 };
-        for _ in 0..self.settle_steps {
-            execute_step(env, &hold, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
-        }
+        hold_open(env, traj, rng, self.settle_steps)?;
         let objects = env.object_poses();
         let world_from_pick = *objects.get(&self.pick).ok_or_else(|| env_err(&self.pick))?;
         let world_from_target = *objects.get(&self.place_on).ok_or_else(|| env_err(&self.place_on))?;
@@ -249,7 +256,9 @@ impl PickPlaceScript {
         let (object_yaw, eef_yaw) = (yaw_of(&world_from_pick) + self.grasp_yaw_offset_rad, yaw_of(&start));
         let human = self.style == Style::Human;
         if human {
-            self.react(env, traj, rng)?;
+            // A person's reaction time.
+            let steps = rng.random_range(3..12);
+            hold_open(env, traj, rng, steps)?;
         }
         let yaw_error = if human { 0.3 } else { 0.15 };
         let grasp_yaw = nearest_symmetric_yaw(object_yaw, eef_yaw, symmetry) + rng.random_range(-yaw_error..yaw_error);
@@ -335,7 +344,9 @@ impl PickPlaceScript {
     ) -> Result<(), EnvError> {
         let frame = *env.object_poses().get(&self.path_on).ok_or_else(|| env_err(&self.path_on))?;
         if self.style == Style::Human {
-            self.react(env, traj, rng)?;
+            // A person's reaction time.
+            let steps = rng.random_range(3..12);
+            hold_open(env, traj, rng, steps)?;
         }
         let mut current = env.eef_pose();
         let g = self.grasp_offset_m;
@@ -366,15 +377,6 @@ impl PickPlaceScript {
             Style::Careful | Style::Hasty => (rng.random_range(0.012..0.025), rng.random_range(0.004..0.008)),
             Style::Human => (rng.random_range(0.012..0.030), rng.random_range(0.004..0.010)),
         }
-    }
-
-    /// A person's reaction time: the hand holds still, open, for a few steps.
-    fn react<E: Environment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, traj: &mut Trajectory, rng: &mut R) -> Result<(), EnvError> {
-        let hold = Waypoint { pose: env.eef_pose(), gripper: vec![-1.0], noise: 0.0 };
-        for _ in 0..rng.random_range(3..12) {
-            execute_step(env, &hold, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
-        }
-        Ok(())
     }
 
     /// The gripper pose that puts the held object `place_offset` from `target`'s centre, given
@@ -442,11 +444,10 @@ impl PickPlaceScript {
                 };
             for target in targets {
                 let jitter = if human {
-                    drift = drift * 0.8
-                        + Vec3::new(rng.random_range(-7e-4..7e-4), rng.random_range(-7e-4..7e-4), rng.random_range(-7e-4..7e-4));
+                    drift = drift * 0.8 + uniform_jitter(rng, 7e-4);
                     drift
                 } else {
-                    Vec3::new(rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4), rng.random_range(-5e-4..5e-4))
+                    uniform_jitter(rng, 5e-4)
                 };
                 let waypoint = Waypoint {
                     pose: pose_from_parts(target.translation.vector + jitter, target.rotation),
@@ -473,6 +474,20 @@ impl PickPlaceScript {
         }
         Ok(())
     }
+}
+
+/// Holds the gripper where it is, open, for `steps` steps, recording them into `traj`.
+fn hold_open<E: Environment + ?Sized, R: Rng + ?Sized>(
+    env: &mut E,
+    traj: &mut Trajectory,
+    rng: &mut R,
+    steps: usize,
+) -> Result<(), EnvError> {
+    let hold = Waypoint { pose: env.eef_pose(), gripper: vec![-1.0], noise: 0.0 };
+    for _ in 0..steps {
+        execute_step(env, &hold, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
+    }
+    Ok(())
 }
 
 /// Records several pick-and-places one after the other as one demo (e.g. Stack Three).
