@@ -2,31 +2,37 @@
 # The project's test command (README, .ci/run): set-up, then formatting, lints, docs and every test.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
+# Each step's banner names the minutes and seconds since the start, so a slow CI run shows where
+# its time went.
+step() { printf '== %s (at %dm%02ds)\n' "$1" $((SECONDS / 60)) $((SECONDS % 60)); }
+trap 'step "end (exit $?)"' EXIT
 bash scripts/setup.sh
 # Every Debian pin still in the archive? A banner names those that are not (a fresh machine would
 # get other versions); not a failure.
-echo "== Debian pins";       bash scripts/debian_pins.sh --check
+step "Debian pins"; bash scripts/debian_pins.sh --check
 export MIMICGEN_CACHE="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}"
 export MIMICGEN_PYTHON="${MIMICGEN_PYTHON:-$MIMICGEN_CACHE/venv/bin/python}"
 # Build outputs live outside the clone, so a fresh clone on the same machine builds incrementally.
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$MIMICGEN_CACHE/target}"
 # libhdf5 locks files without close-on-exec, so a child process can keep a test's file locked.
 export HDF5_USE_FILE_LOCKING=FALSE
-echo "== cargo fmt --check"; cargo fmt --all --check
-echo "== cargo clippy";      cargo clippy --workspace --all-targets --quiet -- -D warnings
-echo "== cargo clippy (wasm)"
+step "cargo fmt --check"; cargo fmt --all --check
+step "cargo clippy"; cargo clippy --workspace --all-targets --quiet -- -D warnings
+step "cargo clippy (wasm)"
 rustup target list --installed | grep -qx wasm32-unknown-unknown || rustup target add wasm32-unknown-unknown >/dev/null
 cargo clippy -p mimicgen-web --target wasm32-unknown-unknown --quiet -- -D warnings
-echo "== cargo doc";         RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
-echo "== cargo test";        cargo test --workspace
-echo "== python wheel";      bash scripts/test_python.sh
-echo "== browser app";       bash scripts/test_web.sh
+step "cargo doc"; RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
+step "cargo test"; cargo test --workspace
+step "python wheel"; bash scripts/test_python.sh
+# The mimicgen binary `cargo test --workspace` just built: `cargo build --bin mimicgen` would
+# resolve features for the one package and rebuild much of the tree (20-40 minutes on 2 cores).
+step "browser app"; MIMICGEN_BIN="$CARGO_TARGET_DIR/debug/mimicgen" bash scripts/test_web.sh
 # robosuite itself must load and replay what we write: 20 generated Stack D0 demos, replayed open
 # loop in robosuite 1.4.1's own Stack env (MuJoCo 2.3.2) from their model_file and first state.
-echo "== robosuite replay"
+step "robosuite replay"
 bash scripts/setup_robosuite.sh
 replay_dir="$(mktemp -d)"
-trap 'rm -rf "$replay_dir"' EXIT
+trap 'rc=$?; rm -rf "$replay_dir"; step "end (exit $rc)"' EXIT
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --num-demos 24 --seed 1 --workers 2 --out "$replay_dir/stack_d0.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/stack_d0.hdf5" --num 20 --min-success 17
 # Square D0 in robosuite's NutAssemblySquare, which builds the round nut and its peg too: our
@@ -39,21 +45,21 @@ trap 'rm -rf "$replay_dir"' EXIT
 # demos, stored actions open loop from the same first state in both. They part by 1.3 mm (end
 # effector) and 0.8 mm (cubes) at most; without the MuJoCo 2.3 box-box contact depth that our
 # scenes reproduce (MIMICGEN_TRUE_BOX_DEPTH=1) the cubes part by 1.8 mm (BENCHMARKS.md).
-echo "== physics against robosuite"
+step "physics against robosuite"
 MIMICGEN_BIN="$CARGO_TARGET_DIR/debug/mimicgen" "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/compare_physics.py \
   core/sim/tests/data/generated_D0_replay.hdf5 --demos demo_1,demo_2,demo_3 --mode actions --max-eef-mm 2 --max-object-mm 1
 # Our engine driving robosuite's own Stack through the Python package (a simulator written in
 # Python): 6 attempts from the reference's source demos (BENCHMARKS.md has 50).
-echo "== robosuite driven by the engine"
+step "robosuite driven by the engine"
 bash scripts/bench_robosuite.sh --num 6 --seed 1 --min-success 5 --out "$replay_dir/rs_driven.hdf5"
 # Camera observations: robosuite 1.4.1 renders the same stored states with its own cameras; our
 # images must agree (BENCHMARKS.md has the figures: agentview differs only in the floor's texture).
-echo "== robosuite renders what we render"
+step "robosuite renders what we render"
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --num-demos 3 --guarantee --seed 1 --workers 2 --cameras --out "$replay_dir/cameras.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_render.py "$replay_dir/cameras.hdf5" --frames 5 --min-psnr 22
 # LeRobot export of that dataset (parquet + H.264 camera videos), loaded by LeRobot's own
 # LeRobotDataset: counts, episode boundaries, first/last actions, decoded frames.
-echo "== LeRobot export, loaded by LeRobot"
+step "LeRobot export, loaded by LeRobot"
 bash scripts/setup_lerobot.sh
 "$CARGO_TARGET_DIR/debug/mimicgen" export "$replay_dir/cameras.hdf5" --lerobot "$replay_dir/lerobot"
 "$MIMICGEN_CACHE/venv-lerobot/bin/python" scripts/check_lerobot.py "$replay_dir/cameras.hdf5" "$replay_dir/lerobot"

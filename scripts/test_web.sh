@@ -3,7 +3,8 @@
 # (tests/web/app.test.mjs: annotate, save, the file browser, the 3D view and its time cursor, a
 # run, a failed attempt side by side, a run that survives its tab). Installs what it needs,
 # pinned: Debian's chromium and fonts-liberation (scripts/debian_pins.sh), playwright-core from tests/web/package-lock.json;
-# builds the WebAssembly bundle (scripts/build_web.sh) and the mimicgen binary.
+# builds the WebAssembly bundle (scripts/build_web.sh) and the mimicgen binary (unless MIMICGEN_BIN
+# names one already built, as scripts/test.sh does).
 #   bash scripts/test_web.sh                     # as CI runs it (scripts/test.sh)
 #   MIMICGEN_WEB_SHOTS=docs/img bash scripts/test_web.sh   # also writes the docs' screenshots
 set -euo pipefail
@@ -18,6 +19,10 @@ if [ ! -d tests/web/node_modules/playwright-core ]; then
   (cd tests/web && PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 npm ci --silent --no-audit --no-fund)
 fi
 bash scripts/build_web.sh
-cargo build -q --bin mimicgen
+if [ -z "${MIMICGEN_BIN:-}" ]; then
+  cargo build -q --bin mimicgen
+  MIMICGEN_BIN="$CARGO_TARGET_DIR/debug/mimicgen"
+fi
+[ -x "$MIMICGEN_BIN" ] || { echo "test_web: no mimicgen binary at $MIMICGEN_BIN" >&2; exit 1; }
 [ -n "${MIMICGEN_WEB_SHOTS:-}" ] && mkdir -p "$MIMICGEN_WEB_SHOTS"
-MIMICGEN_BIN="$CARGO_TARGET_DIR/debug/mimicgen" CHROMIUM=/usr/bin/chromium node --test tests/web/
+MIMICGEN_BIN="$MIMICGEN_BIN" CHROMIUM=/usr/bin/chromium node --test tests/web/
