@@ -333,6 +333,31 @@ fn mug_cleanup_drawer_starts_shut_and_its_demos_open_it_put_the_mug_in_and_shut_
     bundled_demos_succeed_and_generate("mug_cleanup", &["open", "grasp"], "D0");
 }
 
+/// Mug Cleanup's mugs are the sizes of the reference's ShapeNet mugs (radius 2.2-3.1 cm, height
+/// 5.7-6.7 cm at their scales, docs/fidelity.toml), not the 8 cm mugs they were, and every one,
+/// the twelve of O2 included, stands in the shut drawer under the reference's cabinet top.
+#[test]
+fn mug_cleanup_mugs_are_the_reference_sizes_and_fit_under_the_cabinet_top() {
+    let file = task_file("mug_cleanup");
+    let cabinet = compound_geoms(&file, "drawer");
+    let top = cabinet.iter().find(|g| g.size.first() == Some(&0.102) && g.size.get(2) == Some(&0.008)).unwrap();
+    let underside = top.pos[2] - top.size[2];
+    const DRAWER_FLOOR_Z: f64 = 0.049;
+    let object = file.objects.iter().find(|o| o.name == "mug").unwrap();
+    let models = std::iter::once(&object.model).chain(object.instances.iter().map(|i| &i.model));
+    let mut count = 0;
+    for model in models {
+        let mimicgen_sim::compose::ObjectModel::Mug { radius_m, height_m, .. } = *model else {
+            panic!("not a mug: {model:?}");
+        };
+        assert!((0.021..=0.031).contains(&radius_m), "radius {radius_m}");
+        assert!((0.056..=0.067).contains(&height_m), "height {height_m}");
+        assert!(DRAWER_FLOOR_Z + height_m < underside, "a {height_m} m mug under a top at {underside}");
+        count += 1;
+    }
+    assert_eq!(count, 13, "the D0 mug and the twelve instances of O1 and O2");
+}
+
 /// The drawer tasks' slide is the reference's (mimicgen's drawer.xml:20-21 and drawer_long.xml:53-54
 /// at 72bd767): a range of 1 m, so nothing stops the drawer within the arm's reach, and damping
 /// 100 N s/m; and it still shuts: the joint's range starts at 0, closed.
