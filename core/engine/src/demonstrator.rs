@@ -256,9 +256,7 @@ impl PickPlaceScript {
         let (object_yaw, eef_yaw) = (yaw_of(&world_from_pick) + self.grasp_yaw_offset_rad, yaw_of(&start));
         let human = self.style == Style::Human;
         if human {
-            // A person's reaction time.
-            let steps = rng.random_range(3..12);
-            hold_open(env, traj, rng, steps)?;
+            react(env, traj, rng)?;
         }
         let yaw_error = if human { 0.3 } else { 0.15 };
         let grasp_yaw = nearest_symmetric_yaw(object_yaw, eef_yaw, symmetry) + rng.random_range(-yaw_error..yaw_error);
@@ -344,9 +342,7 @@ impl PickPlaceScript {
     ) -> Result<(), EnvError> {
         let frame = *env.object_poses().get(&self.path_on).ok_or_else(|| env_err(&self.path_on))?;
         if self.style == Style::Human {
-            // A person's reaction time.
-            let steps = rng.random_range(3..12);
-            hold_open(env, traj, rng, steps)?;
+            react(env, traj, rng)?;
         }
         let mut current = env.eef_pose();
         let g = self.grasp_offset_m;
@@ -488,6 +484,12 @@ fn hold_open<E: Environment + ?Sized, R: Rng + ?Sized>(
         execute_step(env, &hold, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
     }
     Ok(())
+}
+
+/// A person's reaction time: the hand holds still, open, for 3 to 11 steps.
+fn react<E: Environment + ?Sized, R: Rng + ?Sized>(env: &mut E, traj: &mut Trajectory, rng: &mut R) -> Result<(), EnvError> {
+    let steps = rng.random_range(3..12);
+    hold_open(env, traj, rng, steps)
 }
 
 /// Records several pick-and-places one after the other as one demo (e.g. Stack Three).
