@@ -43,6 +43,8 @@ before(async () => {
   assert.ok(existsSync(bin), `${bin}: build it first (cargo build --bin mimicgen)`);
   root = mkdtempSync(path.join(tmpdir(), "mimicgen-web-"));
   copyFileSync(path.join(repo, "core/io/tests/data/source_D0_prepared.hdf5"), path.join(root, "demos.hdf5"));
+  // A plain robomimic file (robosuite's Lift demos, no datagen_info): the server prepares it.
+  copyFileSync(path.join(repo, "core/io/tests/data/robosuite_lift_demo.hdf5"), path.join(root, "lift.hdf5"));
   server = startServer(["demos.hdf5", "--root", root, "--port", "0"]);
   url = await server.ready;
   browser = await chromium.launch({ executablePath: process.env.CHROMIUM || "/usr/bin/chromium", args: FLAGS });
@@ -246,4 +248,38 @@ test("annotate, save, reopen, run, inspect a failure, 3D, and a run that survive
   assert.deepEqual(errors, [], "no page errors");
   assert.deepEqual(again.errors, [], "no page errors");
   await again.page.close();
+});
+
+test("a plain robomimic file: opened from the served folder, prepared, previewed, tried, saved and run", async () => {
+  const { page, errors } = await openApp();
+  await until(page, "the served file", (s) => s.file && s.demos > 0 && s.in_flight === 0);
+  await click(page, "TextInput", "Source demos:");
+  await page.keyboard.press("Control+A");
+  await page.keyboard.type("lift.hdf5");
+  await click(page, "Button", "Open");
+  // Prepared by replay into the server's cache, named by an alias (never the server's path).
+  let s = await until(page, "the prepared file", (s) => s.file && s.file.startsWith("@prepared/lift-") && s.demos === 3 && s.in_flight === 0);
+  assert.ok(s.prepared_from.endsWith("lift.hdf5"), s.prepared_from);
+  await click(page, "Button", "Preview");
+  s = await until(page, "the preview", (s) => s.screen === "Preview" && s.preview && s.preview.task === "lift" && s.in_flight === 0);
+  assert.equal(s.error, null, "no refusal");
+  await click(page, "Button", "Try it");
+  s = await until(page, "the tried attempt", (s) => s.preview && s.preview.executed !== null && s.in_flight === 0);
+  await click(page, "TextInput", "Save to:");
+  await page.keyboard.press("Control+A");
+  await page.keyboard.type("lift_annotated.hdf5");
+  await click(page, "Button", "Save as");
+  s = await until(page, "saved", (s) => s.status.startsWith("saved"));
+  assert.ok(existsSync(path.join(root, "lift_annotated.hdf5")));
+  await click(page, "Button", "Generate");
+  await until(page, "the generate screen", (s) => s.screen === "Generate");
+  await setNumber(page, "50", 2);
+  // The first test's run wrote the default output: replace it.
+  if (existsSync(path.join(root, "out/app_run.hdf5"))) await click(page, "CheckBox", "replace existing outputs");
+  await click(page, "Button", "Start");
+  s = await until(page, "the run of the prepared file", (s) => s.run && s.run.planned === 2 && s.run.finished, 300_000);
+  assert.equal(s.run.attempts, 2);
+  assert.equal(s.run.error, null);
+  assert.deepEqual(errors, [], "no page errors");
+  await page.close();
 });

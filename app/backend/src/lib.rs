@@ -10,6 +10,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::{Mutex, PoisonError};
 
 use mimicgen_engine::image::{ImageStream, Pixels};
 use mimicgen_engine::{Attempt, Overrides, Plan, RunStats};
@@ -23,12 +24,15 @@ use mimicgen_ui::protocol::{CameraView, PreviewRequest, PreviewView, Reply, Requ
 
 mod files;
 mod runs;
+pub mod vet;
 mod views;
 
 use files::read_images;
 pub use files::{list_dir, open};
+pub use mimicgen_pipeline::prepare::prepared_dir;
 use runs::run_generation;
 pub use runs::{open_run, read_run};
+pub use vet::Vetter;
 use views::{preview_failed, preview_view};
 
 /// Makes a recording stream that feeds the viewer embedded in the app's window.
@@ -60,6 +64,32 @@ pub fn robots() -> Vec<String> {
     mimicgen_sim::robot::ROBOTS.iter().map(|r| r.name.to_owned()).collect()
 }
 
+/// The generation run a worker starts, watches and cancels. A worker makes its own; the server's
+/// tabs' workers share one (a run belongs to the server: any tab may watch or cancel it).
+#[derive(Clone, Default)]
+pub struct RunSlot(Arc<Mutex<Option<RunThread>>>);
+
+/// A run's cancel flag and thread.
+type RunThread = (Arc<AtomicBool>, std::thread::JoinHandle<()>);
+
+impl std::fmt::Debug for RunSlot {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RunSlot").field("running", &self.running()).finish()
+    }
+}
+
+impl RunSlot {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Option<RunThread>> {
+        self.0.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Whether a run is going.
+    #[must_use]
+    pub fn running(&self) -> bool {
+        self.lock().as_ref().is_some_and(|(_, thread)| !thread.is_finished())
+    }
+}
+
 /// The backend's state: the open file's demos and scene (for the 3D view), the previewer of the
 /// last previewed file (kept so that moving through scenes does not recompile the scene), and the
 /// Rerun stream once the 3D view is open.
@@ -74,7 +104,9 @@ pub struct Worker {
     /// Where a run's updates go (all its watchers), from the run's own thread.
     run_notify: Notify,
     /// The running generation's cancel flag and thread.
-    run: Option<(Arc<AtomicBool>, std::thread::JoinHandle<()>)>,
+    run: RunSlot,
+    /// Reads each user-chosen file in a child process first, when set.
+    vetter: Option<Vetter>,
 }
 
 impl std::fmt::Debug for Worker {
@@ -93,7 +125,17 @@ impl Worker {
     #[must_use]
     pub fn new(notify: Notify, embedded: Option<StreamFactory>) -> Self {
         let run_notify = Arc::clone(&notify);
-        Self { loaded: None, loaded_path: None, previewer: None, viewer: None, embedded, notify, run_notify, run: None }
+        Self {
+            loaded: None,
+            loaded_path: None,
+            previewer: None,
+            viewer: None,
+            embedded,
+            notify,
+            run_notify,
+            run: RunSlot::default(),
+            vetter: None,
+        }
     }
 
     /// Sends the updates of runs started from now on to `notify` instead (every tab watching).
@@ -102,21 +144,41 @@ impl Worker {
         Self { run_notify: notify, ..self }
     }
 
+    /// Starts, watches and cancels runs in `slot` (shared with other workers) instead of its own.
+    #[must_use]
+    pub fn with_run_slot(self, slot: RunSlot) -> Self {
+        Self { run: slot, ..self }
+    }
+
+    /// Reads every file a request names in a child process first (see [`vet`]): a file that
+    /// crashes the HDF5 library is refused, naming it, and this process goes on.
+    #[must_use]
+    pub fn with_vetter(self, vetter: Option<Vetter>) -> Self {
+        Self { vetter, ..self }
+    }
+
     /// Whether a run is going.
     #[must_use]
     pub fn running(&self) -> bool {
-        self.run.as_ref().is_some_and(|(_, thread)| !thread.is_finished())
+        self.run.running()
     }
 
     /// Answers one request; a panic while answering is caught and answered as a failure (the
-    /// worker and the app go on).
+    /// worker and the app go on), and so is a file that crashes its reader in the vetting child.
     pub fn handle_guarded(&mut self, request: Request) -> Reply {
         let what: String = format!("answering {request:?}").chars().take(100).collect();
+        if let Some(vetter) = &mut self.vetter
+            && let Err(error) = vetter.check_request(&request)
+        {
+            return Reply::Failed { what: "reading the file".to_owned(), error };
+        }
         guarded(what, || self.handle(request))
     }
 
     fn start_run(&mut self, config: RunConfig) -> Reply {
-        if self.running() {
+        let slot = self.run.clone();
+        let mut run = slot.lock();
+        if run.as_ref().is_some_and(|(_, thread)| !thread.is_finished()) {
             return Reply::Failed {
                 what: "starting a run".to_owned(),
                 error: "a run is going; cancel it or wait for it to end".to_owned(),
@@ -135,7 +197,7 @@ impl Worker {
             std::thread::Builder::new().name("mimicgen-gui-run".to_owned()).spawn(move || run_generation(&config, &flag, &notify, logger));
         match spawned {
             Ok(thread) => {
-                self.run = Some((cancel, thread));
+                *run = Some((cancel, thread));
                 Reply::RunAccepted
             }
             Err(e) => Reply::Failed { what: "starting a run".to_owned(), error: e.to_string() },
@@ -299,7 +361,7 @@ impl Worker {
                 Err(e) => Reply::Failed { what: format!("opening the run {}", path.display()), error: e.to_string() },
             },
             Request::CancelRun => {
-                if let Some((cancel, _)) = &self.run {
+                if let Some((cancel, _)) = self.run.lock().as_ref() {
                     cancel.store(true, Ordering::Relaxed);
                 }
                 Reply::Cancelling

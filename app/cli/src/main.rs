@@ -113,6 +113,14 @@ Examples:
     /// program itself so that MuJoCo's compiler memory is a child's, not the run's.
     #[command(hide = true)]
     CompileModel,
+    /// Read FILE's HDF5 structure and attributes (no dataset values); exit 0 when read, 1 when
+    /// refused. The app and `mimicgen serve` run it as a child before reading a file a user chose:
+    /// a damaged header that crashes libhdf5 then ends this child, not them.
+    #[command(hide = true)]
+    Vet {
+        /// The file.
+        file: std::path::PathBuf,
+    },
     /// Measure the app's frame time with a file loaded, and the time until it is browsable.
     BenchApp(bench_app::BenchAppArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
@@ -246,6 +254,13 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             mimicgen_sim::scene::store_compiled(&xml).map_err(|e| anyhow::anyhow!("compiling the scene: {e}"))?;
             Ok(ExitCode::SUCCESS)
         }
+        Command::Vet { file } => Ok(match mimicgen_io::tree::vet(&file) {
+            Ok(_) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("mimicgen vet: {e}");
+                ExitCode::from(1)
+            }
+        }),
         Command::BenchRender(args) => {
             bench_render::run(&args)?;
             Ok(ExitCode::SUCCESS)

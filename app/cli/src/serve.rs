@@ -72,6 +72,7 @@ pub fn run(args: ServeArgs) -> Result<(), mimicgen_server::ServerError> {
         token: args.token,
         web_dir: args.web_dir,
         rerun: (!args.no_viewer).then(mimicgen_viz::viewer_path),
+        vet: mimicgen_server::Vetter::this_binary(),
     };
     let server = Server::bind(options)?;
     let url = server.url();

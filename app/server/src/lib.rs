@@ -33,7 +33,7 @@ use std::collections::BTreeMap;
 use std::io::Write as _;
 use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::Receiver;
 use std::sync::{Arc, Mutex, PoisonError};
 
@@ -47,9 +47,17 @@ use crate::http::{Head, HeadError, refuse, respond};
 use crate::root::Root;
 use crate::session::Session;
 use crate::viewer::Viewer;
+pub use mimicgen_backend::Vetter;
 
 /// The largest message a tab may send (requests are small; a bigger one is a bug or an attack).
 pub const MAX_MESSAGE_BYTES: usize = 1 << 20;
+/// The most tabs open at once (each has a backend worker, its own open file and simulation);
+/// one more is refused with 503, saying so.
+pub const MAX_TABS: usize = 100;
+/// The most connections open at once (tabs, page loads, 3D viewer requests, and clients still
+/// sending their request head, each of which is closed after 10 s); one more is answered 503 and
+/// closed at once.
+pub const MAX_CONNECTIONS: usize = 2048;
 /// The cookie that carries the token after the page was opened with it.
 const TOKEN_COOKIE: &str = "mimicgen_token";
 
@@ -116,6 +124,9 @@ pub struct ServeOptions {
     pub web_dir: Option<PathBuf>,
     /// The `rerun` CLI that serves the web viewer (`None`: no 3D view).
     pub rerun: Option<PathBuf>,
+    /// Reads each file a tab names in a child process first, so a file that crashes the HDF5
+    /// library is refused and the server goes on (`mimicgen serve` sets `mimicgen vet`).
+    pub vet: Option<mimicgen_backend::Vetter>,
 }
 
 impl Default for ServeOptions {
@@ -128,6 +139,7 @@ impl Default for ServeOptions {
             token: None,
             web_dir: None,
             rerun: None,
+            vet: None,
         }
     }
 }
@@ -191,8 +203,10 @@ pub struct Server {
     token: Option<String>,
     loopback: bool,
     bundle: Bundle,
-    session: Arc<SessionHandle>,
+    session: SessionHandle,
     viewer: Option<Arc<Viewer>>,
+    /// Connections open now.
+    connections: Arc<AtomicUsize>,
 }
 
 /// The session, shared by the connection threads.
@@ -201,6 +215,15 @@ struct SessionHandle(Session);
 impl std::fmt::Debug for SessionHandle {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Session").finish_non_exhaustive()
+    }
+}
+
+/// Counts a connection while it lives.
+struct Counted(Arc<AtomicUsize>);
+
+impl Drop for Counted {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::Relaxed);
     }
 }
 
@@ -230,7 +253,7 @@ impl Server {
     /// # Errors
     /// [`ServerError`].
     pub fn bind_with(options: ServeOptions, bundle: Bundle) -> Result<Self, ServerError> {
-        let root = Root::new(&options.root)?;
+        let root = Root::new(&options.root)?.with_prepared(&mimicgen_backend::prepared_dir());
         let loopback = options.host.is_loopback();
         let token = match options.token {
             Some(t) if t.len() < 16 || !t.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_') => {
@@ -265,9 +288,9 @@ impl Server {
             robots: mimicgen_backend::robots(),
         };
         let grpc = viewer.as_ref().map(|v| v.grpc_url());
-        let session =
-            Session::start(root, grpc, welcome).map_err(|e| ServerError::Bind { addr: addr.to_string(), reason: e.to_string() })?;
-        Ok(Self { listener, addr, token, loopback, bundle, session: Arc::new(SessionHandle(session)), viewer })
+        let session = Session::new(root, grpc, welcome, options.vet);
+        let connections = Arc::new(AtomicUsize::new(0));
+        Ok(Self { listener, addr, token, loopback, bundle, session: SessionHandle(session), viewer, connections })
     }
 
     /// The address bound.
@@ -293,13 +316,25 @@ impl Server {
         self.viewer.is_some()
     }
 
-    /// Serves until the process ends: a thread per connection.
+    /// Serves until the process ends: a thread per connection, up to [`MAX_CONNECTIONS`].
     pub fn run(self) {
         let shared = Arc::new(self);
         for stream in shared.listener.incoming() {
-            let Ok(stream) = stream else { continue };
+            let Ok(mut stream) = stream else { continue };
+            if shared.connections.fetch_add(1, Ordering::Relaxed) >= MAX_CONNECTIONS {
+                shared.connections.fetch_sub(1, Ordering::Relaxed);
+                // Unread, so answered without waiting on the client (its send buffer is empty).
+                let _ = stream.set_nonblocking(true);
+                let _ = stream
+                    .write_all(b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nRetry-After: 10\r\nConnection: close\r\n\r\n");
+                continue;
+            }
+            let counted = Counted(Arc::clone(&shared.connections));
             let server = Arc::clone(&shared);
-            let spawned = std::thread::Builder::new().name("mimicgen-serve-conn".to_owned()).spawn(move || server.connection(stream));
+            let spawned = std::thread::Builder::new().name("mimicgen-serve-conn".to_owned()).spawn(move || {
+                let _counted = counted;
+                server.connection(stream);
+            });
             if let Err(e) = spawned {
                 eprintln!("mimicgen serve: cannot start a connection thread: {e}");
             }
@@ -395,20 +430,26 @@ impl Server {
     /// updates out (a writer thread, blocking on the tab's queue), so neither waits on a timer.
     fn socket(&self, mut stream: TcpStream, head: &Head, peer: &str) {
         let Some(key) = head.header("sec-websocket-key") else { return refuse(&mut stream, 400, "no Sec-WebSocket-Key") };
+        let session = &self.session.0;
+        let (client, queue) = match session.join(MAX_TABS) {
+            Ok(joined) => joined,
+            Err(e) => {
+                eprintln!("mimicgen serve: {peer}: refused a tab: {e}");
+                return refuse(&mut stream, 503, &e.to_string());
+            }
+        };
         let accept = tungstenite::handshake::derive_accept_key(key.as_bytes());
         let response = format!(
             "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
         );
         if std::io::Write::write_all(&mut stream, response.as_bytes()).is_err() {
-            return;
+            return session.leave(client);
         }
         let _ = stream.set_read_timeout(None);
         let _ = stream.set_nodelay(true);
-        let Ok(read) = stream.try_clone() else { return };
+        let Ok(read) = stream.try_clone() else { return session.leave(client) };
         let writes = Arc::new(Mutex::new(stream));
         let reading = Arc::new(AtomicBool::new(true));
-        let session = &self.session.0;
-        let (client, queue) = session.join();
         eprintln!("mimicgen serve: tab {client} connected from {peer} ({} open)", session.tabs());
         let writer = {
             let (writes, reading) = (Arc::clone(&writes), Arc::clone(&reading));
@@ -487,18 +528,22 @@ impl std::io::Write for ReadHalf {
     }
 }
 
-/// Writes each text the session queues for `client` as one WebSocket frame, as it comes. When the
-/// session drops the queue while the tab is still reading, the tab was too slow to take its
-/// replies: it is told so and disconnected.
-fn write_replies(queue: &Receiver<String>, writes: &Mutex<TcpStream>, reading: &AtomicBool) {
+/// Writes each frame the session queues for `client` (text, or binary for images), as it comes.
+/// When the session drops the queue while the tab is still reading, the tab was too slow to take
+/// its replies: it is told so and disconnected.
+fn write_replies(queue: &Receiver<mimicgen_ui::protocol::Frame>, writes: &Mutex<TcpStream>, reading: &AtomicBool) {
     let frame = |frame: Frame| -> std::io::Result<()> {
         let mut bytes = Vec::new();
         frame.format(&mut bytes).map_err(std::io::Error::other)?;
         writes.lock().unwrap_or_else(PoisonError::into_inner).write_all(&bytes)
     };
     let mut failed = false;
-    for text in queue {
-        if frame(Frame::message(text.into_bytes(), OpCode::Data(Data::Text), true)).is_err() {
+    for message in queue {
+        let (bytes, kind) = match message {
+            mimicgen_ui::protocol::Frame::Text(text) => (text.into_bytes(), Data::Text),
+            mimicgen_ui::protocol::Frame::Binary(bytes) => (bytes, Data::Binary),
+        };
+        if frame(Frame::message(bytes, OpCode::Data(kind), true)).is_err() {
             failed = true;
             break;
         }

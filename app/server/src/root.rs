@@ -1,6 +1,8 @@
 //! The folder a server's requests stay inside: every path a request names is resolved against it,
 //! and `..`, absolute paths outside it and symlinks that lead out of it are refused, naming the
-//! path.
+//! path. One folder outside it may be read: the server's prepared copies of plain robomimic files
+//! (`$MIMICGEN_CACHE/prepared`), which a tab names as `@prepared/<file>` and never by its place
+//! on the server's disk; nothing is written there on a tab's request.
 
 use std::path::{Component, Path, PathBuf};
 
@@ -8,10 +10,14 @@ use mimicgen_ui::protocol::{Listing, PreviewRequest, Reply, Request, ViewerSink}
 
 use crate::ServerError;
 
-/// The root folder (canonical).
+/// How a tab names a prepared copy: `@prepared/<file name>`.
+pub const PREPARED_ALIAS: &str = "@prepared";
+
+/// The root folder (canonical), and the folder of prepared copies readable through the alias.
 #[derive(Debug, Clone)]
 pub struct Root {
     dir: PathBuf,
+    prepared: Option<PathBuf>,
 }
 
 impl Root {
@@ -25,7 +31,15 @@ impl Root {
         if !dir.is_dir() {
             return Err(root_error("not a folder".to_owned()));
         }
-        Ok(Self { dir })
+        Ok(Self { dir, prepared: None })
+    }
+
+    /// Lets requests read the prepared copies in `dir` (made if missing) as
+    /// `@prepared/<file>`; without it (or when `dir` cannot be made) they are refused.
+    #[must_use]
+    pub fn with_prepared(self, dir: &Path) -> Self {
+        let prepared = std::fs::create_dir_all(dir).and_then(|()| dir.canonicalize()).ok();
+        Self { prepared, ..self }
     }
 
     /// The folder.
@@ -67,6 +81,42 @@ impl Root {
         Ok(rest.into_iter().rev().fold(canonical, |p, name| p.join(name)))
     }
 
+    /// The folder of prepared copies, when requests may read them.
+    #[must_use]
+    pub fn prepared(&self) -> Option<&Path> {
+        self.prepared.as_deref()
+    }
+
+    /// A file to read: `@prepared/<file>` (a prepared copy), else as [`Root::resolve`].
+    ///
+    /// # Errors
+    /// As [`Root::resolve`]; and for `@prepared/...`, a message naming it when it is not one
+    /// file name or no such copy exists.
+    pub fn resolve_input(&self, path: &Path) -> Result<PathBuf, String> {
+        let mut parts = path.components();
+        if parts.next() != Some(Component::Normal(PREPARED_ALIAS.as_ref())) {
+            return self.resolve(path);
+        }
+        let missing = || format!("{}: no such prepared copy (open the original file again to prepare it)", path.display());
+        let (Some(Component::Normal(name)), None, Some(dir)) = (parts.next(), parts.next(), &self.prepared) else {
+            return Err(missing());
+        };
+        let file = dir.join(name).canonicalize().map_err(|_| missing())?;
+        if !file.starts_with(dir) || !file.is_file() {
+            return Err(missing());
+        }
+        Ok(file)
+    }
+
+    /// How a tab sees `path`: a prepared copy as `@prepared/<file>`, anything else as it is.
+    #[must_use]
+    pub fn outward(&self, path: &Path) -> PathBuf {
+        match (&self.prepared, path.file_name()) {
+            (Some(dir), Some(name)) if path.parent() == Some(dir.as_path()) => Path::new(PREPARED_ALIAS).join(name),
+            _ => path.to_path_buf(),
+        }
+    }
+
     /// `request` with each of its paths inside the root; the 3D view streams to `viewer` (the
     /// server's own Rerun web viewer), never to a viewer the request names.
     ///
@@ -74,14 +124,14 @@ impl Root {
     /// A message naming the path or field refused.
     pub fn confine(&self, request: Request, viewer: Option<&str>) -> Result<Request, String> {
         let preview =
-            |r: PreviewRequest| -> Result<PreviewRequest, String> { Ok(PreviewRequest { source: self.resolve(&r.source)?, ..r }) };
+            |r: PreviewRequest| -> Result<PreviewRequest, String> { Ok(PreviewRequest { source: self.resolve_input(&r.source)?, ..r }) };
         Ok(match request {
-            Request::Open { path } => Request::Open { path: self.resolve(&path)? },
+            Request::Open { path } => Request::Open { path: self.resolve_input(&path)? },
             Request::ListDir { path } => Request::ListDir { path: self.resolve(&path)? },
-            Request::OpenCompare { path } => Request::OpenCompare { path: self.resolve(&path)? },
+            Request::OpenCompare { path } => Request::OpenCompare { path: self.resolve_input(&path)? },
             Request::OpenRun { path } => Request::OpenRun { path: self.resolve(&path)? },
             Request::Save { source, out, marks, signal_names, overwrite } => {
-                Request::Save { source: self.resolve(&source)?, out: self.resolve(&out)?, marks, signal_names, overwrite }
+                Request::Save { source: self.resolve_input(&source)?, out: self.resolve(&out)?, marks, signal_names, overwrite }
             }
             Request::Preview(r) => Request::Preview(Box::new(preview(*r)?)),
             Request::SideBySide(pair) => {
@@ -90,7 +140,7 @@ impl Root {
             }
             Request::Run(mut config) => {
                 config.out = self.resolve(&config.out)?;
-                config.source = config.source.map(|p| self.resolve(&p)).transpose()?;
+                config.source = config.source.map(|p| self.resolve_input(&p)).transpose()?;
                 config.config = config.config.map(|p| self.resolve(&p)).transpose()?;
                 Request::Run(config)
             }
@@ -107,11 +157,20 @@ impl Root {
         })
     }
 
-    /// `reply` without what lies outside the root (a listing's parent above it) or means nothing
-    /// to a browser (the 3D stream's loopback address).
+    /// `reply` without what lies outside the root (a listing's parent above it, the prepared
+    /// copies' folder) or means nothing to a browser (the 3D stream's loopback address).
     #[must_use]
     pub fn filter(&self, reply: Reply) -> Reply {
         match reply {
+            Reply::Opened(mut file) => {
+                file.path = self.outward(&file.path);
+                Reply::Opened(file)
+            }
+            Reply::MoreDemos { path, last, demos } => Reply::MoreDemos { path: self.outward(&path), last, demos },
+            Reply::Failed { what, error } => match &self.prepared {
+                Some(dir) => Reply::Failed { what, error: error.replace(&*dir.to_string_lossy(), PREPARED_ALIAS) },
+                None => Reply::Failed { what, error },
+            },
             Reply::Listing(listing) => {
                 let parent = listing.parent.filter(|p| p.starts_with(&self.dir));
                 Reply::Listing(Box::new(Listing { parent, ..*listing }))

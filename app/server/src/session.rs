@@ -1,14 +1,15 @@
-//! The server's one backend, shared by every tab: a worker thread that answers requests in the
-//! order they come (from any tab), the tabs connected now, and the run the server owns. A request's
-//! replies go to the tab that asked; a run's updates go to every tab and are kept, so a tab that
-//! connects later (or reconnects after a lost tunnel) is greeted with the whole run so far.
+//! The server's tabs and its run. Each tab has a backend worker of its own, on its own thread: its
+//! open file, annotations, preview and 3D recording are its own, and a slow request in one tab
+//! does not hold up another. The run is the server's: one at a time, started from any tab, and its
+//! updates go to every tab and are kept, so a tab that connects later (or reconnects after a lost
+//! tunnel) is greeted with the whole run so far; any tab may cancel it.
 
 use std::collections::BTreeMap;
 use std::sync::mpsc::{Receiver, Sender, SyncSender, TrySendError, channel, sync_channel};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
-use mimicgen_backend::{Notify, Worker};
-use mimicgen_ui::protocol::{ClientMessage, Reply, Request, RunUpdate, ServerMessage, Welcome};
+use mimicgen_backend::{Notify, RunSlot, Vetter, Worker};
+use mimicgen_ui::protocol::{ClientMessage, Frame, Reply, Request, RunUpdate, ServerMessage, Welcome};
 
 use crate::root::Root;
 
@@ -22,162 +23,230 @@ pub type ClientId = u64;
 #[derive(Default)]
 struct Clients {
     next: ClientId,
-    queues: BTreeMap<ClientId, SyncSender<String>>,
+    /// What to send each tab.
+    queues: BTreeMap<ClientId, SyncSender<Frame>>,
+    /// Each tab's requests, to its worker.
+    inboxes: BTreeMap<ClientId, Sender<ClientMessage>>,
     /// The server's run so far, as sent: `Joined` then every update.
     run_log: Vec<String>,
+    /// The prepared copies' folder as it appears in a message, and the alias a tab sees instead.
+    scrub: Option<(String, &'static str)>,
 }
 
 impl Clients {
     /// Queues `text` for `client`; a tab whose queue is full is dropped (its socket then closes).
-    fn send(&mut self, client: ClientId, text: String) {
+    fn send(&mut self, client: ClientId, frame: Frame) {
+        let frame = match (frame, &self.scrub) {
+            (Frame::Text(text), Some((dir, alias))) if text.contains(dir.as_str()) => Frame::Text(text.replace(dir.as_str(), alias)),
+            (frame, _) => frame,
+        };
         if let Some(queue) = self.queues.get(&client)
-            && let Err(TrySendError::Full(_)) = queue.try_send(text)
+            && let Err(TrySendError::Full(_)) = queue.try_send(frame)
         {
             eprintln!("mimicgen serve: tab {client} reads too slowly; closing its connection");
             self.queues.remove(&client);
+            self.inboxes.remove(&client);
         }
     }
 
     fn broadcast(&mut self, text: &str, except: Option<ClientId>) {
         let clients: Vec<ClientId> = self.queues.keys().copied().filter(|c| Some(*c) != except).collect();
         for client in clients {
-            self.send(client, text.to_owned());
+            self.send(client, Frame::Text(text.to_owned()));
         }
     }
 }
 
-fn encode(id: Option<u64>, reply: Reply) -> String {
-    serde_json::to_string(&ServerMessage { id, reply }).unwrap_or_else(|e| {
+/// A reply as its frame: camera images binary, the rest JSON text.
+fn frame(id: Option<u64>, reply: Reply) -> Frame {
+    ServerMessage { id, reply }.to_frame().unwrap_or_else(|error| {
         // Replies are plain data; this would be a bug. The tab still hears of it.
-        let reply = Reply::Failed { what: "sending a reply".to_owned(), error: e.to_string() };
-        serde_json::to_string(&ServerMessage { id, reply }).unwrap_or_default()
+        Frame::Text(encode(id, Reply::Failed { what: "sending a reply".to_owned(), error }))
     })
 }
 
-/// The shared backend.
-#[derive(Clone)]
-pub struct Session {
-    inbox: Sender<(ClientId, ClientMessage)>,
-    clients: Arc<Mutex<Clients>>,
-    welcome: Arc<Welcome>,
+/// A reply as JSON text (everything but images).
+fn encode(id: Option<u64>, reply: Reply) -> String {
+    serde_json::to_string(&ServerMessage { id, reply }).unwrap_or_default()
 }
 
-fn lock(clients: &Mutex<Clients>) -> MutexGuard<'_, Clients> {
-    // A panic while holding the lock leaves plain data behind: go on with it.
-    clients.lock().unwrap_or_else(PoisonError::into_inner)
+/// What every tab's worker shares.
+struct Shared {
+    clients: Mutex<Clients>,
+    welcome: Welcome,
+    root: Root,
+    /// The server's 3D viewer (a gRPC URL).
+    viewer: Option<String>,
+    runs: RunSlot,
+    /// Held while a tab starts a run, so two tabs cannot both announce one.
+    starting: Mutex<()>,
+    vetter: Option<Vetter>,
+}
+
+impl Shared {
+    fn clients(&self) -> MutexGuard<'_, Clients> {
+        // A panic while holding the lock leaves plain data behind: go on with it.
+        self.clients.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// The server's tabs and run.
+#[derive(Clone)]
+pub struct Session {
+    shared: Arc<Shared>,
+}
+
+/// Why a tab could not join.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum JoinError {
+    /// As many tabs are open as the server takes.
+    Full(usize),
+    /// The OS would not start the tab's worker thread.
+    Thread(String),
+}
+
+impl std::fmt::Display for JoinError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Full(limit) => write!(f, "this server has {limit} tabs open, its limit; close one and reload"),
+            Self::Thread(e) => write!(f, "cannot start the tab's backend: {e}"),
+        }
+    }
 }
 
 impl Session {
-    /// Starts the backend's worker thread; paths are confined to `root`, 3D views stream to
-    /// `viewer` (a gRPC URL), and every tab is greeted with `welcome`.
+    /// A session whose paths are confined to `root`, whose 3D views stream to `viewer` (a gRPC
+    /// URL), whose tabs are greeted with `welcome`, and whose user-chosen files are first read
+    /// by `vetter` in a child process.
+    #[must_use]
+    pub fn new(root: Root, viewer: Option<String>, welcome: Welcome, vetter: Option<Vetter>) -> Self {
+        // Whatever a message says of the prepared copies' folder (a run's report, an error), the
+        // tab reads the alias.
+        let scrub = root.prepared().map(|dir| (dir.to_string_lossy().into_owned(), crate::root::PREPARED_ALIAS));
+        let shared = Shared {
+            clients: Mutex::new(Clients { scrub, ..Clients::default() }),
+            welcome,
+            root,
+            viewer,
+            runs: RunSlot::default(),
+            starting: Mutex::new(()),
+            vetter,
+        };
+        Self { shared: Arc::new(shared) }
+    }
+
+    /// A new tab, unless `limit` tabs are open: its id and the queue of what to send it, starting
+    /// with the greeting and the run so far; its worker thread is started.
     ///
     /// # Errors
-    /// The OS's, when the thread cannot start.
-    pub fn start(root: Root, viewer: Option<String>, welcome: Welcome) -> std::io::Result<Self> {
-        let clients = Arc::new(Mutex::new(Clients::default()));
-        let (inbox, requests) = channel::<(ClientId, ClientMessage)>();
-        let worker_clients = Arc::clone(&clients);
-        std::thread::Builder::new()
-            .name("mimicgen-serve-backend".to_owned())
-            .spawn(move || answer(&requests, &worker_clients, &root, viewer.as_deref()))?;
-        Ok(Self { inbox, clients, welcome: Arc::new(welcome) })
-    }
-
-    /// A new tab: its id and the queue of what to send it, starting with the greeting and the run.
-    #[must_use]
-    pub fn join(&self) -> (ClientId, Receiver<String>) {
+    /// [`JoinError`].
+    pub fn join(&self, limit: usize) -> Result<(ClientId, Receiver<Frame>), JoinError> {
         let (queue, receiver) = sync_channel(QUEUE);
-        let mut clients = lock(&self.clients);
-        clients.next += 1;
-        let id = clients.next;
-        let _ = queue.try_send(encode(None, Reply::Welcome(Box::new((*self.welcome).clone()))));
+        let (inbox, requests) = channel::<ClientMessage>();
+        let mut clients = self.shared.clients();
+        if clients.queues.len() >= limit {
+            return Err(JoinError::Full(limit));
+        }
+        let id = clients.next + 1;
+        let shared = Arc::clone(&self.shared);
+        std::thread::Builder::new()
+            .name(format!("mimicgen-serve-tab-{id}"))
+            .spawn(move || answer(id, &requests, &shared))
+            .map_err(|e| JoinError::Thread(e.to_string()))?;
+        clients.next = id;
+        let _ = queue.try_send(frame(None, Reply::Welcome(Box::new(self.shared.welcome.clone()))));
         for text in &clients.run_log {
-            let _ = queue.try_send(text.clone());
+            let text = match &clients.scrub {
+                Some((dir, alias)) => text.replace(dir.as_str(), alias),
+                None => text.clone(),
+            };
+            let _ = queue.try_send(Frame::Text(text));
         }
         clients.queues.insert(id, queue);
-        (id, receiver)
+        clients.inboxes.insert(id, inbox);
+        Ok((id, receiver))
     }
 
-    /// A tab has gone.
+    /// A tab has gone: its worker ends after the request it is answering.
     pub fn leave(&self, client: ClientId) {
-        lock(&self.clients).queues.remove(&client);
+        let mut clients = self.shared.clients();
+        clients.queues.remove(&client);
+        clients.inboxes.remove(&client);
     }
 
-    /// Queues a tab's request for the backend.
+    /// Queues a tab's request for its worker.
     pub fn request(&self, client: ClientId, message: ClientMessage) {
-        let _ = self.inbox.send((client, message));
+        if let Some(inbox) = self.shared.clients().inboxes.get(&client) {
+            let _ = inbox.send(message);
+        }
     }
 
     /// How many tabs are connected.
     #[must_use]
     pub fn tabs(&self) -> usize {
-        lock(&self.clients).queues.len()
+        self.shared.clients().queues.len()
     }
 }
 
-/// The backend thread: answers requests one at a time, routing replies.
-fn answer(requests: &Receiver<(ClientId, ClientMessage)>, clients: &Arc<Mutex<Clients>>, root: &Root, viewer: Option<&str>) {
-    // The request being answered: where its progress replies go.
-    let current: Arc<Mutex<Option<(ClientId, u64)>>> = Arc::new(Mutex::new(None));
+/// A tab's worker thread: answers the tab's requests in order, with a worker of its own.
+fn answer(client: ClientId, requests: &Receiver<ClientMessage>, shared: &Arc<Shared>) {
+    // The request being answered: its progress replies carry its id.
+    let current: Arc<Mutex<Option<u64>>> = Arc::new(Mutex::new(None));
     let notify: Notify = {
-        let (clients, current) = (Arc::clone(clients), Arc::clone(&current));
+        let (shared, current) = (Arc::clone(shared), Arc::clone(&current));
         Arc::new(move |reply| {
-            let asker = *current.lock().unwrap_or_else(PoisonError::into_inner);
-            if let Some((client, id)) = asker {
-                lock(&clients).send(client, encode(Some(id), reply));
+            let asked = *current.lock().unwrap_or_else(PoisonError::into_inner);
+            if let Some(id) = asked {
+                let frame = frame(Some(id), shared.root.filter(reply));
+                shared.clients().send(client, frame);
             }
         })
     };
     let run_notify: Notify = {
-        let clients = Arc::clone(clients);
+        let shared = Arc::clone(shared);
         Arc::new(move |reply| {
             let text = encode(None, reply);
-            let mut clients = lock(&clients);
+            let mut clients = shared.clients();
             clients.run_log.push(text.clone());
             clients.broadcast(&text, None);
         })
     };
-    let mut worker = Worker::new(notify, None).with_run_notify(run_notify);
-    for (client, ClientMessage { id, request }) in requests {
-        *current.lock().unwrap_or_else(PoisonError::into_inner) = Some((client, id));
-        let reply = match root.confine(request, viewer) {
+    let mut worker =
+        Worker::new(notify, None).with_run_notify(run_notify).with_run_slot(shared.runs.clone()).with_vetter(shared.vetter.clone());
+    for ClientMessage { id, request } in requests {
+        *current.lock().unwrap_or_else(PoisonError::into_inner) = Some(id);
+        let reply = match shared.root.confine(request, shared.viewer.as_deref()) {
             Err(error) => {
                 eprintln!("mimicgen serve: tab {client}: refused: {error}");
                 Reply::Failed { what: "checking the request".to_owned(), error }
             }
-            Ok(request) => {
-                // Every other tab starts watching the run before its first update.
-                let starts_run = match &request {
-                    Request::Run(config) if !worker.running() => {
-                        let joined = encode(None, Reply::Run(RunUpdate::Joined(config.clone())));
-                        let mut clients = lock(clients);
-                        clients.run_log = vec![joined.clone()];
-                        clients.broadcast(&joined, Some(client));
-                        true
-                    }
-                    _ => false,
-                };
-                let opening = matches!(request, Request::Open { .. });
-                let reply = root.filter(worker.handle_guarded(request));
-                if opening && let Reply::Opened(file) = &reply {
-                    // The open file is the server's, not the tab's: the other tabs' previews and
-                    // 3D views now work on this one, which they are told.
-                    let notice = Reply::Notice(format!(
-                        "another tab opened {}: this server has one open file, so previews and the 3D view now use it; open yours again to go on",
-                        file.path.display()
-                    ));
-                    lock(clients).broadcast(&encode(None, notice), Some(client));
-                }
-                if starts_run && let Reply::Failed { error, .. } = &reply {
-                    let failed = encode(None, Reply::Run(RunUpdate::Failed(error.clone())));
-                    let mut clients = lock(clients);
-                    clients.run_log.push(failed.clone());
-                    clients.broadcast(&failed, Some(client));
-                }
-                reply
-            }
+            Ok(Request::Run(config)) => start_run(client, *config, &mut worker, shared),
+            Ok(request) => shared.root.filter(worker.handle_guarded(request)),
         };
-        lock(clients).send(client, encode(Some(id), reply));
+        shared.clients().send(client, frame(Some(id), reply));
         *current.lock().unwrap_or_else(PoisonError::into_inner) = None;
     }
+}
+
+/// Starts the server's run from `client`'s tab: every other tab starts watching it before its
+/// first update.
+fn start_run(client: ClientId, config: mimicgen_run::RunConfig, worker: &mut Worker, shared: &Shared) -> Reply {
+    let _starting = shared.starting.lock().unwrap_or_else(PoisonError::into_inner);
+    let starts = !shared.runs.running();
+    if starts {
+        let mut shown = config.clone();
+        shown.source = shown.source.map(|p| shared.root.outward(&p));
+        let joined = encode(None, Reply::Run(RunUpdate::Joined(Box::new(shown))));
+        let mut clients = shared.clients();
+        clients.run_log = vec![joined.clone()];
+        clients.broadcast(&joined, Some(client));
+    }
+    let reply = shared.root.filter(worker.handle_guarded(Request::Run(Box::new(config))));
+    if starts && let Reply::Failed { error, .. } = &reply {
+        let failed = encode(None, Reply::Run(RunUpdate::Failed(error.clone())));
+        let mut clients = shared.clients();
+        clients.run_log.push(failed.clone());
+        clients.broadcast(&failed, Some(client));
+    }
+    reply
 }

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use mimicgen_server::{Bundle, ServeOptions, Server};
-use mimicgen_ui::protocol::{ClientMessage, Reply, Request, RunUpdate, ServerMessage};
+use mimicgen_ui::protocol::{ClientMessage, PreviewRequest, Reply, Request, RunUpdate, ServerMessage};
 use tungstenite::client::IntoClientRequest as _;
 use tungstenite::protocol::frame::coding::CloseCode;
 use tungstenite::{Message, WebSocket};
@@ -216,7 +216,7 @@ fn every_path_stays_inside_the_root() {
 }
 
 #[test]
-fn a_run_and_the_open_file_belong_to_the_server_and_every_tab_sees_them_also_after_reconnecting() {
+fn a_run_belongs_to_the_server_and_every_tab_sees_it_also_after_reconnecting() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::copy(fixture(), dir.path().join("demos.hdf5")).unwrap();
     let (addr, _) = serve(dir.path(), [127, 0, 0, 1], None);
@@ -224,11 +224,6 @@ fn a_run_and_the_open_file_belong_to_the_server_and_every_tab_sees_them_also_aft
     next(&mut starter);
     let mut other = connect(addr, "", None).unwrap();
     next(&mut other);
-    // The open file is the server's too: the other tab is told when it changes.
-    send(&mut starter, 1, Request::Open { path: "demos.hdf5".into() });
-    assert!(until_answered(&mut starter, 1).iter().any(|m| matches!(m.reply, Reply::Opened(_))));
-    let ServerMessage { id: None, reply: Reply::Notice(notice) } = next(&mut other) else { panic!("a notice to the other tab") };
-    assert!(notice.contains("another tab opened") && notice.contains("demos.hdf5"), "{notice}");
     let config = mimicgen_run::RunConfig {
         source: Some("demos.hdf5".into()),
         out: "out/run.hdf5".into(),
@@ -237,30 +232,176 @@ fn a_run_and_the_open_file_belong_to_the_server_and_every_tab_sees_them_also_aft
         keep_failed: true,
         ..Default::default()
     };
-    send(&mut starter, 2, Request::Run(Box::new(config)));
+    send(&mut starter, 2, Request::Run(Box::new(config.clone())));
     assert!(until_answered(&mut starter, 2).iter().any(|m| m.reply == Reply::RunAccepted));
-    // The other tab watches it: joined first, then the updates.
+    // The other tab watches it: joined first, then the updates; it cannot start a second one.
     let ServerMessage { id: None, reply: Reply::Run(RunUpdate::Joined(joined)) } = next(&mut other) else { panic!("joined first") };
     assert_eq!(joined.out, dir.path().canonicalize().unwrap().join("out/run.hdf5"), "paths resolved inside the root");
-    let finished = |ws: &mut Socket| {
-        let mut attempts = 0;
+    send(&mut other, 3, Request::Run(Box::new(config)));
+    let finished = |ws: &mut Socket, refused: Option<u64>| {
+        let (mut attempts, mut was_refused) = (0, false);
         let deadline = Instant::now() + Duration::from_secs(120);
         while Instant::now() < deadline {
-            match next(ws).reply {
+            let message = next(ws);
+            match message.reply {
+                Reply::Failed { error, .. } if message.id == refused && refused.is_some() => {
+                    assert!(error.contains("a run is going"), "{error}");
+                    was_refused = true;
+                }
                 Reply::Run(RunUpdate::Attempt(_)) => attempts += 1,
-                Reply::Run(RunUpdate::Finished(report)) => return (attempts, report.attempts),
+                Reply::Run(RunUpdate::Finished(report)) => return (attempts, report.attempts, was_refused || refused.is_none()),
                 Reply::Run(RunUpdate::Failed(e)) => panic!("{e}"),
                 _ => {}
             }
         }
         panic!("the run did not finish")
     };
-    assert_eq!(finished(&mut other), (3, 3));
+    let (attempts, reported, _) = finished(&mut other, Some(3));
+    assert_eq!((attempts, reported), (3, 3));
     // The starting tab goes (a closed tab, a lost tunnel); a new one is greeted with the whole run.
     drop(starter);
     let mut later = connect(addr, "", None).unwrap();
     assert!(matches!(next(&mut later).reply, Reply::Welcome(_)));
     assert!(matches!(next(&mut later).reply, Reply::Run(RunUpdate::Joined(_))));
-    assert_eq!(finished(&mut later), (3, 3));
+    assert_eq!(finished(&mut later, None), (3, 3, true));
     assert!(dir.path().join("out/run.hdf5").is_file());
+}
+
+/// Opens `path` in `ws` (request `id`); returns the file as opened.
+fn open(ws: &mut Socket, id: u64, path: &str) -> mimicgen_ui::protocol::LoadedFile {
+    send(ws, id, Request::Open { path: path.into() });
+    let replies = until_answered(ws, id);
+    let opened = replies.iter().find_map(|m| match &m.reply {
+        Reply::Opened(file) => Some((**file).clone()),
+        _ => None,
+    });
+    opened.unwrap_or_else(|| panic!("{path} opened: {:?}", replies.last()))
+}
+
+#[test]
+fn each_tab_has_its_own_open_file_and_a_plain_robomimic_file_works_through_its_prepared_copy() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(fixture(), dir.path().join("demos.hdf5")).unwrap();
+    let lift = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/io/tests/data/robosuite_lift_demo.hdf5");
+    std::fs::copy(lift, dir.path().join("lift.hdf5")).unwrap();
+    let (addr, _) = serve(dir.path(), [127, 0, 0, 1], None);
+    let mut a = connect(addr, "", None).unwrap();
+    next(&mut a);
+    let mut b = connect(addr, "", None).unwrap();
+    next(&mut b);
+    assert_eq!(open(&mut a, 1, "demos.hdf5").total_demos, 10);
+    // A plain robomimic file (no datagen_info) is prepared by replay into the server's cache, and
+    // the tab names the copy by an alias, never by where it lies on the server.
+    let file = open(&mut b, 1, "lift.hdf5");
+    assert_eq!(file.total_demos, 3);
+    assert_eq!(file.prepared_from.as_deref(), Some(dir.path().canonicalize().unwrap().join("lift.hdf5").as_path()));
+    let alias = file.path.clone();
+    assert!(alias.starts_with("@prepared") && alias.to_string_lossy().contains("lift"), "{}", alias.display());
+    // Each tab's 3D view shows its own file: tab a's demo 9 (of 10) though tab b opened 3 demos.
+    send(&mut a, 2, Request::Open3d { sink: mimicgen_ui::protocol::ViewerSink::Save("a.rrd".into()), demo: 9 });
+    let reply = until_answered(&mut a, 2).pop().unwrap().reply;
+    assert!(matches!(reply, Reply::Streaming { .. }), "{reply:?}");
+    send(&mut b, 2, Request::Open3d { sink: mimicgen_ui::protocol::ViewerSink::Save("b.rrd".into()), demo: 9 });
+    let Reply::Failed { error, .. } = until_answered(&mut b, 2).pop().unwrap().reply else { panic!("tab b has 3 demos") };
+    assert!(error.contains("no demo 9"), "{error}");
+    // Every later request about the plain file works through the alias: preview, try, save, run.
+    let preview = |execute| PreviewRequest { source: alias.clone(), seed: 1, execute, ..PreviewRequest::default() };
+    send(&mut b, 3, Request::Preview(Box::new(preview(true))));
+    let reply = until_answered(&mut b, 3).pop().unwrap().reply;
+    let Reply::Previewed(view) = reply else { panic!("previewed: {reply:?}") };
+    assert_eq!(view.task, "lift");
+    assert!(view.executed.is_some(), "tried");
+    let save = Request::Save {
+        source: alias.clone(),
+        out: "lift_annotated.hdf5".into(),
+        marks: Default::default(),
+        signal_names: Vec::new(),
+        overwrite: false,
+    };
+    send(&mut b, 4, save);
+    let reply = until_answered(&mut b, 4).pop().unwrap().reply;
+    assert!(matches!(reply, Reply::Saved { .. }), "{reply:?}");
+    assert!(dir.path().join("lift_annotated.hdf5").is_file());
+    let config = mimicgen_run::RunConfig {
+        source: Some(alias.clone()),
+        out: "out/lift.hdf5".into(),
+        num_demos: Some(1),
+        seed: Some(1),
+        ..Default::default()
+    };
+    send(&mut b, 5, Request::Run(Box::new(config)));
+    assert!(until_answered(&mut b, 5).iter().any(|m| m.reply == Reply::RunAccepted));
+    let deadline = Instant::now() + Duration::from_secs(300);
+    loop {
+        assert!(Instant::now() < deadline, "the run did not finish");
+        match next(&mut b).reply {
+            Reply::Run(RunUpdate::Joined(joined)) => panic!("the starting tab is not told it joined: {joined:?}"),
+            Reply::Run(RunUpdate::Finished(report)) => {
+                assert_eq!(report.attempts, 1, "{report:?}");
+                assert!(report.source.starts_with("@prepared/lift-"), "no server path in a report: {}", report.source);
+                break;
+            }
+            Reply::Run(RunUpdate::Failed(e)) => panic!("{e}"),
+            _ => {}
+        }
+    }
+    assert!(dir.path().join("out/lift.hdf5").is_file());
+    // Tab a was never told about tab b's file; its run updates are the server's.
+    let mut seen = Vec::new();
+    loop {
+        match next(&mut a).reply {
+            Reply::Notice(n) => panic!("a notice about another tab: {n}"),
+            Reply::Run(RunUpdate::Finished(_)) => break,
+            other => seen.push(other),
+        }
+    }
+    assert!(matches!(seen.first(), Some(Reply::Run(RunUpdate::Joined(_)))), "{seen:?}");
+    // Aliases name one prepared copy, nothing else; no reply names the server's cache.
+    for (id, bad) in (10..).zip(["@prepared/../secret.hdf5", "@prepared/nope.hdf5", "@prepared/a/b.hdf5", "@prepared"]) {
+        send(&mut b, id, Request::Open { path: bad.into() });
+        let Reply::Failed { error, .. } = until_answered(&mut b, id).pop().unwrap().reply else { panic!("{bad} refused") };
+        assert!(error.starts_with(bad), "{bad}: {error}");
+        assert!(!error.contains(".cache") && !error.contains("prepared/") || error.starts_with("@prepared"), "{error}");
+    }
+}
+
+#[test]
+fn idle_connections_do_not_keep_a_new_tab_out_and_tabs_past_the_limit_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (addr, _) = serve(dir.path(), [127, 0, 0, 1], None);
+    // 500 clients that connect and send nothing (or half a request head).
+    let idle: Vec<TcpStream> = (0..500)
+        .map(|i| {
+            let mut s = TcpStream::connect(addr).unwrap();
+            if i % 2 == 0 {
+                s.write_all(b"GET / HTTP/1.1\r\nHost: 127.0").unwrap();
+            }
+            s
+        })
+        .collect();
+    let mut tab = connect(addr, "", None).unwrap();
+    assert!(matches!(next(&mut tab).reply, Reply::Welcome(_)));
+    send(&mut tab, 1, Request::ListDir { path: ".".into() });
+    assert!(matches!(until_answered(&mut tab, 1).pop().unwrap().reply, Reply::Listing(_)));
+    drop(idle);
+    // Tabs up to the limit connect; one more is refused with 503, saying why.
+    let tabs: Vec<Socket> = (1..mimicgen_server::MAX_TABS)
+        .map(|_| {
+            let mut ws = connect(addr, "", None).unwrap();
+            assert!(matches!(next(&mut ws).reply, Reply::Welcome(_)));
+            ws
+        })
+        .collect();
+    let upgrade = format!(
+        "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nOrigin: http://127.0.0.1:{}\r\n",
+        addr.port()
+    );
+    let (status, response) = get(addr, "/ws", &upgrade);
+    assert_eq!(status, 503, "{response}");
+    assert!(response.contains("tabs open, its limit"), "{response}");
+    // One closes; a new one gets in.
+    drop(tabs);
+    drop(tab);
+    let mut again = (0..).find_map(|_| connect(addr, "", None).ok()).unwrap();
+    assert!(matches!(next(&mut again).reply, Reply::Welcome(_)));
 }

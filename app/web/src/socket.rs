@@ -6,7 +6,7 @@ use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::rc::Rc;
 
-use mimicgen_ui::protocol::{ClientMessage, Reply, Request};
+use mimicgen_ui::protocol::{ClientMessage, Reply, Request, ServerMessage};
 use mimicgen_ui::{Transport, egui};
 use wasm_bindgen::prelude::*;
 use web_sys::{CloseEvent, MessageEvent, WebSocket};
@@ -101,8 +101,14 @@ fn open(url: &str, shared: &Rc<RefCell<Shared>>, ctx: &egui::Context) -> (Option
     let on_message = {
         let (shared, ctx) = (Rc::clone(shared), ctx.clone());
         Closure::<dyn FnMut(JsValue)>::new(move |event: JsValue| {
-            let Some(text) = event.dyn_ref::<MessageEvent>().and_then(|m| m.data().as_string()) else { return };
-            let reply = match crate::decode(&text) {
+            let Some(data) = event.dyn_ref::<MessageEvent>().map(MessageEvent::data) else { return };
+            // Text: JSON; binary (camera images): ServerMessage::from_binary's frame.
+            let decoded = match (data.as_string(), data.dyn_ref::<js_sys::ArrayBuffer>()) {
+                (Some(text), _) => crate::decode(&text),
+                (None, Some(buffer)) => ServerMessage::from_binary(&js_sys::Uint8Array::new(buffer).to_vec()),
+                (None, None) => return,
+            };
+            let reply = match decoded {
                 Ok(message) => message.reply,
                 Err(e) => Reply::Failed { what: "reading the server's reply".to_owned(), error: e },
             };
@@ -128,6 +134,7 @@ fn open(url: &str, shared: &Rc<RefCell<Shared>>, ctx: &egui::Context) -> (Option
             ctx.request_repaint();
         })
     };
+    ws.set_binary_type(web_sys::BinaryType::Arraybuffer);
     ws.set_onopen(Some(on_open.as_ref().unchecked_ref()));
     ws.set_onmessage(Some(on_message.as_ref().unchecked_ref()));
     ws.set_onclose(Some(on_close.as_ref().unchecked_ref()));

@@ -116,6 +116,12 @@ pub fn record(model: &mimicgen_ui::AppModel) {
         "side_by_side": model.side_by_side.as_ref().map(|p| p.views.is_some()),
         "run": run,
         "root": model.welcome.root.as_ref().map(|r| r.display().to_string()),
+        "prepared_from": model.file.as_ref().and_then(|f| f.prepared_from.as_ref()).map(|p| p.display().to_string()),
+        "preview": model.preview.view.as_ref().map(|v| serde_json::json!({
+            "task": v.task,
+            "index": v.index,
+            "executed": v.executed.as_ref().map(|e| e.success),
+        })),
     });
     *slot = value.to_string();
 }

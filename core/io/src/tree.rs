@@ -286,6 +286,71 @@ pub(crate) fn read_group_except(file: &str, group: &hdf5::Group, group_path: &st
     Ok(out)
 }
 
+/// Reads `path`'s whole structure and every attribute's value (but no dataset's values), then its
+/// demos as the app first reads them (without observations): the parts of a file where a damaged
+/// header has crashed libhdf5 (see `fuzz/known_crashes/README.md`).
+/// Run it in a child process before reading a file the user chose, so a crash ends the child, not
+/// the app. Returns how many groups and datasets it walked.
+///
+/// # Errors
+/// The first refusal, naming the file and the object.
+pub fn vet(path: &std::path::Path) -> Result<usize> {
+    /// Walks on past a refusal (the readers that come after may reach further: a file whose
+    /// `data` attributes are refused can still crash in its demos), keeping the first one.
+    fn walk(file: &str, group: &hdf5::Group, group_path: &str, first: &mut Option<IoError>) -> usize {
+        let mut keep = |r: Result<()>| {
+            if let (Err(e), None) = (r, &first) {
+                *first = Some(e);
+            }
+        };
+        // Twice: the app reads a file's top groups' attributes more than once (the whole file, then
+        // demo by demo), and a failed listing can leave libhdf5's heap damaged for the next one.
+        keep(read_attrs(file, group, group_path).map(drop));
+        keep(read_attrs(file, group, group_path).map(drop));
+        let names = group.member_names().map_err(|e| IoError::hdf5(file, group_path, "", &e));
+        let names = match names {
+            Ok(names) => names,
+            Err(e) => {
+                keep(Err(e));
+                return 1;
+            }
+        };
+        let mut walked = 1;
+        for name in names {
+            let child = join(group_path, &name);
+            if let Ok(g) = group.group(&name) {
+                walked += walk(file, &g, &child, first);
+                continue;
+            }
+            walked += 1;
+            let mut keep = |r: Result<()>| {
+                if let (Err(e), None) = (r, &first) {
+                    *first = Some(e);
+                }
+            };
+            match group.dataset(&name) {
+                Ok(ds) => {
+                    keep(ds.dtype().and_then(|t| t.to_descriptor()).map(drop).map_err(|e| IoError::hdf5(file, group_path, &name, &e)));
+                    keep(read_attrs(file, &ds, &child).map(drop));
+                }
+                Err(e) => keep(Err(IoError::hdf5(file, group_path, &name, &e))),
+            }
+        }
+        walked
+    }
+    // First as the app reads a file: names and attributes, and each demo's poses, actions, states
+    // and signals (in libhdf5, what crashes can depend on what was read before).
+    let streamed = crate::DemoReader::open_with(path, crate::ReadOptions::default()).and_then(|reader| {
+        use crate::DemoSource as _;
+        let reader = reader.without_observations();
+        reader.demo_names().iter().try_for_each(|name| reader.load_demo(name).map(drop))
+    });
+    let h5 = IoError::open_h5(path)?;
+    let mut first = streamed.err();
+    let walked = walk(&path.display().to_string(), &h5, "/", &mut first);
+    first.map_or(Ok(walked), Err)
+}
+
 /// Joins HDF5 path parts.
 pub(crate) fn join(group: &str, name: &str) -> String {
     if group.is_empty() || group == "/" { name.to_owned() } else { format!("{group}/{name}") }

@@ -113,6 +113,12 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
     Ok(names.len())
 }
 
+/// The folder of the app's prepared copies: `$MIMICGEN_CACHE/prepared`.
+#[must_use]
+pub fn prepared_dir() -> PathBuf {
+    mimicgen_sim::assets::cache_dir().join("prepared")
+}
+
 /// Where the app keeps a prepared copy of `input`: `$MIMICGEN_CACHE/prepared/<stem>-<hash>.hdf5`,
 /// the hash over the input's path, size and modification time (a changed file is prepared again).
 #[must_use]
@@ -126,5 +132,5 @@ pub fn cached_prepared_path(input: &Path) -> PathBuf {
     );
     let hash = mimicgen_engine::fingerprint::fnv1a_hex(stamp.as_bytes());
     let stem = input.file_stem().map_or_else(|| "dataset".into(), |s| s.to_string_lossy().into_owned());
-    mimicgen_sim::assets::cache_dir().join("prepared").join(format!("{stem}-{hash}.hdf5"))
+    prepared_dir().join(format!("{stem}-{hash}.hdf5"))
 }
