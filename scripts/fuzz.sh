@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Fuzzes our readers with cargo-fuzz (libFuzzer): the TOML spec reader, MimicGen JSON configs,
+# Fuzzes our readers with cargo-fuzz (libFuzzer): the TOML spec reader, MimicGen JSON configs, a
+# tab's WebSocket messages to `mimicgen serve` (client_message),
 # task files, and the HDF5 dataset reader on mutated copies of the bundled source demos. Each
 # target runs for SECONDS (default 300) on all cores but one; new inputs that reach new code are
 # merged into fuzz/corpus/<target>/ (minimised), crashes land in fuzz/artifacts/<target>/. Both are
@@ -15,7 +16,7 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 seconds="${1:-300}"
 shift || true
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(spec_toml spec_json task_file dataset dataset_bytes)
+[ ${#targets[@]} -eq 0 ] && targets=(spec_toml spec_json task_file dataset dataset_bytes client_message)
 export RUSTC_BOOTSTRAP=1
 export CARGO_TARGET_DIR="${MIMICGEN_CACHE:-$HOME/.cache/mimicgen}/fuzz-target"
 if ! cargo fuzz --version 2>/dev/null | grep -q "0.13.1"; then

@@ -345,3 +345,101 @@ pub fn dataset_seed() -> Group {
     root.members.remove("mask");
     root
 }
+
+/// Every path `request` names, read or written.
+fn request_paths(request: &mimicgen_ui::protocol::Request) -> Vec<std::path::PathBuf> {
+    use mimicgen_ui::protocol::{Request, ViewerSink};
+    match request {
+        Request::Open { path } | Request::ListDir { path } | Request::OpenCompare { path } | Request::OpenRun { path } => {
+            vec![path.clone()]
+        }
+        Request::Save { source, out, .. } => vec![source.clone(), out.clone()],
+        Request::Preview(r) => vec![r.source.clone()],
+        Request::SideBySide(pair) => pair.iter().map(|r| r.source.clone()).collect(),
+        Request::Run(config) => [Some(config.out.clone()), config.source.clone(), config.config.clone()].into_iter().flatten().collect(),
+        Request::Open3d { sink: ViewerSink::Save(path), .. } => vec![path.clone()],
+        Request::Open3d { .. } | Request::ShowDemo { .. } | Request::CancelRun => Vec::new(),
+    }
+}
+
+/// A served folder for [`client_message`]: empty but for `data/`, with a folder of prepared copies
+/// beside it, and a backend worker with nothing open.
+#[derive(Debug)]
+pub struct ServedRoot {
+    /// The confinement under test.
+    pub root: mimicgen_server::root::Root,
+    _dir: tempfile::TempDir,
+}
+
+impl ServedRoot {
+    /// A new one in the system's temporary folder.
+    ///
+    /// # Panics
+    /// When the folder cannot be made.
+    #[must_use]
+    pub fn new() -> Self {
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("a temporary folder: {e}"));
+        std::fs::create_dir_all(dir.path().join("root/data")).unwrap_or_else(|e| panic!("{e}"));
+        std::fs::create_dir_all(dir.path().join("prepared")).unwrap_or_else(|e| panic!("{e}"));
+        std::fs::write(dir.path().join("prepared/copy.hdf5"), b"").unwrap_or_else(|e| panic!("{e}"));
+        let root = mimicgen_server::root::Root::new(&dir.path().join("root"))
+            .unwrap_or_else(|e| panic!("{e}"))
+            .with_prepared(&dir.path().join("prepared"));
+        Self { root, _dir: dir }
+    }
+}
+
+impl Default for ServedRoot {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// A tab's message as `mimicgen serve` takes it: read as JSON (what does not read closes the
+/// tab's connection, no more), confined to the served folder, then answered by a backend worker
+/// with nothing open (all but runs, which start a thread). A refusal must name the path or field
+/// it refuses; every path of a request let through must lie inside the root (or be a prepared
+/// copy); nothing may panic, in the server or in the worker (which would answer "internal error").
+///
+/// # Panics
+/// As said.
+pub fn client_message(data: &[u8], served: &ServedRoot) -> Handled {
+    use mimicgen_ui::protocol::{ClientMessage, Reply, Request};
+    let Ok(ClientMessage { request, .. }) = serde_json::from_slice::<ClientMessage>(data) else { return Handled::Unread };
+    let named = request_paths(&request);
+    let root = &served.root;
+    match root.confine(request, Some("rerun+http://127.0.0.1:1/proxy")) {
+        Err(error) => {
+            let names = named.iter().any(|p| !p.as_os_str().is_empty() && error.contains(&*p.to_string_lossy()));
+            assert!(names || error.contains("an empty path"), "a refusal that names no path of the request {named:?}: {error}");
+            Handled::Refused
+        }
+        Ok(confined) => {
+            for path in request_paths(&confined) {
+                let inside = path.starts_with(root.dir()) || root.prepared().is_some_and(|p| path.starts_with(p));
+                assert!(inside, "{} let through, outside {}", path.display(), root.dir().display());
+            }
+            if matches!(confined, Request::Run(_)) {
+                return Handled::Confined;
+            }
+            let mut worker = mimicgen_backend::Worker::new(std::sync::Arc::new(|_| {}), None);
+            if let Reply::Failed { error, .. } = worker.handle_guarded(confined) {
+                assert!(!error.contains("internal error"), "the backend panicked: {error}");
+            }
+            Handled::Answered
+        }
+    }
+}
+
+/// What [`client_message`] did with an input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Handled {
+    /// Not a message (the server closes the tab's connection).
+    Unread,
+    /// Refused by the confinement, naming the path.
+    Refused,
+    /// Let through and not answered here (a run).
+    Confined,
+    /// Let through and answered by the worker.
+    Answered,
+}

@@ -132,3 +132,14 @@ fn a_dataset_claiming_more_than_its_file_stores_is_refused() {
     let err = mimicgen_io::RobomimicDataset::open(&scratch).unwrap_err().to_string();
     assert!(err.contains("damaged.hdf5") && err.contains("the file is damaged") && err.contains("claims shape"), "{err}");
 }
+
+#[test]
+fn the_client_message_corpus_is_confined_refused_by_name_or_answered() {
+    let served = fuzz::ServedRoot::new();
+    let mut seen = std::collections::BTreeSet::new();
+    replay("client_message", |data| {
+        seen.insert(fuzz::client_message(data, &served));
+    });
+    // The corpus reaches every outcome (a corpus of unreadable inputs would test nothing).
+    assert_eq!(seen.len(), 4, "outcomes reached: {seen:?}");
+}

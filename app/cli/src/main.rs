@@ -11,6 +11,7 @@ mod app;
 mod bench_app;
 mod bench_io;
 mod bench_render;
+mod bench_serve;
 mod bench_sim;
 mod bench_transit;
 mod coverage;
@@ -123,6 +124,9 @@ Examples:
     },
     /// Measure the app's frame time with a file loaded, and the time until it is browsable.
     BenchApp(bench_app::BenchAppArgs),
+    /// Measure `mimicgen serve` under load: N tabs opening, scrubbing, previewing and trying
+    /// while a run goes on; request latency, errors, memory.
+    BenchServe(bench_serve::BenchServeArgs),
     /// Summarise a robomimic / MimicGen HDF5 dataset.
     Info(info::InfoArgs),
     /// Join the shards of a run (`generate --shard i/K`) into the dataset of the whole run.
@@ -275,6 +279,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::BenchApp(args) => {
             bench_app::run(&args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::BenchServe(args) => {
+            bench_serve::run(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::View(args) => {

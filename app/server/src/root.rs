@@ -61,6 +61,9 @@ impl Root {
         if path.as_os_str().is_empty() {
             return Err("an empty path".to_owned());
         }
+        if path.components().next() == Some(Component::Normal(PREPARED_ALIAS.as_ref())) {
+            return Err(format!("{}: `{PREPARED_ALIAS}` names the server's prepared copies, which are only read", path.display()));
+        }
         let joined = if path.is_absolute() { path.to_path_buf() } else { self.dir.join(path) };
         // The longest part that exists, with its symlinks followed, and the rest (which does not
         // exist yet, so holds no symlink).

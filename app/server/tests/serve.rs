@@ -356,6 +356,12 @@ fn each_tab_has_its_own_open_file_and_a_plain_robomimic_file_works_through_its_p
         }
     }
     assert!(matches!(seen.first(), Some(Reply::Run(RunUpdate::Joined(_)))), "{seen:?}");
+    // Nothing is written among the prepared copies.
+    let save =
+        Request::Save { source: alias.clone(), out: alias.clone(), marks: Default::default(), signal_names: Vec::new(), overwrite: true };
+    send(&mut b, 9, save);
+    let Reply::Failed { error, .. } = until_answered(&mut b, 9).pop().unwrap().reply else { panic!("saving onto a prepared copy refused") };
+    assert!(error.contains("only read"), "{error}");
     // Aliases name one prepared copy, nothing else; no reply names the server's cache.
     for (id, bad) in (10..).zip(["@prepared/../secret.hdf5", "@prepared/nope.hdf5", "@prepared/a/b.hdf5", "@prepared"]) {
         send(&mut b, id, Request::Open { path: bad.into() });
