@@ -162,7 +162,51 @@ fn rss_mib() -> Option<f64> {
     Some(kib / 1024.0)
 }
 
-fn measure(file: &std::path::Path, tabs: usize, seconds: u64, run: usize) -> anyhow::Result<serde_json::Value> {
+/// One request kind's latencies.
+struct Latency {
+    count: usize,
+    /// p50, p95, p99 (ms, one decimal).
+    p: [f64; 3],
+}
+
+/// What one tab count measured.
+struct Measured {
+    tabs: usize,
+    seconds: u64,
+    kinds: Vec<(&'static str, Latency)>,
+    errors: Vec<String>,
+    new_tab_ms: f64,
+    peak_rss_mib: Option<f64>,
+    rss_mib: Option<f64>,
+}
+
+impl Measured {
+    fn kind(&self, name: &str) -> Option<&Latency> {
+        self.kinds.iter().find(|(k, _)| *k == name).map(|(_, l)| l)
+    }
+
+    fn json(&self) -> serde_json::Value {
+        let kinds: serde_json::Map<String, serde_json::Value> = self
+            .kinds
+            .iter()
+            .map(|(k, l)| ((*k).to_owned(), json!({"count": l.count, "p50_ms": l.p[0], "p95_ms": l.p[1], "p99_ms": l.p[2]})))
+            .collect();
+        json!({
+            "tabs": self.tabs,
+            "seconds": self.seconds,
+            "requests": kinds,
+            "errors": self.errors.len(),
+            "first_errors": self.errors.iter().take(3).collect::<Vec<_>>(),
+            "new_tab_ms": self.new_tab_ms,
+            "peak_rss_mib": self.peak_rss_mib,
+            "rss_mib": self.rss_mib,
+        })
+    }
+}
+
+const KINDS: [&str; 5] = ["open", "scrub", "list", "preview", "try"];
+
+fn measure(file: &std::path::Path, tabs: usize, seconds: u64, run: usize) -> anyhow::Result<Measured> {
     let dir = tempfile::tempdir()?;
     std::fs::copy(file, dir.path().join("demos.hdf5")).with_context(|| format!("copying {}", file.display()))?;
     mimicgen_pipeline::memory::reset_peak_rss();
@@ -185,27 +229,27 @@ fn measure(file: &std::path::Path, tabs: usize, seconds: u64, run: usize) -> any
     let greeted = Instant::now();
     let mut newcomer = connect(addr)?;
     next(&mut newcomer)?;
-    let new_tab_ms = greeted.elapsed().as_secs_f64() * 1000.0;
+    let new_tab_ms = (greeted.elapsed().as_secs_f64() * 10_000.0).round() / 10.0;
     drop(newcomer);
     let logs: Vec<TabLog> = logs.iter().collect();
-    let mut kinds = serde_json::Map::new();
-    for kind in ["open", "scrub", "list", "preview", "try"] {
-        let mut ms: Vec<f64> = logs.iter().flat_map(|l| l.latencies.iter().filter(|(k, _)| *k == kind).map(|(_, ms)| *ms)).collect();
-        ms.sort_by(f64::total_cmp);
-        let p = |q| (percentile(&ms, q) * 10.0).round() / 10.0;
-        kinds.insert(kind.to_owned(), json!({"count": ms.len(), "p50_ms": p(0.5), "p95_ms": p(0.95), "p99_ms": p(0.99)}));
-    }
-    let errors: Vec<&String> = logs.iter().flat_map(|l| &l.errors).collect();
-    Ok(json!({
-        "tabs": tabs,
-        "seconds": start.elapsed().as_secs(),
-        "requests": kinds,
-        "errors": errors.len(),
-        "first_errors": errors.iter().take(3).collect::<Vec<_>>(),
-        "new_tab_ms": (new_tab_ms * 10.0).round() / 10.0,
-        "peak_rss_mib": mimicgen_pipeline::memory::peak_rss_mib().map(f64::round),
-        "rss_mib": rss_mib().map(f64::round),
-    }))
+    let kinds = KINDS
+        .iter()
+        .map(|&kind| {
+            let mut ms: Vec<f64> = logs.iter().flat_map(|l| l.latencies.iter().filter(|(k, _)| *k == kind).map(|(_, ms)| *ms)).collect();
+            ms.sort_by(f64::total_cmp);
+            let p = |q| (percentile(&ms, q) * 10.0).round() / 10.0;
+            (kind, Latency { count: ms.len(), p: [p(0.5), p(0.95), p(0.99)] })
+        })
+        .collect();
+    Ok(Measured {
+        tabs,
+        seconds: start.elapsed().as_secs(),
+        kinds,
+        errors: logs.into_iter().flat_map(|l| l.errors).collect(),
+        new_tab_ms,
+        peak_rss_mib: mimicgen_pipeline::memory::peak_rss_mib().map(f64::round),
+        rss_mib: rss_mib().map(f64::round),
+    })
 }
 
 /// Runs `mimicgen bench-serve`.
@@ -224,32 +268,29 @@ pub fn run(args: &BenchServeArgs) -> anyhow::Result<()> {
         outln!("|---|---|---|---|---|---|---|---|---|---|");
     }
     for &tabs in &args.tabs {
-        let result = measure(&file, tabs.max(1), args.seconds, args.run)?;
+        let m = measure(&file, tabs.max(1), args.seconds, args.run)?;
         if args.json {
-            outln!("{result}");
+            outln!("{}", m.json());
             continue;
         }
-        let r = &result["requests"];
-        let total: u64 = ["open", "scrub", "list", "preview", "try"].iter().filter_map(|k| r[k]["count"].as_u64()).sum();
+        let ps = |kind: &str, which: &[usize]| {
+            let l = m.kind(kind);
+            which.iter().map(|&i| l.and_then(|l| l.p.get(i)).map_or_else(|| "-".to_owned(), f64::to_string)).collect::<Vec<_>>().join(" / ")
+        };
+        let total: usize = m.kinds.iter().map(|(_, l)| l.count).sum();
         outln!(
-            "| {tabs} | {} / {} | {} / {} / {} | {} / {} / {} | {} / {} | {} | {total} | {} | {} | {} |",
-            r["open"]["p50_ms"],
-            r["open"]["p99_ms"],
-            r["scrub"]["p50_ms"],
-            r["scrub"]["p95_ms"],
-            r["scrub"]["p99_ms"],
-            r["preview"]["p50_ms"],
-            r["preview"]["p95_ms"],
-            r["preview"]["p99_ms"],
-            r["try"]["p50_ms"],
-            r["try"]["p99_ms"],
-            r["list"]["p99_ms"],
-            result["errors"],
-            result["new_tab_ms"],
-            result["peak_rss_mib"],
+            "| {tabs} | {} | {} | {} | {} | {} | {total} | {} | {} | {} |",
+            ps("open", &[0, 2]),
+            ps("scrub", &[0, 1, 2]),
+            ps("preview", &[0, 1, 2]),
+            ps("try", &[0, 2]),
+            ps("list", &[2]),
+            m.errors.len(),
+            m.new_tab_ms,
+            m.peak_rss_mib.map_or_else(|| "-".to_owned(), |v| v.to_string()),
         );
-        if result["errors"].as_u64().is_some_and(|e| e > 0) {
-            eprintln!("bench-serve: {tabs} tabs: first errors: {}", result["first_errors"]);
+        if !m.errors.is_empty() {
+            eprintln!("bench-serve: {tabs} tabs: first errors: {:?}", m.errors.iter().take(3).collect::<Vec<_>>());
         }
     }
     Ok(())

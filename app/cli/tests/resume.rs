@@ -180,3 +180,64 @@ fn an_object_transfer_run_killed_and_resumed_draws_the_same_mugs() {
         }
     }
 }
+
+#[test]
+fn a_killed_run_resumes_from_the_app() {
+    use mimicgen_gui::protocol::{Reply, Request, RunUpdate};
+    let dir = tempfile::tempdir().unwrap();
+    let source = mimicgen_pipeline::bundled::source_demos("stack").unwrap();
+    let cli = |out: &Path| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_mimicgen"));
+        c.args(["generate", "--num-demos", "12", "--seed", "5", "--workers", "2", "--keep-failed", "--source"])
+            .arg(&source)
+            .arg("--out")
+            .arg(out)
+            .env("HDF5_USE_FILE_LOCKING", "FALSE")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        c
+    };
+    let whole = dir.path().join("whole.hdf5");
+    let out = cli(&whole).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // A run killed part-way (as a killed app or server would leave it).
+    let pieces = dir.path().join("pieces.hdf5");
+    let mut child = cli(&pieces).spawn().unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut said = String::new();
+    assert!(wait_for_attempts(&mut stderr, 2, &mut said), "the run ended before it was killed: {said}");
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(mimicgen_io::DatasetWriter::partial_path(&pieces).exists());
+    // The app's run form, "continue an interrupted run" ticked, through the app's backend.
+    let form = mimicgen_gui::model::RunForm {
+        attempts: 12,
+        seed: 5,
+        workers: 2,
+        keep_failed: true,
+        out: pieces.display().to_string(),
+        resume: true,
+        overwrite: true,
+        ..Default::default()
+    };
+    let config = form.config(&source);
+    assert!(config.resume && !config.overwrite, "resuming never replaces");
+    let (tx, updates) = std::sync::mpsc::channel();
+    let tx = std::sync::Mutex::new(tx);
+    let notify: mimicgen_gui::backend::Notify = std::sync::Arc::new(move |reply| {
+        let _ = tx.lock().unwrap().send(reply);
+    });
+    let mut worker = mimicgen_gui::backend::Worker::new(notify, None);
+    assert_eq!(worker.handle(Request::Run(Box::new(config))), Reply::RunAccepted);
+    let report = loop {
+        match updates.recv().unwrap() {
+            Reply::Run(RunUpdate::Finished(report)) => break report,
+            Reply::Run(RunUpdate::Failed(e)) => panic!("{e}"),
+            _ => {}
+        }
+    };
+    assert!(report.resumed_from >= 2, "resumed at attempt {}", report.resumed_from);
+    let (a, b) = (RobomimicDataset::open(&whole).unwrap(), RobomimicDataset::open(&pieces).unwrap());
+    assert_eq!(a.demo_names(), b.demo_names());
+    assert_eq!(a.data(), b.data(), "the resumed run's demos differ from the uninterrupted run's");
+}

@@ -70,7 +70,17 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, command
             ui.checkbox(&mut f.early_abort, "end attempts at a missed subtask").on_hover_text("--early-abort");
             ui.end_row();
             ui.label("");
-            ui.checkbox(&mut f.overwrite, "replace existing outputs").on_hover_text("--overwrite");
+            if ui.checkbox(&mut f.overwrite, "replace existing outputs").on_hover_text("--overwrite").changed() && f.overwrite {
+                f.resume = false;
+            }
+            ui.end_row();
+            ui.label("");
+            let resume = ui.checkbox(&mut f.resume, "continue an interrupted run").on_hover_text(
+                "--resume: a run killed before its end left OUT.partial; this continues it, with the arguments it was started with",
+            );
+            if resume.changed() && f.resume {
+                f.overwrite = false;
+            }
             ui.end_row();
             ui.label("Variant");
             let variants = &file.variants;

@@ -30,6 +30,9 @@ pub struct RunForm {
     pub out: String,
     /// Replace existing outputs.
     pub overwrite: bool,
+    /// Continue the interrupted run that left `<out>.partial` (a killed app, server or
+    /// `generate`), with the arguments it was started with.
+    pub resume: bool,
     /// Task variant (`None`: what the source file names).
     pub variant: Option<String>,
     /// The arm (`None`: the source demos').
@@ -51,6 +54,7 @@ impl Default for RunForm {
             early_abort: false,
             out: "out/app_run.hdf5".to_owned(),
             overwrite: false,
+            resume: false,
             variant: None,
             robot: None,
             cameras: None,
@@ -73,18 +77,18 @@ impl RunForm {
             keep_failed: self.keep_failed,
             guarantee: self.guarantee,
             early_abort: self.early_abort,
-            overwrite: self.overwrite,
+            overwrite: self.overwrite && !self.resume,
             variant: self.variant.clone(),
             robot: self.robot.clone(),
             cameras: self.cameras.clone(),
             spec: self.spec.clone(),
             // The task and its spec are the open file's; the app makes whole runs (no shards,
-            // no attempt cap, no validation split) and starts over rather than resuming.
+            // no attempt cap, no validation split).
             task: None,
             config: None,
             max_attempts: None,
             valid_fraction: None,
-            resume: false,
+            resume: self.resume,
             shard: None,
         }
     }
