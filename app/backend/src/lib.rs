@@ -445,6 +445,16 @@ impl Backend {
     /// Never on purpose; if the OS cannot start a thread, replies report it.
     #[must_use]
     pub fn start(repaint: impl Fn() + Send + Sync + 'static, embedded: Option<StreamFactory>) -> Self {
+        Self::start_vetted(repaint, embedded, None)
+    }
+
+    /// [`Backend::start`], reading each file a request names in a `vetter` child first (see
+    /// [`vet`]): a file that crashes the HDF5 library is refused, and the app goes on.
+    ///
+    /// # Panics
+    /// Never on purpose; if the OS cannot start a thread, replies report it.
+    #[must_use]
+    pub fn start_vetted(repaint: impl Fn() + Send + Sync + 'static, embedded: Option<StreamFactory>, vetter: Option<Vetter>) -> Self {
         let (requests, inbox) = channel::<Request>();
         let (outbox, replies) = channel::<Reply>();
         let failed = outbox.clone();
@@ -461,7 +471,7 @@ impl Backend {
         let spawned = std::thread::Builder::new().name("mimicgen-gui-backend".to_owned()).spawn(move || {
             let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
             notify(Reply::Welcome(Box::new(Welcome { cores, robots: robots(), ..Welcome::default() })));
-            let mut worker = Worker::new(notify, embedded);
+            let mut worker = Worker::new(notify, embedded).with_vetter(vetter);
             for request in inbox {
                 let reply = worker.handle_guarded(request);
                 if outbox.send(reply).is_err() {

@@ -85,6 +85,7 @@ pub fn run(args: AppArgs) -> anyhow::Result<()> {
         attempt,
         screenshot,
         spec: spec.overrides(),
+        vet: mimicgen_server::Vetter::this_binary(),
     };
     mimicgen_gui::run(options).map_err(|e| {
         anyhow::anyhow!(

@@ -178,7 +178,7 @@ pub fn run(args: &BenchAppArgs) -> anyhow::Result<()> {
     };
     let started = Instant::now();
     let mut frames =
-        Frames { ctx: egui::Context::default(), app: mimicgen_gui::desktop(|| {}, Some(file.clone()), None), started, vertices: 0 };
+        Frames { ctx: egui::Context::default(), app: mimicgen_gui::desktop(|| {}, Some(file.clone()), None, None), started, vertices: 0 };
     let (loading, first_open) = frames.until_idle(Duration::from_secs(600))?;
     let all_read_s = started.elapsed().as_secs_f64();
     if let Some(e) = &frames.app.model.error {

@@ -178,7 +178,7 @@ pub fn run(options: RunOptions) -> Result<(), eframe::Error> {
             let (tx, rx) = re_log_channel::log_channel(LogSource::Sdk);
             viewer.add_log_receiver(rx);
             let ctx = cc.egui_ctx.clone();
-            let app = desktop(move || ctx.request_repaint(), options.file.clone(), Some(streams(tx)));
+            let app = desktop(move || ctx.request_repaint(), options.file.clone(), Some(streams(tx)), options.vet.clone());
             let window = Window::new(app, &options);
             Ok(Box::new(Embedded { window, viewer, viewer_time, synced: None, synced_attempt: None, asked: false, _runtime: runtime }))
         }),

@@ -17,10 +17,16 @@ pub use mimicgen_ui::{AppModel, Command, MimicgenApp, Screen, Transport, egui, m
 
 /// The app over a backend thread of this process (`repaint` is called when a reply arrives),
 /// opening `file` if given; [`protocol::ViewerSink::Embedded`] 3D view streams come from
-/// `embedded` (the viewer in the app's window).
+/// `embedded` (the viewer in the app's window); with `vet`, each file a request names is read in
+/// that child process first (a file that crashes the HDF5 library is refused, the app goes on).
 #[must_use]
-pub fn desktop(repaint: impl Fn() + Send + Sync + 'static, file: Option<PathBuf>, embedded: Option<backend::StreamFactory>) -> MimicgenApp {
-    MimicgenApp::new(Box::new(backend::Backend::start(repaint, embedded)), file)
+pub fn desktop(
+    repaint: impl Fn() + Send + Sync + 'static,
+    file: Option<PathBuf>,
+    embedded: Option<backend::StreamFactory>,
+    vet: Option<backend::Vetter>,
+) -> MimicgenApp {
+    MimicgenApp::new(Box::new(backend::Backend::start_vetted(repaint, embedded, vet)), file)
 }
 
 /// How the window starts: what to open and show, and (for the docs) a screenshot to take.
@@ -52,6 +58,9 @@ pub struct RunOptions {
     pub attempt: Option<u64>,
     /// Once everything asked for is shown, save the window to this PNG and close.
     pub screenshot: Option<PathBuf>,
+    /// Read each file a request names in this child process first (`mimicgen app` sets
+    /// `mimicgen vet`).
+    pub vet: Option<backend::Vetter>,
 }
 
 /// The app in its window, with the start-up steps of [`RunOptions`] still to do.
@@ -173,7 +182,7 @@ fn run_plain(options: RunOptions) -> Result<(), eframe::Error> {
         native,
         Box::new(move |cc| {
             let ctx = cc.egui_ctx.clone();
-            let app = desktop(move || ctx.request_repaint(), options.file.clone(), None);
+            let app = desktop(move || ctx.request_repaint(), options.file.clone(), None, options.vet.clone());
             Ok(Box::new(Window::new(app, &options)))
         }),
     )

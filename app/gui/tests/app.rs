@@ -18,7 +18,7 @@ fn fixture() -> PathBuf {
 }
 
 fn harness(file: Option<PathBuf>) -> Harness<'static, MimicgenApp> {
-    let app = mimicgen_gui::desktop(|| {}, file, None);
+    let app = mimicgen_gui::desktop(|| {}, file, None, None);
     Harness::builder().with_size(egui::vec2(1280.0, 800.0)).build_ui_state(|ui, app: &mut MimicgenApp| app.show(ui), app)
 }
 
