@@ -496,3 +496,54 @@ impl mimicgen_ui::Transport for Backend {
         self.replies.try_iter().collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::mpsc::channel;
+
+    use mimicgen_ui::protocol::RunUpdate;
+
+    use super::*;
+
+    #[test]
+    fn workers_sharing_a_run_slot_run_one_at_a_time_and_any_of_them_cancels_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let source = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/io/tests/data/source_D0_prepared.hdf5");
+        let config = RunConfig {
+            source: Some(source),
+            out: dir.path().join("run.hdf5"),
+            num_demos: Some(1000),
+            seed: Some(1),
+            ..RunConfig::default()
+        };
+        // The run's first update waits until the test lets it go: it is going, whatever the machine.
+        let (updates, seen) = channel();
+        let (release, gate) = channel::<()>();
+        let (updates, gate) = (Mutex::new(updates), Mutex::new(gate));
+        // Every update waits until the gate is dropped (then `recv` returns at once).
+        let run_notify: Notify = Arc::new(move |reply| {
+            let _ = updates.lock().unwrap().send(reply);
+            let _ = gate.lock().unwrap().recv();
+        });
+        let slot = RunSlot::default();
+        let quiet: Notify = Arc::new(|_| {});
+        let mut a = Worker::new(Arc::clone(&quiet), None).with_run_notify(Arc::clone(&run_notify)).with_run_slot(slot.clone());
+        let mut b = Worker::new(quiet, None).with_run_notify(run_notify).with_run_slot(slot.clone());
+        assert_eq!(a.handle(Request::Run(Box::new(config.clone()))), Reply::RunAccepted);
+        let _first = seen.recv().unwrap();
+        assert!(b.running(), "the other worker sees the run");
+        let Reply::Failed { error, .. } = b.handle(Request::Run(Box::new(config))) else { panic!("a second run refused") };
+        assert!(error.contains("a run is going"), "{error}");
+        // The worker that did not start it cancels it.
+        assert_eq!(b.handle(Request::CancelRun), Reply::Cancelling);
+        drop(release);
+        let report = loop {
+            match seen.recv().unwrap() {
+                Reply::Run(RunUpdate::Finished(report)) => break report,
+                Reply::Run(RunUpdate::Failed(e)) => panic!("{e}"),
+                _ => {}
+            }
+        };
+        assert!(report.cancelled && report.attempts < 1000, "{report:?}");
+    }
+}

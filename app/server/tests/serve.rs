@@ -232,38 +232,31 @@ fn a_run_belongs_to_the_server_and_every_tab_sees_it_also_after_reconnecting() {
         keep_failed: true,
         ..Default::default()
     };
-    send(&mut starter, 2, Request::Run(Box::new(config.clone())));
+    send(&mut starter, 2, Request::Run(Box::new(config)));
     assert!(until_answered(&mut starter, 2).iter().any(|m| m.reply == Reply::RunAccepted));
-    // The other tab watches it: joined first, then the updates; it cannot start a second one.
+    // The other tab watches it: joined first, then the updates.
     let ServerMessage { id: None, reply: Reply::Run(RunUpdate::Joined(joined)) } = next(&mut other) else { panic!("joined first") };
     assert_eq!(joined.out, dir.path().canonicalize().unwrap().join("out/run.hdf5"), "paths resolved inside the root");
-    send(&mut other, 3, Request::Run(Box::new(config)));
-    let finished = |ws: &mut Socket, refused: Option<u64>| {
-        let (mut attempts, mut was_refused) = (0, false);
+    let finished = |ws: &mut Socket| {
+        let mut attempts = 0;
         let deadline = Instant::now() + Duration::from_secs(120);
         while Instant::now() < deadline {
-            let message = next(ws);
-            match message.reply {
-                Reply::Failed { error, .. } if message.id == refused && refused.is_some() => {
-                    assert!(error.contains("a run is going"), "{error}");
-                    was_refused = true;
-                }
+            match next(ws).reply {
                 Reply::Run(RunUpdate::Attempt(_)) => attempts += 1,
-                Reply::Run(RunUpdate::Finished(report)) => return (attempts, report.attempts, was_refused || refused.is_none()),
+                Reply::Run(RunUpdate::Finished(report)) => return (attempts, report.attempts),
                 Reply::Run(RunUpdate::Failed(e)) => panic!("{e}"),
                 _ => {}
             }
         }
         panic!("the run did not finish")
     };
-    let (attempts, reported, _) = finished(&mut other, Some(3));
-    assert_eq!((attempts, reported), (3, 3));
+    assert_eq!(finished(&mut other), (3, 3));
     // The starting tab goes (a closed tab, a lost tunnel); a new one is greeted with the whole run.
     drop(starter);
     let mut later = connect(addr, "", None).unwrap();
     assert!(matches!(next(&mut later).reply, Reply::Welcome(_)));
     assert!(matches!(next(&mut later).reply, Reply::Run(RunUpdate::Joined(_))));
-    assert_eq!(finished(&mut later, None), (3, 3, true));
+    assert_eq!(finished(&mut later), (3, 3));
     assert!(dir.path().join("out/run.hdf5").is_file());
 }
 
@@ -375,8 +368,17 @@ fn each_tab_has_its_own_open_file_and_a_plain_robomimic_file_works_through_its_p
 fn idle_connections_do_not_keep_a_new_tab_out_and_tabs_past_the_limit_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let (addr, _) = serve(dir.path(), [127, 0, 0, 1], None);
-    // 500 clients that connect and send nothing (or half a request head).
-    let idle: Vec<TcpStream> = (0..500)
+    // 500 clients that connect and send nothing (or half a request head); each takes two of this
+    // process's file descriptors (its end and the server's), and the 100 tabs below two more.
+    let soft_limit = std::fs::read_to_string("/proc/self/limits")
+        .ok()
+        .and_then(|l| l.lines().find(|l| l.starts_with("Max open files"))?.split_whitespace().nth(3)?.parse::<usize>().ok())
+        .unwrap_or(4096);
+    let count = 500.min(soft_limit.saturating_sub(500) / 2);
+    if count < 500 {
+        eprintln!("only {count} idle connections: this process may open {soft_limit} files");
+    }
+    let idle: Vec<TcpStream> = (0..count)
         .map(|i| {
             let mut s = TcpStream::connect(addr).unwrap();
             if i % 2 == 0 {
