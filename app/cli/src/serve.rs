@@ -29,7 +29,13 @@ Examples:
 Safety: it binds 127.0.0.1 by default and then answers only to localhost names; any other
 --host needs a token (random per start unless --token), checked on every request. Every path
 a request names stays inside --root; an existing output is replaced only when asked for.
-There is no TLS: reach it through an SSH tunnel (or a TLS proxy) from other machines.")]
+There is no TLS: reach it through an SSH tunnel (or a TLS proxy) from other machines.
+
+Many people at once: each tab has its own open file, preview and 3D recording (up to 100 tabs);
+a run belongs to the server, and every tab watches it. A plain robomimic file is prepared into
+the server's cache (tabs name it @prepared/...). Each file a tab opens is first read in a child
+process (`mimicgen vet`), so a damaged file that crashes the HDF5 library is refused and the
+server goes on.")]
 pub struct ServeArgs {
     /// Source demos to open in every new tab (default: the bundled Stack D0 demos, when inside --root).
     file: Option<PathBuf>,
