@@ -42,7 +42,8 @@ observations); with --keep-failed, failed ones go to <out>_failed.hdf5. A JSON r
 source demo, failures by subtask and reason) is printed and written next to the dataset as
 <out>.json. An existing output is never replaced without --overwrite. While running, the dataset
 is <out>.partial; after a crash or kill, the same command with --resume continues it, and the
-finished dataset equals an uninterrupted run's. On a terminal, progress is a bar; in a log (a
+finished dataset equals an uninterrupted run's (a run killed after its dataset was finished but
+before its report was written gets the report from --resume). On a terminal, progress is a bar; in a log (a
 batch job, stderr redirected) it is a `progress N/TOTAL: ...` line per percent of the run.")]
 pub struct GenerateArgs {
     /// Task to generate (see `mimicgen tasks`). Default: what the inputs name, else stack.

@@ -241,3 +241,38 @@ fn a_killed_run_resumes_from_the_app() {
     assert_eq!(a.demo_names(), b.demo_names());
     assert_eq!(a.data(), b.data(), "the resumed run's demos differ from the uninterrupted run's");
 }
+
+#[test]
+fn a_run_killed_after_its_rename_gets_its_report_on_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("done.hdf5");
+    let first = generate(&out, &[]).output().unwrap();
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    let report_path = dir.path().join("done.json");
+    let read = |p: &Path| -> serde_json::Value { serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap() };
+    let original = read(&report_path);
+    // Killed between the dataset's rename and the report: the dataset is whole, the report absent.
+    std::fs::remove_file(&report_path).unwrap();
+    let again = generate(&out, &["--resume"]).output().unwrap();
+    assert!(again.status.success(), "{}", String::from_utf8_lossy(&again.stderr));
+    let recovered = read(&report_path);
+    for field in
+        ["task", "variant", "seed", "attempts", "successes", "generation_rate", "per_source_demo", "failures", "output", "failed_output"]
+    {
+        assert_eq!(recovered[field], original[field], "{field}");
+    }
+    assert_eq!(recovered["resumed_from"], original["attempts"], "a session with nothing left to do");
+    assert_eq!(recovered["cancelled"], false);
+    // Another run's arguments are refused, naming what differs.
+    std::fs::remove_file(&report_path).unwrap();
+    let other = Command::new(env!("CARGO_BIN_EXE_mimicgen"))
+        .args(["generate", "--num-demos", "14", "--seed", "6", "--resume", "--out"])
+        .arg(&out)
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .output()
+        .unwrap();
+    assert!(!other.status.success());
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert!(err.contains("different dataset"), "{err}");
+    assert!(!report_path.exists());
+}

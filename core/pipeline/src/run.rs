@@ -360,6 +360,10 @@ impl Pipeline {
         cancel: &AtomicBool,
         mut on_event: impl FnMut(&Event),
     ) -> Result<Report, PipelineError> {
+        if let Some(report) = self.report_of_a_finished_run()? {
+            on_event(&Event::Finished(Box::new(report.clone())));
+            return Ok(report);
+        }
         let (mut writer, mut failed_writer, progress, mut log) = self.open_writers()?;
         let settings = &self.generator.spec().generation;
         let resumed_from = progress.next_attempt;
@@ -457,10 +461,28 @@ impl Pipeline {
         // between the two resumes, and takes the finished failed file back).
         let failed_written = failed_writer.map(DatasetWriter::finish).transpose()?;
         let written = writer.finish()?;
-        let wall = started.elapsed().as_secs_f64();
+        let report = self.report(&stats, resumed_from, started.elapsed().as_secs_f64(), control_steps, cancelled, &written, failed_written);
+        self.write_report(&report)?;
+        on_event(&Event::Finished(Box::new(report.clone())));
+        Ok(report)
+    }
+
+    /// The report of this session of the run.
+    #[allow(clippy::too_many_arguments)]
+    fn report(
+        &self,
+        stats: &RunStats,
+        resumed_from: usize,
+        wall: f64,
+        control_steps: usize,
+        cancelled: bool,
+        written: &Path,
+        failed_written: Option<PathBuf>,
+    ) -> Report {
+        let settings = &self.generator.spec().generation;
         #[allow(clippy::cast_precision_loss)]
         let session_attempts = stats.attempts.saturating_sub(resumed_from) as f64;
-        let report = Report {
+        Report {
             task: self.task.name().to_owned(),
             variant: self.variant.clone(),
             seed: settings.seed,
@@ -474,21 +496,59 @@ impl Pipeline {
             wall_time_s: wall,
             attempts_per_s: if wall > 0.0 { session_attempts / wall } else { 0.0 },
             control_steps,
-            per_source_demo: per_source_demo(&stats),
+            per_source_demo: per_source_demo(stats),
             peak_rss_mib: crate::memory::peak_rss_mib(),
-            failures: failures(&stats),
+            failures: failures(stats),
             cancelled,
             resumed_from,
             early_abort: settings.early_abort,
             spec_overrides: self.config.spec.clone(),
             shard: self.config.shard,
             transit: stats.transit,
-        };
+        }
+    }
+
+    fn write_report(&self, report: &Report) -> Result<(), PipelineError> {
         let report_path = self.report_path();
-        let text = serde_json::to_string_pretty(&report).unwrap_or_default();
-        std::fs::write(&report_path, text)
-            .map_err(|e| PipelineError::Fs { file: report_path.display().to_string(), reason: e.to_string() })?;
-        on_event(&Event::Finished(Box::new(report.clone())));
-        Ok(report)
+        let text = serde_json::to_string_pretty(report).unwrap_or_default();
+        std::fs::write(&report_path, text).map_err(|e| PipelineError::Fs { file: report_path.display().to_string(), reason: e.to_string() })
+    }
+
+    /// With `resume`, a run that was killed after its dataset's rename (the run's commit point)
+    /// and before its report was written: the report, made from what the finished dataset keeps
+    /// (its run description, which must be this run's, and its progress: every attempt's
+    /// counts), as a resumed session that had nothing left to do reports it; written beside the
+    /// dataset. `None` for every other case (no resume, an interrupted run to continue, a report
+    /// already there).
+    fn report_of_a_finished_run(&self) -> Result<Option<Report>, PipelineError> {
+        let out = &self.config.out;
+        if !self.config.resume || DatasetWriter::partial_path(out).exists() || !out.is_file() || self.report_path().exists() {
+            return Ok(None);
+        }
+        let file = out.display().to_string();
+        let stored = mimicgen_io::root_string_attrs(out, &[RUN_ATTR, PROGRESS_ATTR])?;
+        let [Some(stored_run), Some(progress)] = stored.as_slice() else { return Ok(None) };
+        let stored_run: serde_json::Value =
+            serde_json::from_str(stored_run).map_err(|e| PipelineError::input(file.clone(), RUN_ATTR, e.to_string()))?;
+        if stored_run != serde_json::to_value(&self.description).unwrap_or_default() {
+            let differing = differing_fields(&serde_json::to_value(&self.description).unwrap_or_default(), &stored_run);
+            return Err(PipelineError::input(
+                file,
+                RUN_ATTR,
+                format!(
+                    "the finished run made a different dataset ({} differ); its report cannot be written from here",
+                    differing.join(", ")
+                ),
+            ));
+        }
+        let progress: Progress = serde_json::from_str(progress).map_err(|e| PipelineError::input(file, PROGRESS_ATTR, e.to_string()))?;
+        let settings = &self.generator.spec().generation;
+        let stats = progress.stats;
+        let cancelled = stats.attempts < settings.attempt_cap() && !(settings.guarantee && stats.successes >= settings.num_trials);
+        let failed = self.failed_path();
+        let failed_written = failed.is_file().then_some(failed);
+        let report = self.report(&stats, progress.next_attempt, 0.0, 0, cancelled, out, failed_written);
+        self.write_report(&report)?;
+        Ok(Some(report))
     }
 }
