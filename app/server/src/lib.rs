@@ -8,7 +8,13 @@
 //! requests whose `Host` is a loopback name (no DNS rebinding); any other address needs a token
 //! (random per start, in the printed URL, checked on every request in constant time); a WebSocket
 //! must come from the page this server served (`Origin`); every path a request names stays inside
-//! `--root`; a malformed or oversized message closes only its own connection.
+//! `--root` (prepared copies are read through `@prepared/`, never named by their place); a
+//! malformed or oversized message closes only its own connection; at most [`MAX_TABS`] tabs and
+//! [`MAX_CONNECTIONS`] connections; with [`ServeOptions::vet`], every file a tab names is first
+//! read in a child process, so a file that crashes libhdf5 cannot take the server down.
+//!
+//! Each tab has a backend worker of its own (its file, preview and 3D recording); the run is the
+//! server's (`session`).
 //!
 //! What it does not do: TLS (tunnel it over SSH, or put a TLS proxy in front).
 //!
