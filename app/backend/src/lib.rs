@@ -167,7 +167,7 @@ impl Worker {
     /// worker and the app go on), and so is a file that crashes its reader in the vetting child.
     pub fn handle_guarded(&mut self, request: Request) -> Reply {
         let what: String = format!("answering {request:?}").chars().take(100).collect();
-        if let Some(vetter) = &mut self.vetter
+        if let Some(vetter) = &self.vetter
             && let Err(error) = vetter.check_request(&request)
         {
             return Reply::Failed { what: "reading the file".to_owned(), error };

@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant, SystemTime};
 
 use mimicgen_ui::protocol::Request;
@@ -17,12 +18,16 @@ use mimicgen_ui::protocol::Request;
 /// even of gigabytes of images, takes well under a second.
 const DEADLINE: Duration = Duration::from_secs(120);
 
-/// Runs the vetting child and remembers its verdicts (per file, size and modification time).
+/// A file's verdict, per file, size and modification time.
+type Verdicts = BTreeMap<(PathBuf, u64, Option<SystemTime>), Result<(), String>>;
+
+/// Runs the vetting child and remembers its verdicts; clones share them (the server's tabs vet
+/// a file once between them).
 #[derive(Debug, Clone)]
 pub struct Vetter {
     /// The program and its first arguments; the file is the last argument.
     command: Vec<OsString>,
-    verdicts: BTreeMap<(PathBuf, u64, Option<SystemTime>), Result<(), String>>,
+    verdicts: Arc<Mutex<Verdicts>>,
 }
 
 impl Vetter {
@@ -30,7 +35,7 @@ impl Vetter {
     /// the file appended. `None` when `command` is empty.
     #[must_use]
     pub fn new(command: Vec<OsString>) -> Option<Self> {
-        (!command.is_empty()).then(|| Self { command, verdicts: BTreeMap::new() })
+        (!command.is_empty()).then(|| Self { command, verdicts: Arc::default() })
     }
 
     /// `mimicgen vet`, the running binary's own subcommand (the `mimicgen` binary only).
@@ -44,7 +49,7 @@ impl Vetter {
     ///
     /// # Errors
     /// A message naming the file that crashed (or hung) the child.
-    pub fn check_request(&mut self, request: &Request) -> Result<(), String> {
+    pub fn check_request(&self, request: &Request) -> Result<(), String> {
         files_read(request).into_iter().try_for_each(|path| self.check(path))
     }
 
@@ -53,17 +58,19 @@ impl Vetter {
     ///
     /// # Errors
     /// A message naming the file when the child died or did not finish.
-    pub fn check(&mut self, path: &Path) -> Result<(), String> {
+    pub fn check(&self, path: &Path) -> Result<(), String> {
         let Ok(meta) = std::fs::metadata(path) else { return Ok(()) };
         if !meta.is_file() {
             return Ok(());
         }
         let key = (path.to_path_buf(), meta.len(), meta.modified().ok());
-        if let Some(verdict) = self.verdicts.get(&key) {
+        let verdicts = || self.verdicts.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(verdict) = verdicts().get(&key) {
             return verdict.clone();
         }
+        // Not under the lock: other files are vetted meanwhile.
         let verdict = self.run(path);
-        self.verdicts.insert(key, verdict.clone());
+        verdicts().insert(key, verdict.clone());
         verdict
     }
 
@@ -159,9 +166,9 @@ mod tests {
         let count = dir.path().join("count");
         std::fs::write(&file, b"x").unwrap();
         let script = format!("echo >> {}; exit 0", count.display());
-        let mut vetter = Vetter::new(vec!["sh".into(), "-c".into(), script.into(), "sh".into()]).unwrap();
+        let vetter = Vetter::new(vec!["sh".into(), "-c".into(), script.into(), "sh".into()]).unwrap();
         vetter.check(&file).unwrap();
-        vetter.check(&file).unwrap();
+        vetter.clone().check(&file).unwrap();
         assert_eq!(std::fs::read_to_string(&count).unwrap().lines().count(), 1);
         std::fs::write(&file, b"longer now").unwrap();
         vetter.check(&file).unwrap();

@@ -56,6 +56,30 @@ fn wait_for_attempts(stderr: &mut impl std::io::BufRead, n: usize, said: &mut St
     }
 }
 
+/// Spawns `command` (a `generate`) and kills it (SIGKILL: no chance to clean up) once two
+/// attempts beyond its first are decided, leaving its `.partial` behind.
+fn killed_after_two_attempts(command: &mut Command) {
+    let mut child = command.spawn().unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut said = String::new();
+    assert!(
+        wait_for_attempts(&mut stderr, 2, &mut said) && child.try_wait().unwrap().is_none(),
+        "the run ended before it was killed: {said}"
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+}
+
+/// `generate --resume` onto `out` with other arguments than those of the run there.
+fn resume_with_other_arguments(out: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_mimicgen"))
+        .args(["generate", "--num-demos", "14", "--seed", "6", "--resume", "--out"])
+        .arg(out)
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn a_run_killed_five_times_and_resumed_equals_an_uninterrupted_run() {
     let dir = tempfile::tempdir().unwrap();
@@ -106,20 +130,9 @@ fn a_run_killed_five_times_and_resumed_equals_an_uninterrupted_run() {
 fn resuming_with_other_arguments_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.hdf5");
-    let mut child = generate(&out, &[]).spawn().unwrap();
-    let partial = mimicgen_io::DatasetWriter::partial_path(&out);
-    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut said = String::new();
-    assert!(wait_for_attempts(&mut stderr, 2, &mut said), "the run ended before it was killed: {said}");
-    child.kill().unwrap();
-    child.wait().unwrap();
-    assert!(partial.exists());
-    let other = Command::new(env!("CARGO_BIN_EXE_mimicgen"))
-        .args(["generate", "--num-demos", "14", "--seed", "6", "--resume", "--out"])
-        .arg(&out)
-        .env("HDF5_USE_FILE_LOCKING", "FALSE")
-        .output()
-        .unwrap();
+    killed_after_two_attempts(&mut generate(&out, &[]));
+    assert!(mimicgen_io::DatasetWriter::partial_path(&out).exists());
+    let other = resume_with_other_arguments(&out);
     assert!(!other.status.success());
     let err = String::from_utf8_lossy(&other.stderr);
     assert!(err.contains("spec") && err.contains("start over"), "{err}");
@@ -164,12 +177,7 @@ fn an_object_transfer_run_killed_and_resumed_draws_the_same_mugs() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     // Killed (SIGKILL) once two attempts beyond its first are decided, then resumed.
     let pieces = dir.path().join("pieces.hdf5");
-    let mut child = run(&pieces, false).spawn().unwrap();
-    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut said = String::new();
-    assert!(wait_for_attempts(&mut stderr, 2, &mut said) && child.try_wait().unwrap().is_none(), "the run ended before the kill: {said}");
-    child.kill().unwrap();
-    child.wait().unwrap();
+    killed_after_two_attempts(&mut run(&pieces, false));
     let out = run(&pieces, true).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     for (a, b) in [(&whole, &pieces), (&dir.path().join("whole_failed.hdf5"), &dir.path().join("pieces_failed.hdf5"))] {
@@ -202,12 +210,7 @@ fn a_killed_run_resumes_from_the_app() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     // A run killed part-way (as a killed app or server would leave it).
     let pieces = dir.path().join("pieces.hdf5");
-    let mut child = cli(&pieces).spawn().unwrap();
-    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut said = String::new();
-    assert!(wait_for_attempts(&mut stderr, 2, &mut said), "the run ended before it was killed: {said}");
-    child.kill().unwrap();
-    child.wait().unwrap();
+    killed_after_two_attempts(&mut cli(&pieces));
     assert!(mimicgen_io::DatasetWriter::partial_path(&pieces).exists());
     // The app's run form, "continue an interrupted run" ticked, through the app's backend.
     let form = mimicgen_gui::model::RunForm {
@@ -265,12 +268,7 @@ fn a_run_killed_after_its_rename_gets_its_report_on_resume() {
     assert_eq!(recovered["cancelled"], false);
     // Another run's arguments are refused, naming what differs.
     std::fs::remove_file(&report_path).unwrap();
-    let other = Command::new(env!("CARGO_BIN_EXE_mimicgen"))
-        .args(["generate", "--num-demos", "14", "--seed", "6", "--resume", "--out"])
-        .arg(&out)
-        .env("HDF5_USE_FILE_LOCKING", "FALSE")
-        .output()
-        .unwrap();
+    let other = resume_with_other_arguments(&out);
     assert!(!other.status.success());
     let err = String::from_utf8_lossy(&other.stderr);
     assert!(err.contains("different dataset"), "{err}");

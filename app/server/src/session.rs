@@ -30,15 +30,23 @@ struct Clients {
     /// The server's run so far, as sent: `Joined` then every update.
     run_log: Vec<String>,
     /// The prepared copies' folder as it appears in a message, and the alias a tab sees instead.
-    scrub: Option<(String, &'static str)>,
+    prepared: Option<(String, &'static str)>,
 }
 
 impl Clients {
+    /// `text` with the prepared copies' folder named by its alias.
+    fn scrub(&self, text: String) -> String {
+        match &self.prepared {
+            Some((dir, alias)) if text.contains(dir.as_str()) => text.replace(dir.as_str(), alias),
+            _ => text,
+        }
+    }
+
     /// Queues `text` for `client`; a tab whose queue is full is dropped (its socket then closes).
     fn send(&mut self, client: ClientId, frame: Frame) {
-        let frame = match (frame, &self.scrub) {
-            (Frame::Text(text), Some((dir, alias))) if text.contains(dir.as_str()) => Frame::Text(text.replace(dir.as_str(), alias)),
-            (frame, _) => frame,
+        let frame = match frame {
+            Frame::Text(text) => Frame::Text(self.scrub(text)),
+            binary @ Frame::Binary(_) => binary,
         };
         if let Some(queue) = self.queues.get(&client)
             && let Err(TrySendError::Full(_)) = queue.try_send(frame)
@@ -122,9 +130,9 @@ impl Session {
     pub fn new(root: Root, viewer: Option<String>, welcome: Welcome, vetter: Option<Vetter>) -> Self {
         // Whatever a message says of the prepared copies' folder (a run's report, an error), the
         // tab reads the alias.
-        let scrub = root.prepared().map(|dir| (dir.to_string_lossy().into_owned(), crate::root::PREPARED_ALIAS));
+        let prepared = root.prepared().map(|dir| (dir.to_string_lossy().into_owned(), crate::root::PREPARED_ALIAS));
         let shared = Shared {
-            clients: Mutex::new(Clients { scrub, ..Clients::default() }),
+            clients: Mutex::new(Clients { prepared, ..Clients::default() }),
             welcome,
             root,
             viewer,
@@ -156,11 +164,7 @@ impl Session {
         clients.next = id;
         let _ = queue.try_send(frame(None, Reply::Welcome(Box::new(self.shared.welcome.clone()))));
         for text in &clients.run_log {
-            let text = match &clients.scrub {
-                Some((dir, alias)) => text.replace(dir.as_str(), alias),
-                None => text.clone(),
-            };
-            let _ = queue.try_send(Frame::Text(text));
+            let _ = queue.try_send(Frame::Text(clients.scrub(text.clone())));
         }
         clients.queues.insert(id, queue);
         clients.inboxes.insert(id, inbox);

@@ -295,23 +295,23 @@ pub(crate) fn read_group_except(file: &str, group: &hdf5::Group, group_path: &st
 /// # Errors
 /// The first refusal, naming the file and the object.
 pub fn vet(path: &std::path::Path) -> Result<usize> {
+    /// Keeps `r`'s error when it is the first.
+    fn keep(first: &mut Option<IoError>, r: Result<()>) {
+        if let Err(e) = r {
+            first.get_or_insert(e);
+        }
+    }
     /// Walks on past a refusal (the readers that come after may reach further: a file whose
     /// `data` attributes are refused can still crash in its demos), keeping the first one.
     fn walk(file: &str, group: &hdf5::Group, group_path: &str, first: &mut Option<IoError>) -> usize {
-        let mut keep = |r: Result<()>| {
-            if let (Err(e), None) = (r, &first) {
-                *first = Some(e);
-            }
-        };
         // Twice: the app reads a file's top groups' attributes more than once (the whole file, then
         // demo by demo), and a failed listing can leave libhdf5's heap damaged for the next one.
-        keep(read_attrs(file, group, group_path).map(drop));
-        keep(read_attrs(file, group, group_path).map(drop));
-        let names = group.member_names().map_err(|e| IoError::hdf5(file, group_path, "", &e));
-        let names = match names {
+        keep(first, read_attrs(file, group, group_path).map(drop));
+        keep(first, read_attrs(file, group, group_path).map(drop));
+        let names = match group.member_names() {
             Ok(names) => names,
             Err(e) => {
-                keep(Err(e));
+                keep(first, Err(IoError::hdf5(file, group_path, "", &e)));
                 return 1;
             }
         };
@@ -323,17 +323,13 @@ pub fn vet(path: &std::path::Path) -> Result<usize> {
                 continue;
             }
             walked += 1;
-            let mut keep = |r: Result<()>| {
-                if let (Err(e), None) = (r, &first) {
-                    *first = Some(e);
-                }
-            };
             match group.dataset(&name) {
                 Ok(ds) => {
-                    keep(ds.dtype().and_then(|t| t.to_descriptor()).map(drop).map_err(|e| IoError::hdf5(file, group_path, &name, &e)));
-                    keep(read_attrs(file, &ds, &child).map(drop));
+                    let dtype = ds.dtype().and_then(|t| t.to_descriptor()).map(drop);
+                    keep(first, dtype.map_err(|e| IoError::hdf5(file, group_path, &name, &e)));
+                    keep(first, read_attrs(file, &ds, &child).map(drop));
                 }
-                Err(e) => keep(Err(IoError::hdf5(file, group_path, &name, &e))),
+                Err(e) => keep(first, Err(IoError::hdf5(file, group_path, &name, &e))),
             }
         }
         walked
