@@ -135,6 +135,18 @@ fn segment_starts_are_marked_previewed_with_planned_transit_and_saved() {
         "{transit:?}"
     );
     h.get_by_label_contains("--transit plan");
+    // "continue an interrupted run" and "replace existing outputs" exclude each other.
+    h.get_by_label("replace existing outputs").click();
+    h.run_steps(2);
+    assert!(h.state().model.run_form.overwrite);
+    h.get_by_label("continue an interrupted run").click();
+    h.run_steps(2);
+    let form = &h.state().model.run_form;
+    assert!(form.resume && !form.overwrite, "resume ticked, replace unticked");
+    h.get_by_label_contains("--resume");
+    h.get_by_label("continue an interrupted run").click();
+    h.run_steps(2);
+    assert!(!h.state().model.run_form.resume);
     // The preview of demo_0's first segment starts at the mark, reached by a planned path.
     h.get_by_label("Preview").click();
     h.step();
