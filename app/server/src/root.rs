@@ -18,6 +18,29 @@ pub const PREPARED_ALIAS: &str = "@prepared";
 pub struct Root {
     dir: PathBuf,
     prepared: Option<PathBuf>,
+    names: PreparedNames,
+}
+
+/// Every spelling of the prepared copies' folder a message may carry: as the cache names it
+/// (`$MIMICGEN_CACHE/prepared`, which may lie behind a symlink) and canonical. A tab reads the
+/// alias instead of either.
+#[derive(Debug, Clone, Default)]
+pub struct PreparedNames(Vec<PathBuf>);
+
+impl PreparedNames {
+    /// `text` with each spelling of the folder replaced by [`PREPARED_ALIAS`].
+    #[must_use]
+    pub fn hide(&self, text: String) -> String {
+        self.0.iter().fold(text, |text, dir| {
+            let dir = dir.to_string_lossy();
+            if text.contains(&*dir) { text.replace(&*dir, PREPARED_ALIAS) } else { text }
+        })
+    }
+
+    /// Whether `dir` is one spelling of the folder.
+    fn is(&self, dir: &Path) -> bool {
+        self.0.iter().any(|d| d == dir)
+    }
 }
 
 impl Root {
@@ -31,15 +54,21 @@ impl Root {
         if !dir.is_dir() {
             return Err(root_error("not a folder".to_owned()));
         }
-        Ok(Self { dir, prepared: None })
+        Ok(Self { dir, prepared: None, names: PreparedNames::default() })
     }
 
     /// Lets requests read the prepared copies in `dir` (made if missing) as
     /// `@prepared/<file>`; without it (or when `dir` cannot be made) they are refused.
     #[must_use]
     pub fn with_prepared(self, dir: &Path) -> Self {
-        let prepared = std::fs::create_dir_all(dir).and_then(|()| dir.canonicalize()).ok();
-        Self { prepared, ..self }
+        let Ok(canonical) = std::fs::create_dir_all(dir).and_then(|()| dir.canonicalize()) else {
+            return Self { prepared: None, names: PreparedNames::default(), ..self };
+        };
+        let mut names: Vec<PathBuf> = std::path::absolute(dir).into_iter().chain([canonical.clone()]).collect();
+        // The longest first, so that no spelling is cut short by another that begins it.
+        names.sort_by_key(|d| std::cmp::Reverse(d.as_os_str().len()));
+        names.dedup();
+        Self { prepared: Some(canonical), names: PreparedNames(names), ..self }
     }
 
     /// The folder.
@@ -84,10 +113,16 @@ impl Root {
         Ok(rest.into_iter().rev().fold(canonical, |p, name| p.join(name)))
     }
 
-    /// The folder of prepared copies, when requests may read them.
+    /// The folder of prepared copies (canonical), when requests may read them.
     #[must_use]
     pub fn prepared(&self) -> Option<&Path> {
         self.prepared.as_deref()
+    }
+
+    /// The spellings of the prepared copies' folder that messages to a tab hide.
+    #[must_use]
+    pub fn prepared_names(&self) -> &PreparedNames {
+        &self.names
     }
 
     /// A file to read: `@prepared/<file>` (a prepared copy), else as [`Root::resolve`].
@@ -114,8 +149,8 @@ impl Root {
     /// How a tab sees `path`: a prepared copy as `@prepared/<file>`, anything else as it is.
     #[must_use]
     pub fn outward(&self, path: &Path) -> PathBuf {
-        match (&self.prepared, path.file_name()) {
-            (Some(dir), Some(name)) if path.parent() == Some(dir.as_path()) => Path::new(PREPARED_ALIAS).join(name),
+        match (path.parent(), path.file_name()) {
+            (Some(dir), Some(name)) if self.names.is(dir) => Path::new(PREPARED_ALIAS).join(name),
             _ => path.to_path_buf(),
         }
     }
@@ -170,10 +205,7 @@ impl Root {
                 Reply::Opened(file)
             }
             Reply::MoreDemos { path, last, demos } => Reply::MoreDemos { path: self.outward(&path), last, demos },
-            Reply::Failed { what, error } => match &self.prepared {
-                Some(dir) => Reply::Failed { what, error: error.replace(&*dir.to_string_lossy(), PREPARED_ALIAS) },
-                None => Reply::Failed { what, error },
-            },
+            Reply::Failed { what, error } => Reply::Failed { what, error: self.names.hide(error) },
             Reply::Listing(listing) => {
                 let parent = listing.parent.filter(|p| p.starts_with(&self.dir));
                 Reply::Listing(Box::new(Listing { parent, ..*listing }))
@@ -222,6 +254,30 @@ mod tests {
             }
             assert_eq!(root.resolve(Path::new("inside/a.hdf5")).unwrap(), canonical.join("data/a.hdf5"));
         }
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_prepared_copy_is_named_by_its_alias_however_its_folder_is_spelled() {
+        // The cache behind a symlink (as `~/.cache/mimicgen` may be): the backend names the copy
+        // through the link, the root holds the canonical folder, and a tab sees neither.
+        let dir = tempfile::tempdir().unwrap();
+        let cache = tempfile::tempdir().unwrap();
+        std::fs::create_dir(cache.path().join("real")).unwrap();
+        std::os::unix::fs::symlink(cache.path().join("real"), cache.path().join("link")).unwrap();
+        let through_link = cache.path().join("link/prepared");
+        let root = Root::new(dir.path()).unwrap().with_prepared(&through_link);
+        let canonical = root.prepared().unwrap().to_path_buf();
+        assert_ne!(canonical, through_link);
+        std::fs::write(canonical.join("lift-1.hdf5"), b"x").unwrap();
+        for spelling in [&through_link, &canonical] {
+            let copy = spelling.join("lift-1.hdf5");
+            assert_eq!(root.outward(&copy), Path::new("@prepared/lift-1.hdf5"), "{}", copy.display());
+            let said = root.prepared_names().hide(format!("{}: damaged", copy.display()));
+            assert_eq!(said, "@prepared/lift-1.hdf5: damaged");
+        }
+        assert_eq!(root.resolve_input(Path::new("@prepared/lift-1.hdf5")).unwrap(), canonical.join("lift-1.hdf5"));
+        assert_eq!(root.outward(&dir.path().join("a.hdf5")), dir.path().join("a.hdf5"), "anything else as it is");
     }
 
     #[test]

@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use mimicgen_backend::{Notify, RunSlot, Vetter, Worker};
 use mimicgen_ui::protocol::{ClientMessage, Frame, Reply, Request, RunUpdate, ServerMessage, Welcome};
 
-use crate::root::Root;
+use crate::root::{PreparedNames, Root};
 
 /// Messages queued for one tab before it is dropped as too slow to read them.
 const QUEUE: usize = 4096;
@@ -29,17 +29,14 @@ struct Clients {
     inboxes: BTreeMap<ClientId, Sender<ClientMessage>>,
     /// The server's run so far, as sent: `Joined` then every update.
     run_log: Vec<String>,
-    /// The prepared copies' folder as it appears in a message, and the alias a tab sees instead.
-    prepared: Option<(String, &'static str)>,
+    /// The prepared copies' folder as messages may spell it; a tab reads the alias instead.
+    prepared: PreparedNames,
 }
 
 impl Clients {
     /// `text` with the prepared copies' folder named by its alias.
     fn scrub(&self, text: String) -> String {
-        match &self.prepared {
-            Some((dir, alias)) if text.contains(dir.as_str()) => text.replace(dir.as_str(), alias),
-            _ => text,
-        }
+        self.prepared.hide(text)
     }
 
     /// Queues `text` for `client`; a tab whose queue is full is dropped (its socket then closes).
@@ -130,7 +127,7 @@ impl Session {
     pub fn new(root: Root, viewer: Option<String>, welcome: Welcome, vetter: Option<Vetter>) -> Self {
         // Whatever a message says of the prepared copies' folder (a run's report, an error), the
         // tab reads the alias.
-        let prepared = root.prepared().map(|dir| (dir.to_string_lossy().into_owned(), crate::root::PREPARED_ALIAS));
+        let prepared = root.prepared_names().clone();
         let shared = Shared {
             clients: Mutex::new(Clients { prepared, ..Clients::default() }),
             welcome,
