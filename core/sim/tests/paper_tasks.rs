@@ -507,6 +507,43 @@ fn kitchen_success_needs_the_stove_once_on_under_the_pot_and_bread() {
     assert!(task.is_success(env.physics()), "{:?}", task.unmet_success(env.physics()));
 }
 
+/// Coffee Preparation's pod and pod holder are Coffee's (the reference's), the cup built round our
+/// machine's axis 0.097 m up: the same geoms, moved; and its pod check is Coffee's about the cup.
+#[test]
+fn coffee_preparation_pod_and_holder_are_coffee_s() {
+    use mimicgen_sim::task_file::Predicate;
+    let (coffee, preparation) = (task_file("coffee"), task_file("coffee_preparation"));
+    assert_eq!(compound_geoms(&preparation, "pod"), compound_geoms(&coffee, "pod"), "the pod");
+    let cup = |file: &mimicgen_sim::TaskFile, centre: [f64; 3]| -> Vec<String> {
+        let mut parts: Vec<String> = compound_geoms(file, "machine")
+            .into_iter()
+            .filter(|g| {
+                (g.kind == "box" && (g.size[2] - 0.028).abs() < 1e-9) || (g.kind == "cylinder" && (g.size[0] - 0.0272172).abs() < 1e-9)
+            })
+            .map(|g| {
+                let at: Vec<String> = g.pos.iter().zip(centre).map(|(p, c)| format!("{:.6}", p - c)).collect();
+                format!("{} {:?} at {at:?} yaw {:.4}", g.kind, g.size, g.yaw_deg)
+            })
+            .collect();
+        parts.sort();
+        parts
+    };
+    let ours = cup(&preparation, [0.0, 0.0, 0.097]);
+    assert_eq!(ours.len(), 65, "64 wall boxes and the floor");
+    assert_eq!(ours, cup(&coffee, [0.0, 0.1061, 0.0635]), "the cup, moved");
+    let pod_check = |file: &mimicgen_sim::TaskFile| match &file.success {
+        Predicate::All(all) => all.iter().find_map(|p| match p {
+            Predicate::Inside { object, of_point_m, xy_m, dz_m, .. } if object == "pod" => Some((*of_point_m, *xy_m, *dz_m)),
+            _ => None,
+        }),
+        _ => None,
+    };
+    let (Some((at, xy, dz)), Some((coffee_at, coffee_xy, coffee_dz))) = (pod_check(&preparation), pod_check(&coffee)) else {
+        panic!("both check the pod")
+    };
+    assert_eq!((at, xy, dz), ([0.0, 0.0, 0.097], coffee_xy, coffee_dz), "Coffee's check about the cup (Coffee's at {coffee_at:?})");
+}
+
 #[test]
 fn coffee_preparation_starts_shut_and_its_demos_open_lid_and_drawer_then_shut_the_lid_on_the_pod() {
     rests_unsolved("coffee_preparation", &["D0", "D1"]);
