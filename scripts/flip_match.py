@@ -9,12 +9,11 @@ attempt was made from (its first src_demo_inds), and how many of each kind succe
 
   python scripts/flip_match.py SOURCE.hdf5 OUT.hdf5 OUT_failed.hdf5 [--object hammer]
 
-Needs h5py and numpy (the project's venv: $MIMICGEN_CACHE/venv/bin/python).
+Needs h5py (the project's venv: $MIMICGEN_CACHE/venv/bin/python).
 """
 import argparse
 
 import h5py
-import numpy as np
 
 
 def upside_down(world_from_object):
@@ -38,8 +37,7 @@ def main():
         with h5py.File(path, "r") as f:
             for d in demos(f):
                 g = f["data"][d]
-                inds = g.attrs["src_demo_inds"] if "src_demo_inds" in g.attrs else g["src_demo_inds"][()]
-                source = int(np.asarray(inds).ravel()[0])
+                source = int(g["src_demo_inds"][0])
                 kind = "same" if upside_down(g["datagen_info"]["object_poses"][args.object][0]) == source_flip[source] else "other"
                 succeeded = not path.endswith("_failed.hdf5")
                 counts[kind][0] += int(succeeded)
