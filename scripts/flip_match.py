@@ -5,7 +5,8 @@ robosuite turns Hammer Cleanup's hammer 180 deg about its handle at half the res
 demo's grasp, transformed to a hammer lying the other way up, comes at it from below. This
 counts, for every generated attempt (a dataset and, from --keep-failed, its failed one), whether
 the object's z axis pointed the same way (up or down) at the start as in the source demo the
-attempt was made from (its first src_demo_inds), and how many of each kind succeeded.
+attempt was made from (the first entry of its src_demo_inds: the first subtask's source, the
+same for every subtask unless --select-src-per-subtask), and how many of each kind succeeded.
 
   python scripts/flip_match.py SOURCE.hdf5 OUT.hdf5 OUT_failed.hdf5 [--object hammer]
 
