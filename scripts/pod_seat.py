@@ -24,7 +24,7 @@ def main():
     with h5py.File(args.dataset, "r") as f:
         for name in f["data"]:
             poses = f["data"][name]["datagen_info"]["object_poses"]
-            pod, machine = poses["pod"][-1], poses["machine"][-1]
+            pod, machine = poses["coffee_pod"][-1], poses["coffee_machine"][-1]
             offset = (np.linalg.inv(machine) @ pod)[:3, 3] - np.array(args.holder)
             off_axis_mm = 1000 * float(np.hypot(offset[0], offset[1]))
             height_mm = 1000 * float(offset[2])

@@ -813,7 +813,7 @@ fn coffee_preparation_opens_previews_its_five_subtasks_and_is_tried() {
     settle(&mut h);
     let view = h.state().model.preview.view.clone().unwrap();
     let objects: Vec<_> = view.subtasks.iter().map(|s| s.object.clone().unwrap()).collect();
-    assert_eq!(objects, ["mug", "machine", "drawer", "pod", "machine"]);
+    assert_eq!(objects, ["mug", "coffee_machine", "drawer", "coffee_pod", "coffee_machine"]);
     h.get_by_label_contains("Subtask 2 (relative to drawer)");
     h.get_by_label("Try it").click();
     h.step();

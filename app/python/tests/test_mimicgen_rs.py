@@ -236,7 +236,7 @@ def test_tasks_list_the_task_files_and_a_new_task_generates(tmp_path):
     names = [t["name"] for t in listed["tasks"]]
     assert {"stack", "threading", "coffee", "three_piece_assembly", "pick_place"} <= set(names)
     coffee = next(t for t in listed["tasks"] if t["name"] == "coffee")
-    assert coffee["env_name"] == "Coffee" and coffee["variants"] == ["D0", "D1", "D2"] and coffee["objects"] == ["pod", "machine"]
+    assert coffee["env_name"] == "Coffee" and coffee["variants"] == ["D0", "D1", "D2"] and coffee["objects"] == ["coffee_pod", "coffee_machine"]
     assert [r["name"] for r in listed["robots"]] == ["panda", "sawyer", "iiwa", "ur5e"]
     # A generated Threading dataset names robosuite's environment for its variant.
     import json

@@ -49,7 +49,7 @@ pub trait Environment {
     /// Whether the task is currently achieved.
     fn is_success(&self) -> bool;
 
-    /// The parts of the success condition that do not hold now, in words (`pod in machine`),
+    /// The parts of the success condition that do not hold now, in words (`coffee_pod in coffee_machine`),
     /// for failure reports; `None` when achieved or when the environment cannot say.
     fn unmet_success(&self) -> Option<String> {
         None

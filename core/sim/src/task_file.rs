@@ -185,7 +185,7 @@ pub enum Predicate {
         /// Distance (m).
         within_m: f64,
     },
-    /// A hinge or slide joint of the scene (`machine_hinge`) reads within `[min, max]` (deg for a
+    /// A hinge or slide joint of the scene (`coffee_machine_hinge`) reads within `[min, max]` (deg for a
     /// hinge).
     Joint {
         /// MuJoCo joint name.
@@ -456,7 +456,7 @@ impl TaskFile {
 }
 
 impl Predicate {
-    /// What it asks, in words (`pod in machine`), for failure reports.
+    /// What it asks, in words (`coffee_pod in coffee_machine`), for failure reports.
     pub(crate) fn words(&self) -> String {
         let list = |all: &[Self], sep: &str| all.iter().map(Self::words).collect::<Vec<_>>().join(sep);
         match self {

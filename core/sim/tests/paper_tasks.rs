@@ -276,7 +276,7 @@ fn coffee_starts_open_and_its_demos_insert_the_pod_and_shut_the_lid() {
     assert_eq!(obs.len(), 7 + 7 + 7 + 7 + 1);
     assert!(obs[28].abs() < 0.05, "hinge at {:.3} rad", obs[28]);
     // A failed attempt says which parts of the success condition are unmet: both, at the start.
-    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("pod in machine and machine_hinge in [-inf, -105]"));
+    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("coffee_pod in coffee_machine and coffee_machine_hinge in [-inf, -105]"));
     bundled_demos_succeed_and_generate("coffee", &["grasp"], "D0");
 }
 
@@ -296,7 +296,7 @@ fn coffee_holder_is_the_reference_cup_and_a_pod_in_it_passes_the_5_2_mm_check() 
     let holder = [0.0, 0.1061, 0.0635];
     // The wall: 64 boxes 5.6 cm tall round the holder's axis, each turned to face it, its inner
     // face 0.02497 m from it (the reference's 0.025 cos(pi/64)).
-    let wall: Vec<Part> = geoms("machine").into_iter().filter(|g| g.kind == "box" && (g.size[2] - 0.028).abs() < 1e-9).collect();
+    let wall: Vec<Part> = geoms("coffee_machine").into_iter().filter(|g| g.kind == "box" && (g.size[2] - 0.028).abs() < 1e-9).collect();
     assert_eq!(wall.len(), 64, "64 wall boxes");
     for g in &wall {
         let (dx, dy) = (g.pos[0] - holder[0], g.pos[1] - holder[1]);
@@ -307,7 +307,7 @@ fn coffee_holder_is_the_reference_cup_and_a_pod_in_it_passes_the_5_2_mm_check() 
         assert!(off.min(180.0 - off) < 1e-3, "turned to face the axis: {g:?}");
     }
     // The pod: its widest part the lip, 0.0243; 4.62 cm tall about its origin.
-    let pod = geoms("pod");
+    let pod = geoms("coffee_pod");
     let widest = pod.iter().map(|g| g.size[0]).fold(0.0, f64::max);
     let top = pod.iter().map(|g| g.pos[2] + g.size[1]).fold(f64::NEG_INFINITY, f64::max);
     let bottom = pod.iter().map(|g| g.pos[2] - g.size[1]).fold(f64::INFINITY, f64::min);
@@ -317,7 +317,7 @@ fn coffee_holder_is_the_reference_cup_and_a_pod_in_it_passes_the_5_2_mm_check() 
     // than the holder's, its top under the shut lid.
     let Predicate::All(all) = &file.success else { panic!("success: {:?}", file.success) };
     let Predicate::Inside { object, of, of_point_m, xy_m, dz_m } = &all[0] else { panic!("success.all[0]: {:?}", all[0]) };
-    assert_eq!((object.as_str(), of.as_str()), ("pod", "machine"));
+    assert_eq!((object.as_str(), of.as_str()), ("coffee_pod", "coffee_machine"));
     assert!(of_point_m.iter().zip(holder).all(|(a, b)| (a - b).abs() < 1e-9), "measured from the holder's centre: {of_point_m:?}");
     assert!((dz_m[0] - (0.023103 - 0.028)).abs() < 1e-9 && (dz_m[1] - (0.106 - 0.0095 - 0.023103 - 0.0635)).abs() < 1e-9, "{dz_m:?}");
     let XyBound::Both(xy) = *xy_m else { panic!("xy_m {xy_m:?}: one bound for x and y") };
@@ -329,7 +329,7 @@ fn coffee_holder_is_the_reference_cup_and_a_pod_in_it_passes_the_5_2_mm_check() 
     let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
     let mut env = SimEnv::new(scene, Arc::clone(&task));
     env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
-    let machine = env.object_poses()["machine"];
+    let machine = env.object_poses()["coffee_machine"];
     let above = machine.translation.vector + machine.rotation * Vec3::new(holder[0], holder[1], holder[2] + 0.0071 + 0.002);
     env.place_object(0, &pose_from_parts(above, machine.rotation));
     for _ in 0..40 {
@@ -339,7 +339,7 @@ fn coffee_holder_is_the_reference_cup_and_a_pod_in_it_passes_the_5_2_mm_check() 
     let d = sits.translation.vector - Vec3::from(holder);
     assert!(d.xy().norm() < 0.001 && (d.z - 0.0071).abs() < 0.001, "the pod at {d:?} from the holder's centre");
     assert!((sits.rotation * Vec3::z()).z > 0.9998, "upright within 1.1 deg");
-    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("machine_hinge in [-inf, -105]"));
+    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("coffee_machine_hinge in [-inf, -105]"));
 }
 
 #[test]
@@ -365,7 +365,7 @@ fn mug_cleanup_drawer_starts_shut_and_its_demos_open_it_put_the_mug_in_and_shut_
     let obs = task.object_obs(env.physics());
     assert_eq!(obs.len(), 7 + 7 + 7 + 7 + 1);
     assert!(obs[28].abs() < 1e-6, "the drawer starts shut: slide at {:.4} m", obs[28]);
-    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("mug in drawer"));
+    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("object in drawer"));
 
     // Along a bundled demo: whenever the drawer is out, the task is not done; it ends done.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/mug_cleanup_D0_source.hdf5");
@@ -387,7 +387,7 @@ fn mug_cleanup_drawer_starts_shut_and_its_demos_open_it_put_the_mug_in_and_shut_
     let mug = env.physics().object_pose(0).translation.vector;
     env.place_object(0, &pose_from_parts(mug + Vec3::new(0.0, 0.0, 0.04), Rot::from_axis_angle(&Vec3::x_axis(), 1.4)));
     env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
-    assert!(task.unmet_success(env.physics()).unwrap().contains("mug upright"), "{:?}", task.unmet_success(env.physics()));
+    assert!(task.unmet_success(env.physics()).unwrap().contains("object upright"), "{:?}", task.unmet_success(env.physics()));
 
     bundled_demos_succeed_and_generate("mug_cleanup", &["open", "grasp"], "D0");
 }
@@ -402,7 +402,7 @@ fn mug_cleanup_mugs_are_the_reference_sizes_and_fit_under_the_cabinet_top() {
     let top = cabinet.iter().find(|g| g.size.first() == Some(&0.102) && g.size.get(2) == Some(&0.008)).unwrap();
     let underside = top.pos[2] - top.size[2];
     const DRAWER_FLOOR_Z: f64 = 0.049;
-    let object = file.objects.iter().find(|o| o.name == "mug").unwrap();
+    let object = file.objects.iter().find(|o| o.name == "object").unwrap();
     let models = std::iter::once(&object.model).chain(object.instances.iter().map(|i| &i.model));
     let mut count = 0;
     for model in models {
@@ -513,9 +513,9 @@ fn kitchen_success_needs_the_stove_once_on_under_the_pot_and_bread() {
 fn coffee_preparation_pod_and_holder_are_coffee_s() {
     use mimicgen_sim::task_file::Predicate;
     let (coffee, preparation) = (task_file("coffee"), task_file("coffee_preparation"));
-    assert_eq!(compound_geoms(&preparation, "pod"), compound_geoms(&coffee, "pod"), "the pod");
+    assert_eq!(compound_geoms(&preparation, "coffee_pod"), compound_geoms(&coffee, "coffee_pod"), "the pod");
     let cup = |file: &mimicgen_sim::TaskFile, centre: [f64; 3]| -> Vec<String> {
-        let mut parts: Vec<String> = compound_geoms(file, "machine")
+        let mut parts: Vec<String> = compound_geoms(file, "coffee_machine")
             .into_iter()
             .filter(|g| {
                 (g.kind == "box" && (g.size[2] - 0.028).abs() < 1e-9) || (g.kind == "cylinder" && (g.size[0] - 0.0272172).abs() < 1e-9)
@@ -533,7 +533,7 @@ fn coffee_preparation_pod_and_holder_are_coffee_s() {
     assert_eq!(ours, cup(&coffee, [0.0, 0.1061, 0.0635]), "the cup, moved");
     let pod_check = |file: &mimicgen_sim::TaskFile| match &file.success {
         Predicate::All(all) => all.iter().find_map(|p| match p {
-            Predicate::Inside { object, of_point_m, xy_m, dz_m, .. } if object == "pod" => Some((*of_point_m, *xy_m, *dz_m)),
+            Predicate::Inside { object, of_point_m, xy_m, dz_m, .. } if object == "coffee_pod" => Some((*of_point_m, *xy_m, *dz_m)),
             _ => None,
         }),
         _ => None,
@@ -554,7 +554,7 @@ fn coffee_preparation_starts_shut_and_its_demos_open_lid_and_drawer_then_shut_th
     assert_eq!(obs.len(), 6 * 7 + 2);
     assert!(obs[42].abs() < 0.02, "lid hinge at {:.3} rad", obs[42]);
     assert!(obs[43].abs() < 1e-3, "drawer slide at {:.4} m", obs[43]);
-    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("mug in machine and pod in machine"));
+    assert_eq!(task.unmet_success(env.physics()).as_deref(), Some("mug in coffee_machine and coffee_pod in coffee_machine"));
 
     // Along a bundled demo the lid opens past the reference's 2.08 rad and the drawer past its
     // 19 cm (the `mug_place` and `drawer_open` signals), and while the lid is open the task is not

@@ -23,7 +23,7 @@ pub enum FailureReason {
     /// Every subtask ran but the task was never achieved.
     TaskNotAchieved {
         /// The part of the success condition that did not hold at the end, when the
-        /// environment can say (`pod in machine`).
+        /// environment can say (`coffee_pod in coffee_machine`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         unmet: Option<String>,
     },
