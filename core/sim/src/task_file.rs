@@ -570,13 +570,13 @@ mod tests {
         let err = TaskFile::from_toml_str(&unknown, "my.task.toml").unwrap_err();
         assert!(err.contains("my.task.toml") && err.contains("bronze_slim") && err.contains("O3"), "{err}");
         let renamed = mugs.replacen(
-            "label = \"red_round\"\nvariants = [\"O2\"]\nmodel = { kind = \"mug\", name = \"mug\"",
+            "label = \"red_round\"\nvariants = [\"O2\"]\nmodel = { kind = \"mug\", name = \"object\"",
             "label = \"red_round\"\nvariants = [\"O2\"]\nmodel = { kind = \"mug\", name = \"cup\"",
             1,
         );
         assert_ne!(renamed, mugs);
         let err = TaskFile::from_toml_str(&renamed, "my.task.toml").unwrap_err();
-        assert!(err.contains("red_round") && err.contains("\"mug\""), "{err}");
+        assert!(err.contains("red_round") && err.contains("\"object\""), "{err}");
     }
 
     #[test]
@@ -592,7 +592,7 @@ mod tests {
             let broken = coffee.replacen("range_deg = [-120.0, 0.0]", &format!("range_deg = {bad}"), 1);
             assert_ne!(broken, coffee);
             let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
-            assert!(err.contains("my.task.toml") && err.contains("\"machine\"") && err.contains("hinge.range_deg"), "{bad}: {err}");
+            assert!(err.contains("my.task.toml") && err.contains("\"coffee_machine\"") && err.contains("hinge.range_deg"), "{bad}: {err}");
         }
     }
 
