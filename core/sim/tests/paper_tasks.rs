@@ -6,7 +6,8 @@
 #![allow(clippy::indexing_slicing, reason = "test helpers: an index out of range fails the test, as it should")]
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 
-use std::ops::ControlFlow;
+mod common;
+
 use std::sync::Arc;
 
 use mimicgen_engine::{Environment as _, Generator, TaskSpec};
@@ -105,21 +106,7 @@ fn bundled_demos_succeed_and_generate(task_name: &str, signals: &[&str], variant
     }
     let spec = TaskSpec::from_toml_str(registry::default_spec_toml(task_name).unwrap(), "spec").unwrap();
     let generator = Generator::new(spec, sources).unwrap().with_seed(1);
-    let task = registry::task(task_name, variant).unwrap();
-    let mut envs = vec![SimEnv::new(Arc::new(Scene::for_task(task.as_ref()).unwrap()), task)];
-    let (mut successes, mut attempts) = (0, 0);
-    mimicgen_engine::run_with(
-        &generator,
-        &mut envs,
-        mimicgen_engine::RunControl::default(),
-        |_, _| Ok(()),
-        |a, (), _| {
-            attempts += 1;
-            successes += usize::from(a.success);
-            if successes < 2 && attempts < 16 { ControlFlow::Continue(()) } else { ControlFlow::Break(Ok(())) }
-        },
-    )
-    .unwrap();
+    let (successes, attempts) = common::generate_until(&generator, task_name, variant, 2, 16);
     assert!(successes >= 2, "{task_name} {variant}: {successes} of {attempts} generated attempts succeeded");
 }
 

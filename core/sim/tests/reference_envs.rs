@@ -4,11 +4,10 @@
 //! `prepare_src_dataset.py` stores (see `tests/data/README.md`).
 #![allow(clippy::unwrap_used)] // tests fail loudly by design
 
-use std::ops::ControlFlow;
-use std::sync::Arc;
+mod common;
 
 use mimicgen_engine::{Generator, TaskSpec};
-use mimicgen_sim::{Scene, SimEnv, registry};
+use mimicgen_sim::registry;
 
 /// Every task with a recording, and why a recording of that task does not generate in ours
 /// (`None`: it does). docs/fidelity.md ("Replayed in the reference's environments") has the
@@ -62,21 +61,7 @@ fn a_successful_recording_from_the_reference_s_env_generates_in_ours() {
             continue;
         }
         let generator = Generator::new(spec(task), recording(task)).unwrap_or_else(|e| panic!("{task}: {e}")).with_seed(1);
-        let task_env = registry::task(task, "D0").unwrap();
-        let mut envs = vec![SimEnv::new(Arc::new(Scene::for_task(task_env.as_ref()).unwrap()), task_env)];
-        let (mut successes, mut attempts) = (0, 0);
-        mimicgen_engine::run_with(
-            &generator,
-            &mut envs,
-            mimicgen_engine::RunControl::default(),
-            |_, _| Ok(()),
-            |a, (), _| {
-                attempts += 1;
-                successes += usize::from(a.success);
-                if successes < 1 && attempts < 12 { ControlFlow::Continue(()) } else { ControlFlow::Break(Ok(())) }
-            },
-        )
-        .unwrap();
+        let (successes, attempts) = common::generate_until(&generator, task, "D0", 1, 12);
         rates.push(format!("{task} {successes}/{attempts}"));
         assert!(successes >= 1, "{task}: none of {attempts} attempts from the reference's recording succeeded ({rates:?})");
     }
