@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Replay our source demos in the reference MimicGen's own task environments, open loop.
 
-Usage: reference_replay.py DATASET [--num N] [--diag] [--write OUT] [--json]
+Usage: reference_replay.py DATASET [--num N] [--diag] [--write OUT [--overwrite]] [--json]
 
 The question it answers: is our task the reference's task? For each of the first N demos of
 DATASET (a source file of ours, e.g. core/sim/data/coffee_D0_source.hdf5) it builds the reference's
@@ -46,6 +46,13 @@ import xml.etree.ElementTree as ET
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 
+try:
+    import h5py
+    import numpy as np
+except ImportError as e:
+    print(f"reference_replay: cannot import {e.name}: use robosuite 1.4.1's python (see --help)", file=sys.stderr)
+    sys.exit(2)
+
 
 def die(msg):
     print(f"reference_replay: {msg}", file=sys.stderr)
@@ -53,17 +60,12 @@ def die(msg):
 
 
 def quat_wxyz_to_mat(q):
-    import numpy as np
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    import robosuite.utils.transform_utils as T
+    w, x, y, z = q
+    return T.quat2mat(np.array([x, y, z, w], dtype=float))
 
 
 def mat_to_quat_wxyz(rot):
-    import numpy as np
     import robosuite.utils.transform_utils as T
     x, y, z, w = T.mat2quat(np.asarray(rot))
     return np.array([w, x, y, z])
@@ -83,7 +85,6 @@ def qpos_layout(xml):
 
 def world_from_body(xml, name):
     """The pose of body `name` in our model_file, composed from its ancestors' pos/quat."""
-    import numpy as np
 
     def local(b):
         t = np.eye(4)
@@ -110,7 +111,6 @@ def world_from_body(xml, name):
 
 
 def body_pose(sim, body_id):
-    import numpy as np
     t = np.eye(4)
     t[:3, 3] = sim.data.body_xpos[body_id]
     t[:3, :3] = sim.data.body_xmat[body_id].reshape(3, 3)
@@ -177,7 +177,6 @@ class Reference:
     def start_at(self, demo):
         """Reset, then put the robot and objects where our demo starts. Returns the names of our
         objects the reference does not have, of theirs we do not have, and the base shift."""
-        import numpy as np
         np.random.seed(0)  # robosuite's reset draws from numpy's global generator
         self.env.reset()  # a hard reset: a new sim
         sim = self.env.sim
@@ -223,7 +222,6 @@ class Reference:
 
     def replay(self, actions):
         """Step the actions; record what the reference's prepare_src_dataset.py would store."""
-        import numpy as np
         rec = {"states": [], "eef_pose": [], "target_pose": [], "gripper_action": [],
                "object_poses": {}, "signals": {}}
         ever = False
@@ -244,8 +242,6 @@ class Reference:
         return ever, bool(self.env._check_success()), rec
 
     def write(self, out, rec):
-        import h5py
-        import numpy as np
         env_args = {"env_name": self.env_name, "type": 1, "env_version": self.robosuite_version,
                     "env_kwargs": {"robots": ["Panda"], "controller_configs": self.controller,
                                    "has_renderer": False, "has_offscreen_renderer": False,
@@ -272,7 +268,6 @@ class Reference:
 
 def diagnose(demo, rec, shift):
     """Where the replay leaves ours: signals' first steps, objects' and the hand's first 1 cm."""
-    import numpy as np
     out = {}
     for name, ours in demo["signals"].items():
         o = np.nonzero(ours)[0]
@@ -293,8 +288,6 @@ def diagnose(demo, rec, shift):
 
 
 def read_demos(path, num):
-    import h5py
-    import numpy as np
     try:
         f = h5py.File(path, "r")
     except OSError as e:
@@ -333,7 +326,10 @@ def main():
     p.add_argument("--diag", action="store_true", help="say where each replay leaves ours")
     p.add_argument("--write", metavar="OUT", help="write one replay as a source file in the reference's layout")
     p.add_argument("--json", action="store_true", help="one JSON object per demo, then a summary object")
+    p.add_argument("--overwrite", action="store_true", help="let --write replace an existing file")
     args = p.parse_args()
+    if args.write and os.path.exists(args.write) and not args.overwrite:
+        die(f"{args.write}: exists (--overwrite replaces it)")
     env_name, demos = read_demos(args.dataset, args.num)
     ref = Reference(env_name)
     rows, first_ok, first_any = [], None, None
