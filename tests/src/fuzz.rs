@@ -65,7 +65,7 @@ pub fn task_file(data: &[u8]) {
     for variant in file.variants.clone() {
         let Ok(task) = DataTask::new(file.clone(), &variant) else { continue };
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
-        let _ = task.sample_scene(&mut rng);
+        let _ = task.sample_scene(&mut rng, None);
         let _ = task.objects();
     }
 }

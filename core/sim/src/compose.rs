@@ -73,10 +73,11 @@ pub enum ObjectModel {
         /// Density (kg/m^3).
         density: f64,
     },
-    /// A mug from primitive geoms, its frame at the centre of its base: a bottom disc, a wall of
-    /// 16 boxes and a handle of two arms and a bar along +x. Written as a free
-    /// [`ObjectModel::Compound`] (geoms `<name>_g<i>`); varied, it is the paper's set of mugs
-    /// for object transfer.
+    /// A mug from primitive geoms: a bottom disc, a wall of 16 boxes and a handle of two arms
+    /// and a bar. Its frame is wherever `base_m` and `handle_yaw_deg` put it (by default at the
+    /// centre of its base, the handle along +x; the reference's ShapeNet mugs have theirs at the
+    /// mesh's origin, the handle along +y). Written as a free [`ObjectModel::Compound`] (geoms
+    /// `<name>_g<i>`); varied, it is the paper's set of mugs for object transfer.
     Mug {
         /// Object name (`mug`).
         name: String,
@@ -89,6 +90,12 @@ pub enum ObjectModel {
         /// The handle: how far it reaches out from the wall, and the heights of its lower and
         /// upper arms (m).
         handle_m: [f64; 3],
+        /// The centre of its base in its frame (m).
+        #[serde(default)]
+        base_m: [f64; 3],
+        /// The direction of its handle in its frame (deg about z from +x).
+        #[serde(default)]
+        handle_yaw_deg: f64,
         /// Colour.
         rgba: [f64; 4],
         /// Density (kg/m^3).
@@ -174,7 +181,8 @@ pub struct Part {
     /// Turn about the object frame's z axis (deg).
     #[serde(default)]
     pub yaw_deg: f64,
-    /// Turn about the x axis (deg), applied before the yaw: 90 lays a cylinder along y.
+    /// Turn about the object frame's x axis (deg), applied before the yaw: 90 lays a cylinder
+    /// along y, and a yaw of 90 after it turns that cylinder to lie along x.
     #[serde(default)]
     pub roll_deg: f64,
     /// Colour; the object's when absent.
@@ -214,6 +222,30 @@ const ROUND_NUT_HANDLE: [f64; 3] = [0.06, 0.0, 0.0];
 const SQUARE_NUT_HANDLE: [f64; 3] = [0.054, 0.0, 0.0];
 
 impl ObjectModel {
+    /// How far its frame stands above the bottom it rests on (m): robosuite's `-bottom_offset`
+    /// (a mug's frame at its mesh's origin); 0 for a model whose frame is at its bottom or whose
+    /// task sets the height itself.
+    #[must_use]
+    pub fn origin_above_bottom_m(&self) -> f64 {
+        match self {
+            Self::Mug { base_m, .. } => -base_m[2],
+            _ => 0.0,
+        }
+    }
+
+    /// Contact pairs MuJoCo's parent filter would drop: a fixed cabinet's geoms against its
+    /// drawer's. The reference's cabinet is welded to the world, so its drawer meets it (the
+    /// back wall stops on the front posts 13.5 cm out); ours is a mocap body that resets move,
+    /// and a mocap body's child is filtered against it unless the pairs are explicit.
+    fn contact_pairs(&self) -> Vec<(String, String)> {
+        let Self::Compound { name, geoms, fixed: true, slide: Some(slide), .. } = self else {
+            return Vec::new();
+        };
+        (0..geoms.len())
+            .flat_map(|i| (0..slide.geoms.len()).map(move |j| (format!("{name}_g{i}"), format!("{name}_drawer_g{j}"))))
+            .collect()
+    }
+
     /// The body whose frame is the object's pose.
     #[must_use]
     pub fn body_name(&self) -> String {
@@ -234,14 +266,18 @@ impl ObjectModel {
     fn mug_parts(&self) -> Vec<Part> {
         const WALL_BOXES: u32 = 16;
         const BOTTOM_M: f64 = 0.008;
-        let Self::Mug { radius_m: r, height_m: h, wall_m: w, handle_m: [reach, low, high], density, .. } = *self else {
+        let Self::Mug { radius_m: r, height_m: h, wall_m: w, handle_m: [reach, low, high], base_m, handle_yaw_deg, density, .. } = *self
+        else {
             return Vec::new();
         };
-        let part = |size: Vec<f64>, pos: [f64; 3], yaw_deg: f64, kind: &str| Part {
+        // Built with the base at the origin and the handle along +x, then turned and moved into
+        // the mug's frame.
+        let (sin, cos) = handle_yaw_deg.to_radians().sin_cos();
+        let part = |size: Vec<f64>, [x, y, z]: [f64; 3], yaw_deg: f64, kind: &str| Part {
             kind: kind.to_owned(),
             size,
-            pos,
-            yaw_deg,
+            pos: [base_m[0] + cos * x - sin * y, base_m[1] + sin * x + cos * y, base_m[2] + z],
+            yaw_deg: yaw_deg + handle_yaw_deg,
             roll_deg: 0.0,
             rgba: None,
             density: Some(density),
@@ -388,10 +424,17 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
 fn write_parts(out: &mut String, prefix: &str, geoms: &[Part], rgba: [f64; 4], indent: &str) {
     for (i, part) in geoms.iter().enumerate() {
         let [r, g, b, a] = part.rgba.unwrap_or(rgba);
-        let turn = if part.yaw_deg == 0.0 && part.roll_deg == 0.0 {
+        let (roll, yaw) = (part.roll_deg.to_radians(), part.yaw_deg.to_radians());
+        let turn = if yaw == 0.0 && roll == 0.0 {
             String::new()
+        } else if yaw == 0.0 || roll == 0.0 {
+            format!(r#" euler="{roll} 0 {yaw}""#)
         } else {
-            format!(r#" euler="{} 0 {}""#, part.roll_deg.to_radians(), part.yaw_deg.to_radians())
+            // The roll about the object's x, then the yaw about its z: MJCF's euler turns about
+            // axes that move with the part, so both together are written as one quaternion.
+            let q = nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), yaw)
+                * nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::x_axis(), roll);
+            format!(r#" quat="{} {} {} {}""#, q.w, q.i, q.j, q.k)
         };
         let (kind, size, pos) = (&part.kind, words(&part.size), words(&part.pos));
         let density = part.density.map_or_else(String::new, |d| format!(r#" density="{d}""#));
@@ -470,21 +513,49 @@ fn with_table_top(xml: &str, top_z: f64) -> String {
 /// into `assets_dir`.
 #[must_use]
 pub fn compose_scene(assets_dir: &Path, objects: &[ObjectModel], table_top_z: f64) -> String {
-    compose_scene_with(&crate::robot::PANDA, assets_dir, objects, table_top_z)
+    compose_scene_with(&crate::robot::PANDA, assets_dir, objects, table_top_z, [0.0; 2])
 }
 
-/// [`compose_scene`] with another arm's base scene.
+/// [`compose_scene`] with another arm's base scene, its robot and table moved by
+/// `robot_offset_m` in x and y (a task whose world frame is another robosuite arena's).
 #[must_use]
-pub fn compose_scene_with(robot: &crate::robot::RobotModel, assets_dir: &Path, objects: &[ObjectModel], table_top_z: f64) -> String {
+pub fn compose_scene_with(
+    robot: &crate::robot::RobotModel,
+    assets_dir: &Path,
+    objects: &[ObjectModel],
+    table_top_z: f64,
+    robot_offset_m: [f64; 2],
+) -> String {
     let (mut assets, mut bodies) = (String::new(), String::new());
     for object in objects {
         object.write_assets(&mut assets);
         object.write_body(&mut bodies);
     }
-    with_table_top(robot.base_xml, table_top_z)
+    let mut base = with_table_top(robot.base_xml, table_top_z);
+    if robot_offset_m != [0.0; 2] {
+        // Every base scene has both bodies (the tests below compose each arm's).
+        for body in ["robot0_base", "table"] {
+            base = crate::mjcf_edit::shift_body(&base, body, robot_offset_m).unwrap_or(base);
+        }
+    }
+    let xml = base
         .replace("    <!-- OBJECT ASSETS -->\n", &assets)
         .replace("    <!-- OBJECT BODIES -->\n", &bodies)
-        .replace("{ASSETS}", assets_dir.display().to_string().trim_end_matches('/'))
+        .replace("{ASSETS}", assets_dir.display().to_string().trim_end_matches('/'));
+    let pairs: Vec<(String, String)> = objects.iter().flat_map(ObjectModel::contact_pairs).collect();
+    if pairs.is_empty() {
+        return xml;
+    }
+    // The parts' own contact parameters (write_parts), as MuJoCo would mix them.
+    let mut section = String::from("  <contact>\n");
+    for (a, b) in pairs {
+        let _ = writeln!(
+            section,
+            r#"    <pair geom1="{a}" geom2="{b}" condim="4" friction="0.95 0.95 0.3 0.1 0.1" solref="0.02 1" solimp="0.998 0.998 0.001"/>"#
+        );
+    }
+    section.push_str("  </contact>\n");
+    crate::mjcf_edit::with_section(&xml, &section)
 }
 
 #[cfg(test)]
@@ -498,5 +569,82 @@ mod tests {
         assert_eq!(xml.matches("0.3975").count(), 8, "four legs, each a size and a position");
         assert!(!xml.contains("0.3875"));
         assert_eq!(with_table_top(PANDA_TABLE_XML, BASE_TABLE_TOP_Z), PANDA_TABLE_XML);
+    }
+
+    #[test]
+    fn an_offset_moves_every_arm_and_its_table_but_nothing_else() {
+        for robot in crate::robot::ROBOTS {
+            let still = compose_scene_with(robot, Path::new("/a"), &[], BASE_TABLE_TOP_Z, [0.0; 2]);
+            let moved = compose_scene_with(robot, Path::new("/a"), &[], BASE_TABLE_TOP_Z, [0.06, -0.1]);
+            let pos = |xml: &str, body: &str| -> Vec<f64> {
+                let start = xml.find(&format!(r#"<body name="{body}""#)).unwrap_or_else(|| panic!("{}: no {body}", robot.robosuite_name));
+                let tag = &xml[start..start + xml[start..].find('>').unwrap_or_default()];
+                let value = tag.split(r#"pos=""#).nth(1).and_then(|v| v.split('"').next()).unwrap_or_default();
+                value.split_whitespace().map(|w| w.parse().unwrap_or(f64::NAN)).collect()
+            };
+            for body in ["robot0_base", "table"] {
+                let (a, b) = (pos(&still, body), pos(&moved, body));
+                let d: Vec<f64> = b.iter().zip(&a).map(|(b, a)| ((b - a) * 1e9).round() / 1e9).collect();
+                assert_eq!(d, [0.06, -0.1, 0.0], "{} {body}: {a:?} -> {b:?}", robot.robosuite_name);
+            }
+            assert_eq!(pos(&still, "mount0_base"), pos(&moved, "mount0_base"), "children keep their parent's frame");
+            assert_eq!(still.lines().count(), moved.lines().count());
+        }
+    }
+
+    #[test]
+    fn a_part_rolled_then_turned_lies_along_x() {
+        let bar = Part {
+            kind: "capsule".to_owned(),
+            size: vec![0.009, 0.05],
+            pos: [0.0, -0.17, 0.121],
+            yaw_deg: 90.0,
+            roll_deg: 90.0,
+            rgba: None,
+            density: None,
+        };
+        let mut xml = String::new();
+        write_parts(&mut xml, "drawer_g", &[bar], [1.0; 4], "");
+        let quat = xml.split(r#"quat=""#).nth(1).and_then(|q| q.split('"').next()).unwrap_or_default();
+        let q: Vec<f64> = quat.split_whitespace().map(|w| w.parse().unwrap_or(f64::NAN)).collect();
+        let [w, x, y, z] = q[..] else { panic!("{xml}") };
+        let axis = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z)) * nalgebra::Vector3::z();
+        assert!((axis.x.abs() - 1.0).abs() < 1e-9, "the capsule's axis {axis:?}, want along x");
+    }
+
+    fn mug(base_m: [f64; 3], handle_yaw_deg: f64) -> ObjectModel {
+        ObjectModel::Mug {
+            name: "object".to_owned(),
+            radius_m: 0.0283,
+            height_m: 0.0644,
+            wall_m: 0.004,
+            handle_m: [0.025, 0.012, 0.056],
+            base_m,
+            handle_yaw_deg,
+            rgba: [1.0; 4],
+            density: 100.0,
+        }
+    }
+
+    #[test]
+    fn a_mug_is_built_in_the_frame_its_base_and_handle_name() {
+        let plain = mug([0.0; 3], 0.0);
+        let shapenet = mug([0.0, -0.0181, -0.0309], 90.0);
+        assert_eq!((plain.origin_above_bottom_m(), shapenet.origin_above_bottom_m()), (0.0, 0.0309));
+        let (a, b) = (plain.mug_parts(), shapenet.mug_parts());
+        assert_eq!(a.len(), b.len());
+        for (a, b) in a.iter().zip(&b) {
+            // Each part turned a quarter about z, then moved by the base.
+            let want = [-a.pos[1], a.pos[0] - 0.0181, a.pos[2] - 0.0309];
+            let err = b.pos.iter().zip(want).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+            assert!(err < 1e-12, "{:?} -> {:?}, want {want:?}", a.pos, b.pos);
+            assert!((b.yaw_deg - a.yaw_deg - 90.0).abs() < 1e-12 && a.size == b.size);
+        }
+        // The handle's bar, the last part, reaches out along +y, past the cup.
+        let bar = b.last().map(|p| p.pos).unwrap_or_default();
+        assert!(bar[0].abs() < 1e-9 && bar[1] > -0.0181 + 0.0283, "{bar:?}");
+        // The bottom disc's underside is the mug's bottom, 0.0309 below the frame.
+        let disc = &b[0];
+        assert!((disc.pos[2] - disc.size[1] + 0.0309).abs() < 1e-12);
     }
 }

@@ -8,7 +8,7 @@ use std::f64::consts::{PI, TAU};
 use mimicgen_engine::EnvError;
 use mimicgen_engine::coverage::{Coordinate, Dimension};
 use mimicgen_engine::demonstrator::PickPlaceScript;
-use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
+use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts, quat_from_wxyz};
 use rand::{Rng, RngCore};
 
 use crate::compose::ObjectModel;
@@ -254,7 +254,8 @@ impl Task for DataTask {
         clippy::indexing_slicing,
         reason = "placement_order gives indices of file.objects, and regions and poses have one entry per object"
     )]
-    fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError> {
+    fn sample_scene(&self, rng: &mut dyn RngCore, instance: Option<&str>) -> Result<Vec<Pose>, EnvError> {
+        let models = self.instances.iter().find(|(label, _)| Some(label.as_str()) == instance).map(|(_, models)| models);
         // robosuite's `UniformRandomSampler`: objects one by one, each position redrawn (up to
         // 10 000 times) until its circle clears those of the objects placed before it.
         let mut poses = vec![Pose::identity(); self.file.objects.len()];
@@ -283,7 +284,12 @@ impl Task for DataTask {
             if flipped {
                 world_from_object *= Rot::from_axis_angle(&Vec3::x_axis(), PI);
             }
-            poses[i] = pose_from_parts(Vec3::new(x, y, self.file.table_top_z + object.height_m), world_from_object);
+            world_from_object *= quat_from_wxyz(object.init_quat);
+            // robosuite's sampler stands an object's bottom on the table: a mesh's origin is
+            // above it.
+            let model = models.and_then(|m| m.get(i)).unwrap_or(&object.model);
+            let z = self.file.table_top_z + object.height_m + model.origin_above_bottom_m();
+            poses[i] = pose_from_parts(Vec3::new(x, y, z), world_from_object);
         }
         Ok(poses)
     }
@@ -345,5 +351,51 @@ impl Task for DataTask {
 
     fn table_top_z(&self) -> f64 {
         self.file.table_top_z
+    }
+
+    fn robot_offset_m(&self) -> [f64; 2] {
+        self.file.robot_offset_m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::SeedableRng;
+
+    use super::*;
+
+    #[test]
+    fn each_mug_stands_its_own_bottom_on_the_table() {
+        let task = crate::registry::task("mug_cleanup", "O2").unwrap_or_else(|e| panic!("{e}"));
+        let mut heights = Vec::new();
+        for (label, models) in task.instances() {
+            let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+            let poses = task.sample_scene(&mut rng, Some(&label)).unwrap_or_else(|e| panic!("{e}"));
+            let mug = task.objects().iter().position(|(name, _)| name == "object").unwrap_or_default();
+            let z = poses[mug].translation.vector.z - task.table_top_z();
+            let bottom = models[mug].origin_above_bottom_m();
+            assert!((z - 0.001 - bottom).abs() < 1e-12, "{label}: origin {z} above the table, its bottom {bottom} below it");
+            heights.push(bottom);
+        }
+        // The twelve mugs' origins stand 1.8 to 4.2 cm above their bottoms.
+        let (low, high) = heights.iter().fold((f64::MAX, f64::MIN), |(l, h), z| (l.min(*z), h.max(*z)));
+        assert!((low, high) == (0.018, 0.0423), "{low} {high}");
+    }
+
+    #[test]
+    fn the_hammer_lies_with_its_handle_along_x_flipped_half_the_time() {
+        let task = crate::registry::task("hammer_cleanup", "D0").unwrap_or_else(|e| panic!("{e}"));
+        let hammer = task.objects().iter().position(|(name, _)| name == "hammer").unwrap_or_default();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut face_left = 0;
+        for _ in 0..200 {
+            let poses = task.sample_scene(&mut rng, None).unwrap_or_else(|e| panic!("{e}"));
+            let r = poses[hammer].rotation;
+            // robosuite's frame: z along the handle, to world +x; y vertical; x across, +y or -y.
+            assert!((r * Vec3::z() - Vec3::x()).norm() < 1e-9, "{:?}", r * Vec3::z());
+            assert!((r * Vec3::y()).z.abs() > 1.0 - 1e-9);
+            face_left += usize::from((r * Vec3::x()).y > 0.0);
+        }
+        assert!((70..=130).contains(&face_left), "{face_left} of 200 unflipped");
     }
 }

@@ -371,7 +371,7 @@ impl Environment for SimEnv {
                 qpos[*adr] = q;
             }
         }
-        let placements = self.task.sample_scene(rng)?;
+        let placements = self.task.sample_scene(rng, self.instance())?;
         for (i, pose) in placements.iter().enumerate() {
             self.place_object(i, pose);
         }

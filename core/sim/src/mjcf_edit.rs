@@ -80,6 +80,21 @@ pub fn place_body(xml: &str, name: &str, world_from_body: &Pose) -> Option<Strin
     )
 }
 
+/// `xml` with body `name` moved by `dx_dy` (m) in its parent's x and y. `None` if the XML has no
+/// such body or its `pos` is not three numbers.
+#[must_use]
+pub fn shift_body(xml: &str, name: &str, [dx, dy]: [f64; 2]) -> Option<String> {
+    let open = xml.match_indices("<body").map(|(i, _)| i).find_map(|i| {
+        let end = xml[i..].find('>')? + i;
+        let attrs = parse_attrs(&xml[i..=end])?;
+        attrs.iter().any(|(k, v)| k == "name" && v == name).then_some(attrs)
+    })?;
+    let pos = open.iter().find(|(k, _)| k == "pos").map_or("0 0 0", |(_, v)| v.as_str());
+    let p: Vec<f64> = pos.split_whitespace().map(str::parse).collect::<Result<_, _>>().ok()?;
+    let [x, y, z] = p[..] else { return None };
+    edit_body(xml, name, &[("pos", words(&[x + dx, y + dy, z]))], &[])
+}
+
 /// `xml` with every texture made a tiny flat one: physics never reads textures, and robosuite's
 /// image textures (a 1450 px wood image on six cube faces, a 1181 px ceramic one, and others)
 /// decode to tens of MB that a simulator would hold for nothing. Materials keep their names.

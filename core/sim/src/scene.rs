@@ -273,7 +273,7 @@ impl Scene {
         origin: &str,
     ) -> Result<(Self, String), SimError> {
         let assets = crate::assets::robosuite_assets_dir()?;
-        let xml = crate::compose::compose_scene_with(robot, &assets, models, task.table_top_z());
+        let xml = crate::compose::compose_scene_with(robot, &assets, models, task.table_top_z(), task.robot_offset_m());
         let scene = Self::compile(&xml, origin, &task.objects(), 20.0)?;
         scene.check_joints_read(task, origin)?;
         Ok((scene, xml))

@@ -26,11 +26,12 @@ pub trait Task: Send + Sync {
     fn instances(&self) -> Vec<(String, Vec<ObjectModel>)> {
         Vec::new()
     }
-    /// Initial `world_from_object` of every object, in order.
+    /// Initial `world_from_object` of every object, in order, for the object instance labelled
+    /// `instance` (see [`Task::instances`]; `None` for the variant's own objects).
     ///
     /// # Errors
     /// [`EnvError::Fatal`] if no valid placement is found.
-    fn sample_scene(&self, rng: &mut dyn RngCore) -> Result<Vec<Pose>, EnvError>;
+    fn sample_scene(&self, rng: &mut dyn RngCore, instance: Option<&str>) -> Result<Vec<Pose>, EnvError>;
     /// Subtask-end signals in the current state.
     fn signals(&self, env: &SimState) -> BTreeMap<String, i64>;
     /// Whether the task is achieved in the current state.
@@ -56,6 +57,11 @@ pub trait Task: Send + Sync {
     /// Height of the table top (m), robosuite's `table_offset` z.
     fn table_top_z(&self) -> f64 {
         BASE_TABLE_TOP_Z
+    }
+    /// How far the robot and the table stand from where the base scene has them (m, x and y):
+    /// a task whose world frame is another robosuite arena's (Pick Place's bins arena).
+    fn robot_offset_m(&self) -> [f64; 2] {
+        [0.0; 2]
     }
     /// Indices of the objects that are obstacles (clutter the robot should not touch).
     fn obstacles(&self) -> Vec<usize> {

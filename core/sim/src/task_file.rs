@@ -50,6 +50,11 @@ pub struct TaskFile {
     /// Height of the table top (m), robosuite's `table_offset` z.
     #[serde(default = "base_table_top_z")]
     pub table_top_z: f64,
+    /// How far the robot and the table stand from where the base scene has them (m, x and y):
+    /// Pick Place keeps robosuite's bins-arena world frame, its robot 6 cm further forward and
+    /// 10 cm to the right of the table scene's.
+    #[serde(default)]
+    pub robot_offset_m: [f64; 2],
     /// The objects, in the order of the object observation and the datasets' `object_poses`.
     #[serde(rename = "object")]
     pub objects: Vec<ObjectDef>,
@@ -88,6 +93,10 @@ pub struct ObjectDef {
     pub radius_m: f64,
     /// Where each variant places it.
     pub place: BTreeMap<String, Region>,
+    /// Its orientation before the reset's flip and yaw (w, x, y, z): robosuite's `init_quat`
+    /// (the reference's hammer lies on its side: its handle, the frame's z, along world +x).
+    #[serde(default = "no_turn")]
+    pub init_quat: [f64; 4],
     /// Other objects of its category that variants use in its place (the paper's object
     /// transfer: O1 an unseen mug, O2 one of twelve drawn per episode).
     #[serde(default, rename = "instance")]
@@ -126,11 +135,16 @@ pub struct Region {
     /// Yaw range (deg).
     #[serde(default = "any_yaw")]
     pub yaw_deg: [f64; 2],
-    /// Half the resets (a seeded draw) turn the object 180 deg about its own x axis before its
-    /// yaw: robosuite's placement sampler does this to the hammer of Hammer Cleanup (it composes
-    /// the hammer's two possible initial orientations with the sampled rotation).
+    /// Half the resets (a seeded draw) turn the object 180 deg about the world's x axis after its
+    /// `init_quat` and before its yaw: robosuite's placement sampler does this to the hammer of
+    /// Hammer Cleanup (it composes the hammer's two possible initial orientations with the
+    /// sampled rotation).
     #[serde(default)]
     pub flip: bool,
+}
+
+fn no_turn() -> [f64; 4] {
+    [1.0, 0.0, 0.0, 0.0]
 }
 
 fn any_yaw() -> [f64; 2] {
@@ -347,7 +361,14 @@ impl TaskFile {
                 Err(format!("field `{field}` names object {name:?}, which is not one of {objects}"))
             }
         };
+        if !self.robot_offset_m.iter().all(|v| v.is_finite() && v.abs() < 1.0) {
+            return Err(format!("field `robot_offset_m` {:?} must be finite and within 1 m", self.robot_offset_m));
+        }
         for object in &self.objects {
+            let q = object.init_quat;
+            if !(q.iter().all(|c| c.is_finite()) && q.iter().map(|c| c * c).sum::<f64>() > 1e-6) {
+                return Err(format!("object {:?}: `init_quat` {q:?} is not a rotation (w, x, y, z; finite, not zero)", object.name));
+            }
             if let Some(v) = object.variants.iter().find(|v| !self.variants.contains(v)) {
                 return Err(format!("object {:?}: `variants` names {v}, which the task does not have", object.name));
             }
@@ -552,6 +573,13 @@ mod tests {
         let named = STACK.replace("grasped = \"cubeA\"", "grasped = \"wall\"");
         let err = TaskFile::from_toml_str(&named, "my.task.toml").unwrap_err();
         assert!(err.contains("only some variants"), "{err}");
+        let unturned = STACK.replacen("height_m = 0.03", "height_m = 0.03\ninit_quat = [0.0, 0.0, 0.0, 0.0]", 1);
+        assert_ne!(unturned, STACK);
+        let err = TaskFile::from_toml_str(&unturned, "my.task.toml").unwrap_err();
+        assert!(err.contains("my.task.toml") && err.contains("\"cubeA\"") && err.contains("init_quat"), "{err}");
+        let far = STACK.replacen("variants = ", "robot_offset_m = [0.1, nan]\nvariants = ", 1);
+        let err = TaskFile::from_toml_str(&far, "my.task.toml").unwrap_err();
+        assert!(err.contains("my.task.toml") && err.contains("robot_offset_m"), "{err}");
     }
 
     #[test]

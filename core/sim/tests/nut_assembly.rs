@@ -34,7 +34,7 @@ fn the_nuts_rest_in_their_strips_and_the_pegs_stay_put() {
     let wide: Arc<dyn Task> = registry::task("nut_assembly", "D1").unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
     for _ in 0..200 {
-        let poses = wide.sample_scene(&mut rng).unwrap();
+        let poses = wide.sample_scene(&mut rng, None).unwrap();
         assert!((poses[0].translation.vector - poses[1].translation.vector).xy().norm() > 0.22);
     }
 }
