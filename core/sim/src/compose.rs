@@ -532,7 +532,7 @@ pub fn compose_scene_with(
         object.write_body(&mut bodies);
     }
     let mut base = with_table_top(robot.base_xml, table_top_z);
-    if robot_offset_m != [0.0; 2] {
+    if robot_offset_m.iter().any(|v| *v != 0.0) {
         // Every base scene has both bodies (the tests below compose each arm's).
         for body in ["robot0_base", "table"] {
             base = crate::mjcf_edit::shift_body(&base, body, robot_offset_m).unwrap_or(base);
