@@ -4,6 +4,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use mimicgen_engine::pose::{Rot, Vec3, quat_to_wxyz};
+
 use crate::mjcf_edit::words;
 
 /// The base scene: robosuite's table arena with a Panda on its mount, asset paths as `{ASSETS}/`.
@@ -432,9 +434,8 @@ fn write_parts(out: &mut String, prefix: &str, geoms: &[Part], rgba: [f64; 4], i
         } else {
             // The roll about the object's x, then the yaw about its z: MJCF's euler turns about
             // axes that move with the part, so both together are written as one quaternion.
-            let q = nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), yaw)
-                * nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::x_axis(), roll);
-            format!(r#" quat="{} {} {} {}""#, q.w, q.i, q.j, q.k)
+            let q = Rot::from_axis_angle(&Vec3::z_axis(), yaw) * Rot::from_axis_angle(&Vec3::x_axis(), roll);
+            format!(r#" quat="{}""#, words(&quat_to_wxyz(&q)))
         };
         let (kind, size, pos) = (&part.kind, words(&part.size), words(&part.pos));
         let density = part.density.map_or_else(String::new, |d| format!(r#" density="{d}""#));

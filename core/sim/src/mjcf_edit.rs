@@ -18,8 +18,11 @@ pub(crate) fn words(v: &[f64]) -> String {
     v.iter().map(f64::to_string).collect::<Vec<_>>().join(" ")
 }
 
+/// A start tag's attributes, `(key, value)` in order.
+type Attrs = Vec<(String, String)>;
+
 /// One start tag's attributes, parsed from `<tag a="1" b="2">`.
-fn parse_attrs(tag: &str) -> Option<Vec<(String, String)>> {
+fn parse_attrs(tag: &str) -> Option<Attrs> {
     let mut attrs = Vec::new();
     let mut rest = tag.trim_start_matches('<').split_once(char::is_whitespace).map_or("", |(_, r)| r);
     loop {
@@ -42,11 +45,9 @@ pub fn edit_body(xml: &str, name: &str, set: &[(&str, String)], remove: &[&str])
     edit_element(xml, "body", name, set, remove)
 }
 
-/// `xml` with the start tag of the `element` named `name` (`body`, `joint`, ...) given `set`
-/// attributes (replacing any of the same key) and without the `remove` ones. `None` if the XML
-/// has no such element.
-#[must_use]
-pub fn edit_element(xml: &str, element: &str, name: &str, set: &[(&str, String)], remove: &[&str]) -> Option<String> {
+/// The start tag of the `element` named `name`: where it starts and ends in `xml`, and its
+/// attributes.
+fn find_element(xml: &str, element: &str, name: &str) -> Option<(usize, usize, Attrs)> {
     let open = format!("<{element}");
     let mut from = 0;
     while let Some(i) = xml[from..].find(&open).map(|i| i + from) {
@@ -54,16 +55,25 @@ pub fn edit_element(xml: &str, element: &str, name: &str, set: &[(&str, String)]
         let tag = &xml[i..end];
         let attrs = parse_attrs(tag)?;
         if tag[open.len()..].starts_with(char::is_whitespace) && attrs.iter().any(|(k, v)| k == "name" && v == name) {
-            let mut kept: Vec<(String, String)> =
-                attrs.into_iter().filter(|(k, _)| !remove.contains(&k.as_str()) && !set.iter().any(|(s, _)| s == k)).collect();
-            kept.extend(set.iter().map(|(k, v)| ((*k).to_owned(), v.clone())));
-            let attrs: String = kept.iter().map(|(k, v)| format!(" {k}=\"{v}\"")).collect();
-            let close = if tag.ends_with("/>") { "/>" } else { ">" };
-            return Some(format!("{}{open}{attrs}{close}{}", &xml[..i], &xml[end..]));
+            return Some((i, end, attrs));
         }
         from = end;
     }
     None
+}
+
+/// `xml` with the start tag of the `element` named `name` (`body`, `joint`, ...) given `set`
+/// attributes (replacing any of the same key) and without the `remove` ones. `None` if the XML
+/// has no such element.
+#[must_use]
+pub fn edit_element(xml: &str, element: &str, name: &str, set: &[(&str, String)], remove: &[&str]) -> Option<String> {
+    let (start, end, attrs) = find_element(xml, element, name)?;
+    let mut kept: Vec<(String, String)> =
+        attrs.into_iter().filter(|(k, _)| !remove.contains(&k.as_str()) && !set.iter().any(|(s, _)| s == k)).collect();
+    kept.extend(set.iter().map(|(k, v)| ((*k).to_owned(), v.clone())));
+    let attrs: String = kept.iter().map(|(k, v)| format!(" {k}=\"{v}\"")).collect();
+    let close = if xml[start..end].ends_with("/>") { "/>" } else { ">" };
+    Some(format!("{}<{element}{attrs}{close}{}", &xml[..start], &xml[end..]))
 }
 
 /// `xml` with body `name` at `world_from_body` (position and `wxyz` quaternion; a body in the
@@ -84,12 +94,8 @@ pub fn place_body(xml: &str, name: &str, world_from_body: &Pose) -> Option<Strin
 /// such body or its `pos` is not three numbers.
 #[must_use]
 pub fn shift_body(xml: &str, name: &str, [dx, dy]: [f64; 2]) -> Option<String> {
-    let open = xml.match_indices("<body").map(|(i, _)| i).find_map(|i| {
-        let end = xml[i..].find('>')? + i;
-        let attrs = parse_attrs(&xml[i..=end])?;
-        attrs.iter().any(|(k, v)| k == "name" && v == name).then_some(attrs)
-    })?;
-    let pos = open.iter().find(|(k, _)| k == "pos").map_or("0 0 0", |(_, v)| v.as_str());
+    let (_, _, attrs) = find_element(xml, "body", name)?;
+    let pos = attrs.iter().find(|(k, _)| k == "pos").map_or("0 0 0", |(_, v)| v.as_str());
     let p: Vec<f64> = pos.split_whitespace().map(str::parse).collect::<Result<_, _>>().ok()?;
     let [x, y, z] = p[..] else { return None };
     edit_body(xml, name, &[("pos", words(&[x + dx, y + dy, z]))], &[])
