@@ -140,8 +140,39 @@ pub struct Hinge {
     /// closed (`open_deg = 0`) and opens by turning, a lid opened to `[-100, 0]`.
     #[serde(default)]
     pub range_deg: Option<[f64; 2]>,
+    /// What the joint reads at reset (deg; MJCF's `ref`): 0 unless the part's own zero is
+    /// elsewhere (a switch that rests at -17.2 deg, off, and is on from 0 up).
+    #[serde(default)]
+    pub start_deg: f64,
+    /// Viscous damping of the joint (N m s/rad).
+    #[serde(default = "hinge_damping")]
+    pub damping: f64,
+    /// Dry friction of the joint (N m): a part it holds wherever it is pushed to.
+    #[serde(default)]
+    pub frictionloss: f64,
+    /// The part's mass and inertia in place of its geoms' (a part whose maker gave them).
+    #[serde(default)]
+    pub inertial: Option<Box<Inertial>>,
     /// Its geoms, relative to the hinge, as they sit when closed.
     pub geoms: Vec<Part>,
+}
+
+fn hinge_damping() -> f64 {
+    0.01
+}
+
+/// A body's mass and inertia, as MJCF's `<inertial>` gives them (relative to its hinge).
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Inertial {
+    /// Centre of mass (m).
+    pub pos: [f64; 3],
+    /// Orientation of the principal axes (w, x, y, z).
+    pub quat: [f64; 4],
+    /// Mass (kg).
+    pub mass: f64,
+    /// Principal moments of inertia (kg m^2).
+    pub diaginertia: [f64; 3],
 }
 
 /// A sliding part of a [`ObjectModel::Compound`]: body `<name>_drawer` on joint `<name>_slide`,
@@ -193,6 +224,10 @@ pub struct Part {
     /// Density (kg/m^3); MuJoCo's default (water) when absent.
     #[serde(default)]
     pub density: Option<f64>,
+    /// Seen but never touched: no collision geom, only the coloured copy (a burner's plate, a
+    /// serving region painted on the table).
+    #[serde(default)]
+    pub visual: bool,
 }
 
 /// robosuite's square nut: `(position, half extents)` of its five box geoms, in the nut frame.
@@ -283,6 +318,7 @@ impl ObjectModel {
             roll_deg: 0.0,
             rgba: None,
             density: Some(density),
+            visual: false,
         };
         let middle = r - w / 2.0;
         let step = std::f64::consts::TAU / f64::from(WALL_BOXES);
@@ -403,8 +439,18 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
             None if open < 0.0 => format!("0 {}", -open),
             None => format!("{} 0", -open),
         };
+        let (start, damping, frictionloss) = (h.start_deg.to_radians(), h.damping, h.frictionloss);
         let _ = writeln!(out, r#"      <body name="{name}_lid" pos="{pos}" axisangle="{axis} {open}">"#);
-        let _ = writeln!(out, r#"        <joint name="{name}_hinge" type="hinge" axis="{axis}" range="{range}" damping="0.01"/>"#);
+        if let Some(i) = &h.inertial {
+            let (pos, quat, mass, diag) = (words(&i.pos), words(&i.quat), i.mass, words(&i.diaginertia));
+            let _ = writeln!(out, r#"        <inertial pos="{pos}" quat="{quat}" mass="{mass}" diaginertia="{diag}"/>"#);
+        }
+        let extra = if frictionloss > 0.0 { format!(r#" frictionloss="{frictionloss}""#) } else { String::new() };
+        let reference = if start == 0.0 { String::new() } else { format!(r#" ref="{start}""#) };
+        let _ = writeln!(
+            out,
+            r#"        <joint name="{name}_hinge" type="hinge" axis="{axis}" range="{range}"{reference} damping="{damping}"{extra}/>"#
+        );
         write_parts(out, &format!("{name}_lid_g"), &h.geoms, rgba, "        ");
         let _ = writeln!(out, "      </body>");
     }
@@ -439,10 +485,12 @@ fn write_parts(out: &mut String, prefix: &str, geoms: &[Part], rgba: [f64; 4], i
         };
         let (kind, size, pos) = (&part.kind, words(&part.size), words(&part.pos));
         let density = part.density.map_or_else(String::new, |d| format!(r#" density="{d}""#));
-        let _ = writeln!(
-            out,
-            r#"{indent}<geom name="{prefix}{i}" type="{kind}" size="{size}" pos="{pos}"{turn}{density} friction="0.95 0.3 0.1" condim="4" solimp="0.998 0.998 0.001" solref="0.02 1" group="0" rgba="{r} {g} {b} {a}"/>"#
-        );
+        if !part.visual {
+            let _ = writeln!(
+                out,
+                r#"{indent}<geom name="{prefix}{i}" type="{kind}" size="{size}" pos="{pos}"{turn}{density} friction="0.95 0.3 0.1" condim="4" solimp="0.998 0.998 0.001" solref="0.02 1" group="0" rgba="{r} {g} {b} {a}"/>"#
+            );
+        }
         let _ = writeln!(
             out,
             r#"{indent}<geom name="{prefix}{i}_vis" type="{kind}" size="{size}" pos="{pos}"{turn} contype="0" conaffinity="0" group="1" mass="0" rgba="{r} {g} {b} {a}"/>"#
@@ -603,6 +651,7 @@ mod tests {
             roll_deg: 90.0,
             rgba: None,
             density: None,
+            visual: false,
         };
         let mut xml = String::new();
         write_parts(&mut xml, "drawer_g", &[bar], [1.0; 4], "");

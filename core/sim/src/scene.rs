@@ -179,7 +179,9 @@ impl Scene {
             let geoms: Vec<usize> = (0..model.geom_bodyid().len())
                 .filter(|&g| in_subtree(model.geom_bodyid()[g]) && (model.geom_contype()[g] != 0 || model.geom_conaffinity()[g] != 0))
                 .collect();
-            if geoms.is_empty() {
+            // A fixed object may be drawn only (a serving region painted on the table): it
+            // touches nothing. A free one without a collision geom would fall through the table.
+            if geoms.is_empty() && model.body_mocapid()[body] < 0 {
                 return Err(SimError::MissingName {
                     file: origin.to_owned(),
                     kind: "collision geom of body".to_owned(),

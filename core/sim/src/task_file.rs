@@ -381,12 +381,41 @@ impl TaskFile {
                     return Err(format!("object {:?}: `place.{variant}` has a range whose ends are not finite and ordered", object.name));
                 }
             }
+            if !(object.height_m.is_finite() && object.radius_m.is_finite()) {
+                return Err(format!("object {:?}: `height_m` and `radius_m` must be finite", object.name));
+            }
             for model in std::iter::once(&object.model).chain(object.instances.iter().map(|i| &i.model)) {
-                if let ObjectModel::Compound { hinge: Some(Hinge { range_deg: Some([low, high]), .. }), .. } = model
-                    && !(low.is_finite() && high.is_finite() && *low <= 0.0 && 0.0 <= *high && low < high)
+                if let Some(what) = model_numbers_not_finite(model) {
+                    return Err(format!("object {:?}: {what} must be finite", object.name));
+                }
+                if let ObjectModel::Compound { hinge: Some(Hinge { range_deg: Some([low, high]), start_deg, .. }), .. } = model
+                    && !(low.is_finite() && high.is_finite() && low <= start_deg && start_deg <= high && low < high)
                 {
                     return Err(format!(
-                        "object {:?}: `hinge.range_deg` [{low}, {high}] must be finite, ordered and hold 0 (where the part starts)",
+                        "object {:?}: `hinge.range_deg` [{low}, {high}] must be finite, ordered and hold `start_deg` {start_deg} (where the part starts)",
+                        object.name
+                    ));
+                }
+                if let ObjectModel::Compound { hinge: Some(h), .. } = model {
+                    let numbers = [h.start_deg, h.damping, h.frictionloss];
+                    let inertial_ok = h.inertial.as_ref().is_none_or(|i| {
+                        i.pos.iter().chain(&i.quat).all(|v| v.is_finite())
+                            && i.quat.iter().any(|v| *v != 0.0)
+                            && i.mass > 0.0
+                            && i.diaginertia.iter().all(|v| v.is_finite() && *v > 0.0)
+                    });
+                    if !numbers.iter().all(|v| v.is_finite()) || h.damping < 0.0 || h.frictionloss < 0.0 || !inertial_ok {
+                        return Err(format!(
+                            "object {:?}: `hinge` needs a finite `start_deg`, `damping` and `frictionloss` >= 0, and an `inertial` with a positive mass and inertia and a non-zero `quat`",
+                            object.name
+                        ));
+                    }
+                }
+                if let ObjectModel::Compound { geoms, fixed: false, .. } = model
+                    && geoms.iter().all(|g| g.visual)
+                {
+                    return Err(format!(
+                        "object {:?}: a free object needs a geom that is not `visual` (it would have no mass)",
                         object.name
                     ));
                 }
@@ -543,6 +572,42 @@ impl ObsTerm {
     }
 }
 
+/// The first number of `model` that is not finite (a NaN size, a NaN `base_m`), named as the
+/// task file names it; `None` if every number is finite.
+fn model_numbers_not_finite(model: &ObjectModel) -> Option<String> {
+    let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+    let parts = |field: &str, parts: &[crate::compose::Part]| {
+        parts.iter().enumerate().find_map(|(i, p)| {
+            let numbers = [p.yaw_deg, p.roll_deg, p.density.unwrap_or(1.0)];
+            (!(finite(&p.size) && finite(&p.pos) && finite(&numbers)))
+                .then(|| format!("`{field}[{i}]`'s size, pos, yaw_deg, roll_deg and density"))
+        })
+    };
+    match model {
+        ObjectModel::Mug { radius_m, height_m, wall_m, handle_m, base_m, handle_yaw_deg, density, .. } => {
+            let numbers = [*radius_m, *height_m, *wall_m, *handle_yaw_deg, *density];
+            (!(finite(&numbers) && finite(handle_m) && finite(base_m)))
+                .then(|| "the mug's `radius_m`, `height_m`, `wall_m`, `handle_m`, `base_m`, `handle_yaw_deg` and `density`".to_owned())
+        }
+        ObjectModel::Compound { geoms, hinge, slide, .. } => parts("geoms", geoms)
+            .or_else(|| {
+                hinge.as_ref().and_then(|h| {
+                    (!(finite(&h.pos) && finite(&h.axis) && h.open_deg.is_finite()))
+                        .then(|| "`hinge.pos`, `hinge.axis` and `hinge.open_deg`".to_owned())
+                })
+            })
+            .or_else(|| hinge.as_ref().and_then(|h| parts("hinge.geoms", &h.geoms)))
+            .or_else(|| {
+                slide.as_ref().and_then(|s| {
+                    (!(finite(&s.axis) && s.travel_m.is_finite() && s.damping.is_finite()))
+                        .then(|| "`slide.axis`, `slide.travel_m` and `slide.damping`".to_owned())
+                })
+            })
+            .or_else(|| slide.as_ref().and_then(|s| parts("slide.geoms", &s.geoms))),
+        _ => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -605,6 +670,46 @@ mod tests {
         assert_ne!(renamed, mugs);
         let err = TaskFile::from_toml_str(&renamed, "my.task.toml").unwrap_err();
         assert!(err.contains("red_round") && err.contains("\"object\""), "{err}");
+    }
+
+    #[test]
+    fn a_nan_in_a_model_is_named() {
+        let mugs = include_str!("../tasks/mug_cleanup.task.toml");
+        let broken = mugs.replacen("base_m = [0.0, -0.0181, -0.0309]", "base_m = [0.0, nan, -0.0309]", 1);
+        assert_ne!(broken, mugs);
+        let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
+        assert!(err.contains("my.task.toml") && err.contains("\"object\"") && err.contains("base_m"), "{err}");
+        let kitchen = include_str!("../tasks/kitchen.task.toml");
+        let broken = kitchen.replacen("size = [0.043, 0.053, 0.005]", "size = [0.043, nan, 0.005]", 1);
+        assert_ne!(broken, kitchen);
+        let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
+        assert!(err.contains("\"pot\"") && err.contains("`geoms[0]`"), "{err}");
+    }
+
+    #[test]
+    fn a_hinge_s_start_joint_and_mass_are_checked() {
+        let kitchen = include_str!("../tasks/kitchen.task.toml");
+        TaskFile::from_toml_str(kitchen, "kitchen").unwrap_or_else(|e| panic!("{e}"));
+        for (from, to, names) in [
+            ("start_deg = -17.188733853924695", "start_deg = -20.0", "start_deg"),
+            ("frictionloss = 0.1", "frictionloss = -0.1", "frictionloss"),
+            ("mass = 0.243455", "mass = 0.0", "inertial"),
+            ("quat = [0.701072, 0.0, 0.0, 0.713091]", "quat = [0.0, 0.0, 0.0, 0.0]", "inertial"),
+        ] {
+            let broken = kitchen.replacen(from, to, 1);
+            assert_ne!(broken, kitchen, "{from}");
+            let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
+            assert!(err.contains("my.task.toml") && err.contains("\"button\"") && err.contains(names), "{to}: {err}");
+        }
+        // A free object drawn only would have no mass.
+        let ghost = kitchen.replacen(
+            "geoms = [{ type = \"box\", size = [0.015, 0.025, 0.02], density = 500.0 }]",
+            "geoms = [{ type = \"box\", size = [0.015, 0.025, 0.02], density = 500.0, visual = true }]",
+            1,
+        );
+        assert_ne!(ghost, kitchen);
+        let err = TaskFile::from_toml_str(&ghost, "my.task.toml").unwrap_err();
+        assert!(err.contains("\"bread\"") && err.contains("visual"), "{err}");
     }
 
     #[test]
