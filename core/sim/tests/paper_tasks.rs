@@ -465,6 +465,18 @@ fn kitchen_button_starts_off_and_its_demos_cook_serve_and_switch_off() {
     let obs = task.object_obs(env.physics());
     assert_eq!(obs.len(), 5 * 7 + 1);
     assert!((obs[35] + 0.3).abs() < 0.01, "button at {:.3} rad", obs[35]);
+    // The button's joint and switch are the reference's: it reads -0.3 rad at reset (its `ref`),
+    // its friction 0.1 N m, the switch its own 0.243 kg.
+    {
+        use mujoco_rs::prelude::*;
+        let model = &env.physics().scene().model;
+        let joint = model.name_to_id(MjtObjBase::mjOBJ_JOINT, "button_hinge").unwrap();
+        let body = model.name_to_id(MjtObjBase::mjOBJ_BODY, "button_lid").unwrap();
+        let (qpos, dof) = (model.jnt_qposadr()[joint] as usize, model.jnt_dofadr()[joint] as usize);
+        assert!((model.qpos0()[qpos] + 0.3).abs() < 1e-9, "{}", model.qpos0()[qpos]);
+        assert!((model.dof_frictionloss()[dof] - 0.1).abs() < 1e-12);
+        assert!((model.body_mass()[body] - 0.243455).abs() < 1e-9, "{}", model.body_mass()[body]);
+    }
     // The reference's serving region is painted on the table: nothing touches it.
     let serving = env.physics().scene().objects.iter().find(|o| o.name == "serving_region").unwrap();
     assert!(serving.geoms.is_empty(), "{:?}", env.physics().scene().geom_names(&serving.geoms));
