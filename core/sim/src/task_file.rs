@@ -31,7 +31,7 @@ use std::collections::BTreeMap;
 use mimicgen_engine::demonstrator::PickPlaceScript;
 use serde::Deserialize;
 
-use crate::compose::{BASE_TABLE_TOP_Z, Hinge, ObjectModel};
+use crate::compose::{BASE_TABLE_TOP_Z, ObjectModel};
 
 /// A task file.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -388,23 +388,21 @@ impl TaskFile {
                 if let Some(what) = model_numbers_not_finite(model) {
                     return Err(format!("object {:?}: {what} must be finite", object.name));
                 }
-                if let ObjectModel::Compound { hinge: Some(Hinge { range_deg: Some([low, high]), start_deg, .. }), .. } = model
-                    && !(low.is_finite() && high.is_finite() && low <= start_deg && start_deg <= high && low < high)
-                {
-                    return Err(format!(
-                        "object {:?}: `hinge.range_deg` [{low}, {high}] must be finite, ordered and hold `start_deg` {start_deg} (where the part starts)",
-                        object.name
-                    ));
-                }
                 if let ObjectModel::Compound { hinge: Some(h), .. } = model {
-                    let numbers = [h.start_deg, h.damping, h.frictionloss];
-                    let inertial_ok = h.inertial.as_ref().is_none_or(|i| {
-                        i.pos.iter().chain(&i.quat).all(|v| v.is_finite())
-                            && i.quat.iter().any(|v| *v != 0.0)
-                            && i.mass > 0.0
-                            && i.diaginertia.iter().all(|v| v.is_finite() && *v > 0.0)
-                    });
-                    if !numbers.iter().all(|v| v.is_finite()) || h.damping < 0.0 || h.frictionloss < 0.0 || !inertial_ok {
+                    if let Some([low, high]) = h.range_deg
+                        && !(low.is_finite() && high.is_finite() && low <= h.start_deg && h.start_deg <= high && low < high)
+                    {
+                        return Err(format!(
+                            "object {:?}: `hinge.range_deg` [{low}, {high}] must be finite, ordered and hold `start_deg` {} (where the part starts)",
+                            object.name, h.start_deg
+                        ));
+                    }
+                    // Finite already (model_numbers_not_finite); here the signs.
+                    let inertial_ok = h
+                        .inertial
+                        .as_ref()
+                        .is_none_or(|i| i.quat.iter().any(|v| *v != 0.0) && i.mass > 0.0 && i.diaginertia.iter().all(|v| *v > 0.0));
+                    if h.damping < 0.0 || h.frictionloss < 0.0 || !inertial_ok {
                         return Err(format!(
                             "object {:?}: `hinge` needs a finite `start_deg`, `damping` and `frictionloss` >= 0, and an `inertial` with a positive mass and inertia and a non-zero `quat`",
                             object.name
@@ -592,8 +590,10 @@ fn model_numbers_not_finite(model: &ObjectModel) -> Option<String> {
         ObjectModel::Compound { geoms, hinge, slide, .. } => parts("geoms", geoms)
             .or_else(|| {
                 hinge.as_ref().and_then(|h| {
-                    (!(finite(&h.pos) && finite(&h.axis) && h.open_deg.is_finite()))
-                        .then(|| "`hinge.pos`, `hinge.axis` and `hinge.open_deg`".to_owned())
+                    let numbers = [h.open_deg, h.start_deg, h.damping, h.frictionloss];
+                    let inertial = h.inertial.as_ref().is_none_or(|i| finite(&i.pos) && finite(&i.quat) && i.mass.is_finite() && finite(&i.diaginertia));
+                    (!(finite(&h.pos) && finite(&h.axis) && finite(&numbers) && inertial))
+                        .then(|| "`hinge.pos`, `hinge.axis`, `hinge.open_deg`, `hinge.start_deg`, `hinge.damping`, `hinge.frictionloss` and `hinge.inertial`".to_owned())
                 })
             })
             .or_else(|| hinge.as_ref().and_then(|h| parts("hinge.geoms", &h.geoms)))
@@ -672,18 +672,24 @@ mod tests {
         assert!(err.contains("red_round") && err.contains("\"object\""), "{err}");
     }
 
+    /// The error of `text` (a task file) with its first `from` replaced by `to`; the edit must
+    /// change something and the file must be refused.
+    fn refused_after(text: &str, from: &str, to: &str) -> String {
+        let broken = text.replacen(from, to, 1);
+        assert_ne!(broken, text, "no {from:?} to replace");
+        TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err()
+    }
+
     #[test]
     fn a_nan_in_a_model_is_named() {
         let mugs = include_str!("../tasks/mug_cleanup.task.toml");
-        let broken = mugs.replacen("base_m = [0.0, -0.0181, -0.0309]", "base_m = [0.0, nan, -0.0309]", 1);
-        assert_ne!(broken, mugs);
-        let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
+        let err = refused_after(mugs, "base_m = [0.0, -0.0181, -0.0309]", "base_m = [0.0, nan, -0.0309]");
         assert!(err.contains("my.task.toml") && err.contains("\"object\"") && err.contains("base_m"), "{err}");
         let kitchen = include_str!("../tasks/kitchen.task.toml");
-        let broken = kitchen.replacen("size = [0.043, 0.053, 0.005]", "size = [0.043, nan, 0.005]", 1);
-        assert_ne!(broken, kitchen);
-        let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
+        let err = refused_after(kitchen, "size = [0.043, 0.053, 0.005]", "size = [0.043, nan, 0.005]");
         assert!(err.contains("\"pot\"") && err.contains("`geoms[0]`"), "{err}");
+        let err = refused_after(kitchen, "damping = 0.1", "damping = nan");
+        assert!(err.contains("\"button\"") && err.contains("hinge.damping"), "{err}");
     }
 
     #[test]
@@ -696,19 +702,15 @@ mod tests {
             ("mass = 0.243455", "mass = 0.0", "inertial"),
             ("quat = [0.701072, 0.0, 0.0, 0.713091]", "quat = [0.0, 0.0, 0.0, 0.0]", "inertial"),
         ] {
-            let broken = kitchen.replacen(from, to, 1);
-            assert_ne!(broken, kitchen, "{from}");
-            let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
+            let err = refused_after(kitchen, from, to);
             assert!(err.contains("my.task.toml") && err.contains("\"button\"") && err.contains(names), "{to}: {err}");
         }
         // A free object drawn only would have no mass.
-        let ghost = kitchen.replacen(
+        let err = refused_after(
+            kitchen,
             "geoms = [{ type = \"box\", size = [0.015, 0.025, 0.02], density = 500.0 }]",
             "geoms = [{ type = \"box\", size = [0.015, 0.025, 0.02], density = 500.0, visual = true }]",
-            1,
         );
-        assert_ne!(ghost, kitchen);
-        let err = TaskFile::from_toml_str(&ghost, "my.task.toml").unwrap_err();
         assert!(err.contains("\"bread\"") && err.contains("visual"), "{err}");
     }
 
@@ -722,9 +724,7 @@ mod tests {
         };
         assert_eq!(file.objects.iter().find_map(|o| range(&o.model)), Some([-120.0, 0.0]), "the lid opens by 120 deg (the reference's)");
         for bad in ["[-100.0, -5.0]", "[0.0, -100.0]", "[-100.0, nan]"] {
-            let broken = coffee.replacen("range_deg = [-120.0, 0.0]", &format!("range_deg = {bad}"), 1);
-            assert_ne!(broken, coffee);
-            let err = TaskFile::from_toml_str(&broken, "my.task.toml").unwrap_err();
+            let err = refused_after(coffee, "range_deg = [-120.0, 0.0]", &format!("range_deg = {bad}"));
             assert!(err.contains("my.task.toml") && err.contains("\"coffee_machine\"") && err.contains("hinge.range_deg"), "{bad}: {err}");
         }
     }
