@@ -500,7 +500,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             mimicgen_engine::demonstrator::record_sequence(&scripts, &mut env, "demo", &mut rng).map_err(|e| anyhow::anyhow!("{e}"))?;
         if !env.is_success() {
             let unmet = env.unmet_success().unwrap_or_else(|| "task not achieved".to_owned());
-            eprintln!("try {tries}: failed ({unmet}); discarded");
+            eprintln!("try {tries}: failed ({unmet}; {}); discarded", signal_steps(&demo.subtask_term_signals));
             continue;
         }
         if let Some(Err(e)) = spec.as_ref().map(|spec| mimicgen_engine::segment::Segmentation::new(std::slice::from_ref(&demo), spec)) {
@@ -538,6 +538,18 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     let path = writer.finish()?;
     eprintln!("wrote {} demos ({} tries) to {}", args.num_demos, tries, path.display());
     Ok(())
+}
+
+/// Where each subtask signal first held in a recorded try, in that order, and those that never
+/// did: what a failed try got through.
+fn signal_steps(signals: &BTreeMap<String, Vec<i64>>) -> String {
+    let mut fired: Vec<(Option<usize>, &str)> = signals.iter().map(|(name, flags)| (flags.iter().position(|&f| f != 0), name.as_str())).collect();
+    fired.sort_by_key(|&(step, _)| step.unwrap_or(usize::MAX));
+    let words: Vec<String> = fired
+        .iter()
+        .map(|(step, name)| step.map_or_else(|| format!("{name} never"), |t| format!("{name} at step {t}")))
+        .collect();
+    words.join(", ")
 }
 
 #[cfg(test)]

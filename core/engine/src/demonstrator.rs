@@ -33,6 +33,11 @@ pub struct PickPlaceScript {
     pub grasp_symmetry_rad: f64,
     /// Yaw of the gripper relative to the object at a symmetric grasp (rad).
     pub grasp_yaw_offset_rad: f64,
+    /// Lean the hand's top this far (deg) towards the picked object's +y at the grasp, about the
+    /// object's x axis, and keep that lean to the place: a mug held by its handle and pushed in
+    /// under a coffee machine's holder, the wrist leaning back from the machine's lid. 0: the
+    /// gripper's starting tilt.
+    pub grasp_lean_deg: f64,
     /// Height of the picked object's centre above the target object's centre at release (m).
     pub release_height_m: f64,
     /// Steps to hold while closing, drawn from this range.
@@ -199,6 +204,7 @@ impl Default for PickPlaceScript {
             grasp_height_m: -0.002,
             grasp_symmetry_rad: std::f64::consts::FRAC_PI_2,
             grasp_yaw_offset_rad: 0.0,
+            grasp_lean_deg: 0.0,
             release_height_m: 0.051,
             close_steps: (6, 9),
             open_steps: (3, 5),
@@ -260,7 +266,14 @@ impl PickPlaceScript {
         }
         let yaw_error = if human { 0.3 } else { 0.15 };
         let grasp_yaw = nearest_symmetric_yaw(object_yaw, eef_yaw, symmetry) + rng.random_range(-yaw_error..yaw_error);
-        let grasp_rot = Rot::from_axis_angle(&Vec3::z_axis(), grasp_yaw - eef_yaw) * start.rotation;
+        let mut grasp_rot = Rot::from_axis_angle(&Vec3::z_axis(), grasp_yaw - eef_yaw) * start.rotation;
+        if self.grasp_lean_deg != 0.0 {
+            // About the object's x axis, laid level: a turn by minus the lean takes "up" towards +y.
+            let x = world_from_pick.rotation * Vec3::x();
+            if let Some(axis) = nalgebra::Unit::try_new(Vec3::new(x.x, x.y, 0.0), 1e-9) {
+                grasp_rot = Rot::from_axis_angle(&axis, -self.grasp_lean_deg.to_radians()) * grasp_rot;
+            }
+        }
         let g = if human { 2.0 * self.grasp_offset_m } else { self.grasp_offset_m };
         let grip_point = world_from_pick.rotation * Vec3::from(self.grasp_point_m);
         // The grip point relative to the object's centre, in the world frame; the carried object
@@ -529,6 +542,33 @@ mod tests {
             longest = longest.max(run);
         }
         longest
+    }
+
+    /// A lean tilts the hand's top towards the picked object's +y by that angle at the grasp,
+    /// and the hand keeps it (relative to the object) until it lets go.
+    #[test]
+    fn a_grasp_lean_tilts_the_hands_top_towards_the_objects_y_until_the_release() {
+        use crate::Environment as _;
+        let record = |lean: f64| {
+            let mut env = crate::kinematic::PickPlace::new(0.1);
+            env.reset(&mut ChaCha8Rng::seed_from_u64(3)).unwrap();
+            let script =
+                PickPlaceScript { pick: "cubeA".to_owned(), place_on: "cubeB".to_owned(), grasp_lean_deg: lean, ..PickPlaceScript::default() };
+            script.record(&mut env, "demo", &mut ChaCha8Rng::seed_from_u64(4)).unwrap()
+        };
+        let (upright, leaning) = (record(0.0), record(15.0));
+        let closed = |demo: &SourceDemo| (0..demo.len()).filter(|&t| demo.gripper_actions.row(t)[0] > 0.0).collect::<Vec<_>>();
+        let (held, held_leaning) = (closed(&upright), closed(&leaning));
+        assert!(!held.is_empty() && held.len() == held_leaning.len(), "both grasp, for as long");
+        let y = leaning.object_poses["cubeA"][0].rotation * Vec3::y();
+        for (&t, &u) in held_leaning.iter().zip(&held) {
+            let up = |p: &Pose| -(p.rotation * Vec3::z());
+            // The tilt between the two hands is the lean, about the cube's x axis, towards its +y.
+            let (a, b) = (up(&upright.target_poses[u]), up(&leaning.target_poses[t]));
+            let angle = a.angle(&b).to_degrees();
+            assert!((angle - 15.0).abs() < 1e-6, "step {t}: tilted {angle} deg from the upright hand");
+            assert!((b - a).dot(&y) > 0.2, "step {t}: leans towards the cube's +y");
+        }
     }
 
     #[test]

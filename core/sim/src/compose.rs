@@ -1,6 +1,7 @@
 //! Composing task scenes: our base MJCF (table arena, Panda, gripper, mount; see
 //! `viewer_assets/scenes/`) plus the task's objects, written as robosuite writes them.
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -102,6 +103,10 @@ pub enum ObjectModel {
         rgba: [f64; 4],
         /// Density (kg/m^3).
         density: f64,
+        /// MuJoCo friction of every geom (sliding, torsional, rolling); robosuite's 0.95, 0.3,
+        /// 0.1 when absent. The reference's ShapeNet mugs have (1, 1, 1).
+        #[serde(default)]
+        friction: Option<[f64; 3]>,
     },
     /// An object built from primitive geoms (ours, for the tasks whose objects robosuite does not
     /// ship): body `<name>_main`, with a free joint, or fixed in the world (a mocap body the task
@@ -187,6 +192,9 @@ pub struct Slide {
     /// Viscous damping of the slide (N s/m): how hard it is to move quickly.
     #[serde(default = "drawer_damping")]
     pub damping: f64,
+    /// The moving part's mass and inertia in place of its geoms' (a drawer whose maker gave them).
+    #[serde(default)]
+    pub inertial: Option<Box<Inertial>>,
     /// Its geoms, in the object frame, as they sit when closed.
     pub geoms: Vec<Part>,
 }
@@ -228,6 +236,14 @@ pub struct Part {
     /// serving region painted on the table).
     #[serde(default)]
     pub visual: bool,
+    /// MuJoCo friction (sliding, torsional, rolling); robosuite's 0.95, 0.3, 0.1 when absent.
+    #[serde(default)]
+    pub friction: Option<[f64; 3]>,
+    /// A name predicates can touch it by (`contact = ["mug", "coffee_machine.base"]`): its geom is
+    /// `<object>_<name>_g<k>`, the k-th of the object's parts so named, as the reference names
+    /// Coffee Preparation's base plate `coffee_machine_base_g0`.
+    #[serde(default)]
+    pub name: Option<String>,
 }
 
 /// robosuite's square nut: `(position, half extents)` of its five box geoms, in the nut frame.
@@ -283,6 +299,18 @@ impl ObjectModel {
             .collect()
     }
 
+    /// Whether a [`ObjectModel::Compound`] has a part (its own, its hinged or its sliding part's)
+    /// named `name`.
+    #[must_use]
+    pub fn has_part(&self, name: &str) -> bool {
+        let Self::Compound { geoms, hinge, slide, .. } = self else {
+            return false;
+        };
+        let hinged = hinge.iter().flat_map(|h| &h.geoms);
+        let sliding = slide.iter().flat_map(|s| &s.geoms);
+        geoms.iter().chain(hinged).chain(sliding).any(|p| p.name.as_deref() == Some(name))
+    }
+
     /// The body whose frame is the object's pose.
     #[must_use]
     pub fn body_name(&self) -> String {
@@ -303,7 +331,7 @@ impl ObjectModel {
     fn mug_parts(&self) -> Vec<Part> {
         const WALL_BOXES: u32 = 16;
         const BOTTOM_M: f64 = 0.008;
-        let Self::Mug { radius_m: r, height_m: h, wall_m: w, handle_m: [reach, low, high], base_m, handle_yaw_deg, density, .. } = *self
+        let Self::Mug { radius_m: r, height_m: h, wall_m: w, handle_m: [reach, low, high], base_m, handle_yaw_deg, density, friction, .. } = *self
         else {
             return Vec::new();
         };
@@ -319,6 +347,8 @@ impl ObjectModel {
             rgba: None,
             density: Some(density),
             visual: false,
+            friction,
+            name: None,
         };
         let middle = r - w / 2.0;
         let step = std::f64::consts::TAU / f64::from(WALL_BOXES);
@@ -430,7 +460,7 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
     if !fixed {
         let _ = writeln!(out, r#"      <joint name="{name}_joint0" type="free" damping="0.0005"/>"#);
     }
-    write_parts(out, &format!("{name}_g"), geoms, rgba, "      ");
+    write_parts(out, name, geoms, rgba, "      ");
     if let Some(h) = hinge {
         let (pos, axis) = (words(&h.pos), words(&h.axis));
         let open = h.open_deg.to_radians();
@@ -441,27 +471,25 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
         };
         let (start, damping, frictionloss) = (h.start_deg.to_radians(), h.damping, h.frictionloss);
         let _ = writeln!(out, r#"      <body name="{name}_lid" pos="{pos}" axisangle="{axis} {open}">"#);
-        if let Some(i) = &h.inertial {
-            let (pos, quat, mass, diag) = (words(&i.pos), words(&i.quat), i.mass, words(&i.diaginertia));
-            let _ = writeln!(out, r#"        <inertial pos="{pos}" quat="{quat}" mass="{mass}" diaginertia="{diag}"/>"#);
-        }
+        write_inertial(out, h.inertial.as_deref());
         let extra = if frictionloss > 0.0 { format!(r#" frictionloss="{frictionloss}""#) } else { String::new() };
         let reference = if start == 0.0 { String::new() } else { format!(r#" ref="{start}""#) };
         let _ = writeln!(
             out,
             r#"        <joint name="{name}_hinge" type="hinge" axis="{axis}" range="{range}"{reference} damping="{damping}"{extra}/>"#
         );
-        write_parts(out, &format!("{name}_lid_g"), &h.geoms, rgba, "        ");
+        write_parts(out, &format!("{name}_lid"), &h.geoms, rgba, "        ");
         let _ = writeln!(out, "      </body>");
     }
     if let Some(s) = slide {
         let (axis, travel, damping) = (words(&s.axis), s.travel_m, s.damping);
         let _ = writeln!(out, r#"      <body name="{name}_drawer" pos="0 0 0">"#);
+        write_inertial(out, s.inertial.as_deref());
         let _ = writeln!(
             out,
             r#"        <joint name="{name}_slide" type="slide" axis="{axis}" range="0 {travel}" limited="true" damping="{damping}" armature="0.1"/>"#
         );
-        write_parts(out, &format!("{name}_drawer_g"), &s.geoms, rgba, "        ");
+        write_parts(out, &format!("{name}_drawer"), &s.geoms, rgba, "        ");
         let _ = writeln!(out, "      </body>");
     }
     let _ = writeln!(out, r#"      <site name="{name}_default_site" pos="0 0 0" size="0.002" rgba="1 0 0 -1"/>"#);
@@ -469,8 +497,27 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
 }
 
 /// Collision geoms `<prefix><i>` and their visual copies.
-fn write_parts(out: &mut String, prefix: &str, geoms: &[Part], rgba: [f64; 4], indent: &str) {
+/// A hinged or sliding part's given mass and inertia, if it has them.
+fn write_inertial(out: &mut String, inertial: Option<&Inertial>) {
+    if let Some(i) = inertial {
+        let (pos, quat, mass, diag) = (words(&i.pos), words(&i.quat), i.mass, words(&i.diaginertia));
+        let _ = writeln!(out, r#"        <inertial pos="{pos}" quat="{quat}" mass="{mass}" diaginertia="{diag}"/>"#);
+    }
+}
+
+/// `owner`'s geoms: `<owner>_g<i>` by their place in `geoms`, or `<owner>_<name>_g<k>` for the
+/// k-th part named `name`.
+fn write_parts(out: &mut String, owner: &str, geoms: &[Part], rgba: [f64; 4], indent: &str) {
+    let mut named: BTreeMap<&str, usize> = BTreeMap::new();
     for (i, part) in geoms.iter().enumerate() {
+        let geom = match &part.name {
+            Some(name) => {
+                let k = named.entry(name.as_str()).or_default();
+                *k += 1;
+                format!("{owner}_{name}_g{}", *k - 1)
+            }
+            None => format!("{owner}_g{i}"),
+        };
         let [r, g, b, a] = part.rgba.unwrap_or(rgba);
         let (roll, yaw) = (part.roll_deg.to_radians(), part.yaw_deg.to_radians());
         let turn = if yaw == 0.0 && roll == 0.0 {
@@ -485,15 +532,16 @@ fn write_parts(out: &mut String, prefix: &str, geoms: &[Part], rgba: [f64; 4], i
         };
         let (kind, size, pos) = (&part.kind, words(&part.size), words(&part.pos));
         let density = part.density.map_or_else(String::new, |d| format!(r#" density="{d}""#));
+        let friction = words(&part.friction.unwrap_or([0.95, 0.3, 0.1]));
         if !part.visual {
             let _ = writeln!(
                 out,
-                r#"{indent}<geom name="{prefix}{i}" type="{kind}" size="{size}" pos="{pos}"{turn}{density} friction="0.95 0.3 0.1" condim="4" solimp="0.998 0.998 0.001" solref="0.02 1" group="0" rgba="{r} {g} {b} {a}"/>"#
+                r#"{indent}<geom name="{geom}" type="{kind}" size="{size}" pos="{pos}"{turn}{density} friction="{friction}" condim="4" solimp="0.998 0.998 0.001" solref="0.02 1" group="0" rgba="{r} {g} {b} {a}"/>"#
             );
         }
         let _ = writeln!(
             out,
-            r#"{indent}<geom name="{prefix}{i}_vis" type="{kind}" size="{size}" pos="{pos}"{turn} contype="0" conaffinity="0" group="1" mass="0" rgba="{r} {g} {b} {a}"/>"#
+            r#"{indent}<geom name="{geom}_vis" type="{kind}" size="{size}" pos="{pos}"{turn} contype="0" conaffinity="0" group="1" mass="0" rgba="{r} {g} {b} {a}"/>"#
         );
     }
 }
@@ -652,9 +700,11 @@ mod tests {
             rgba: None,
             density: None,
             visual: false,
+            friction: None,
+            name: None,
         };
         let mut xml = String::new();
-        write_parts(&mut xml, "drawer_g", &[bar], [1.0; 4], "");
+        write_parts(&mut xml, "drawer", &[bar], [1.0; 4], "");
         let quat = xml.split(r#"quat=""#).nth(1).and_then(|q| q.split('"').next()).unwrap_or_default();
         let q: Vec<f64> = quat.split_whitespace().map(|w| w.parse().unwrap_or(f64::NAN)).collect();
         let [w, x, y, z] = q[..] else { panic!("{xml}") };
@@ -673,6 +723,7 @@ mod tests {
             handle_yaw_deg,
             rgba: [1.0; 4],
             density: 100.0,
+            friction: None,
         }
     }
 

@@ -2,6 +2,7 @@
 //! variants: scenes sampled from its regions, signals and success from its predicates, the object
 //! observation from its terms, and its scripted demonstrator.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::f64::consts::{PI, TAU};
 
@@ -98,8 +99,12 @@ impl DataTask {
             Predicate::Grasped(o) => env.is_grasping(index(o)),
             Predicate::Lifted { object, above_m } => self.position(env, object).z > self.file.table_top_z + above_m,
             Predicate::Contact([a, b]) => {
-                let geoms = |name: &str| env.scene().objects.get(index(name)).map(|o| o.geoms.as_slice()).unwrap_or_default();
-                env.in_contact(geoms(a), geoms(b))
+                // An object's geoms, or those of its parts named `object.part`.
+                let geoms = |name: &str| match name.split_once('.') {
+                    Some((object, part)) => Cow::Owned(env.scene().part_geoms(object, part)),
+                    None => Cow::Borrowed(env.scene().objects.get(index(name)).map(|o| o.geoms.as_slice()).unwrap_or_default()),
+                };
+                env.in_contact(&geoms(a), &geoms(b))
             }
             Predicate::Inside { object, of, of_point_m, xy_m, dz_m } => {
                 let point = match self.index(of) {

@@ -310,6 +310,19 @@ impl Scene {
         Ok(out)
     }
 
+    /// The collision geoms of object `object`'s parts named `part` (`<object>_<part>_g<k>`, on
+    /// the object's body, its lid or its drawer: [`crate::compose::Part::name`]).
+    #[must_use]
+    pub fn part_geoms(&self, object: &str, part: &str) -> Vec<usize> {
+        let mut geoms = Vec::new();
+        for owner in [object.to_owned(), format!("{object}_lid"), format!("{object}_drawer")] {
+            geoms.extend(
+                (0..).map_while(|k| self.model.name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("{owner}_{part}_g{k}"))),
+            );
+        }
+        geoms
+    }
+
     /// The names of these geoms (empty for an unnamed one).
     #[must_use]
     pub fn geom_names(&self, geoms: &[usize]) -> Vec<String> {

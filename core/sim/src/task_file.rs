@@ -165,7 +165,9 @@ pub enum Predicate {
         /// Height (m).
         above_m: f64,
     },
-    /// The two objects' collision geoms touch.
+    /// The two objects' collision geoms touch; a side `object.part` means only the geoms of that
+    /// object's parts named `part` (Coffee Preparation's `coffee_machine.base`, the plate the mug
+    /// must stand on).
     Contact([String; 2]),
     /// `object`'s origin is within `xy_m` of `of`'s along world x and y (one bound for both, or
     /// `[x, y]`), and its height above `of`'s origin is within `dz_m` (robosuite's `on_peg`).
@@ -457,6 +459,14 @@ impl TaskFile {
             predicate.names().into_iter().try_for_each(|n| known(n, &format!("signals.{signal}")))?;
         }
         self.success.names().into_iter().try_for_each(|n| known(n, "success"))?;
+        let fields = self.signals.iter().map(|(signal, p)| (format!("signals.{signal}"), p)).chain([("success".to_owned(), &self.success)]);
+        for (field, predicate) in fields {
+            for (object, part) in predicate.contact_parts() {
+                if !self.objects.iter().any(|o| o.name == object && o.model.has_part(part)) {
+                    return Err(format!("field `{field}` touches {object}.{part}, but object {object:?} has no part named {part:?} (a compound part's `name`)"));
+                }
+            }
+        }
         for entry in &self.observation {
             entry.term.names().into_iter().try_for_each(|n| known(n, "observation"))?;
             if let Some(v) = entry.variants.iter().find(|v| !self.variants.contains(v)) {
@@ -535,6 +545,16 @@ impl Predicate {
         }
     }
 
+    /// The `(object, part)` of every `object.part` side of its contacts.
+    fn contact_parts(&self) -> Vec<(&str, &str)> {
+        match self {
+            Self::Contact(sides) => sides.iter().filter_map(|side| side.split_once('.')).collect(),
+            Self::All(all) | Self::Any(all) => all.iter().flat_map(Self::contact_parts).collect(),
+            Self::Not(p) | Self::Ever(p) => p.contact_parts(),
+            _ => Vec::new(),
+        }
+    }
+
     /// The object names it refers to, each with whether `eef` (the gripper) may stand there:
     /// where a position is read, not an object's own state (grasp, contacts, pose, speed).
     fn names(&self) -> Vec<(&str, bool)> {
@@ -542,7 +562,7 @@ impl Predicate {
             Self::Grasped(o) | Self::AtRest { object: o, .. } | Self::Upright { object: o, .. } => vec![(o, false)],
             Self::Joint { .. } => Vec::new(),
             Self::Lifted { object, .. } => vec![(object, true)],
-            Self::Contact([a, b]) => vec![(a, false), (b, false)],
+            Self::Contact(sides) => sides.iter().map(|side| (side.split_once('.').map_or(side.as_str(), |(o, _)| o), false)).collect(),
             Self::Near { object, of: other, .. } | Self::Aligned { object, with: other, .. } => vec![(object, false), (other, false)],
             Self::Inside { object, of: other, .. } | Self::Apart { object, from: other, .. } => vec![(object, true), (other, true)],
             Self::All(all) | Self::Any(all) => all.iter().flat_map(Self::names).collect(),
@@ -577,15 +597,15 @@ fn model_numbers_not_finite(model: &ObjectModel) -> Option<String> {
     let parts = |field: &str, parts: &[crate::compose::Part]| {
         parts.iter().enumerate().find_map(|(i, p)| {
             let numbers = [p.yaw_deg, p.roll_deg, p.density.unwrap_or(1.0)];
-            (!(finite(&p.size) && finite(&p.pos) && finite(&numbers)))
-                .then(|| format!("`{field}[{i}]`'s size, pos, yaw_deg, roll_deg and density"))
+            (!(finite(&p.size) && finite(&p.pos) && finite(&numbers) && finite(&p.friction.unwrap_or_default())))
+                .then(|| format!("`{field}[{i}]`'s size, pos, yaw_deg, roll_deg, density and friction"))
         })
     };
     match model {
-        ObjectModel::Mug { radius_m, height_m, wall_m, handle_m, base_m, handle_yaw_deg, density, .. } => {
+        ObjectModel::Mug { radius_m, height_m, wall_m, handle_m, base_m, handle_yaw_deg, density, friction, .. } => {
             let numbers = [*radius_m, *height_m, *wall_m, *handle_yaw_deg, *density];
-            (!(finite(&numbers) && finite(handle_m) && finite(base_m)))
-                .then(|| "the mug's `radius_m`, `height_m`, `wall_m`, `handle_m`, `base_m`, `handle_yaw_deg` and `density`".to_owned())
+            (!(finite(&numbers) && finite(handle_m) && finite(base_m) && finite(&friction.unwrap_or_default())))
+                .then(|| "the mug's `radius_m`, `height_m`, `wall_m`, `handle_m`, `base_m`, `handle_yaw_deg`, `density` and `friction`".to_owned())
         }
         ObjectModel::Compound { geoms, hinge, slide, .. } => parts("geoms", geoms)
             .or_else(|| {
@@ -599,8 +619,9 @@ fn model_numbers_not_finite(model: &ObjectModel) -> Option<String> {
             .or_else(|| hinge.as_ref().and_then(|h| parts("hinge.geoms", &h.geoms)))
             .or_else(|| {
                 slide.as_ref().and_then(|s| {
-                    (!(finite(&s.axis) && s.travel_m.is_finite() && s.damping.is_finite()))
-                        .then(|| "`slide.axis`, `slide.travel_m` and `slide.damping`".to_owned())
+                    let inertial = s.inertial.as_ref().is_none_or(|i| finite(&i.pos) && finite(&i.quat) && i.mass.is_finite() && finite(&i.diaginertia));
+                    (!(finite(&s.axis) && s.travel_m.is_finite() && s.damping.is_finite() && inertial))
+                        .then(|| "`slide.axis`, `slide.travel_m`, `slide.damping` and `slide.inertial`".to_owned())
                 })
             })
             .or_else(|| slide.as_ref().and_then(|s| parts("slide.geoms", &s.geoms))),
@@ -722,11 +743,26 @@ mod tests {
             ObjectModel::Compound { hinge: Some(h), .. } => h.range_deg,
             _ => None,
         };
-        assert_eq!(file.objects.iter().find_map(|o| range(&o.model)), Some([-120.0, 0.0]), "the lid opens by 120 deg (the reference's)");
-        for bad in ["[-100.0, -5.0]", "[0.0, -100.0]", "[-100.0, nan]"] {
-            let err = refused_after(coffee, "range_deg = [-120.0, 0.0]", &format!("range_deg = {bad}"));
+        assert_eq!(file.objects.iter().find_map(|o| range(&o.model)), Some([0.0, 120.0]), "the lid opens by 120 deg (the reference's)");
+        for bad in ["[5.0, 100.0]", "[100.0, 0.0]", "[0.0, nan]"] {
+            let err = refused_after(coffee, "range_deg = [0.0, 120.0]", &format!("range_deg = {bad}"));
             assert!(err.contains("my.task.toml") && err.contains("\"coffee_machine\"") && err.contains("hinge.range_deg"), "{bad}: {err}");
         }
+    }
+
+    #[test]
+    fn a_contact_may_name_a_part_the_object_has() {
+        let coffee = include_str!("../tasks/coffee_preparation.task.toml");
+        let file = TaskFile::from_toml_str(coffee, "coffee_preparation").unwrap_or_else(|e| panic!("{e}"));
+        let plate = file.objects.iter().find(|o| o.name == "coffee_machine").map(|o| o.model.has_part("base"));
+        assert_eq!(plate, Some(true), "the machine's base plate is named");
+        // A part no object has, and a part of another object, are refused with the field.
+        for (side, object) in [("coffee_machine.plate", "coffee_machine"), ("drawer.base", "drawer")] {
+            let err = refused_after(coffee, "contact = [\"mug\", \"coffee_machine.base\"] }, { upright", &format!("contact = [\"mug\", \"{side}\"] }}, {{ upright"));
+            assert!(err.contains("signals.mug_place") && err.contains(&format!("object \"{object}\" has no part named")), "{side}: {err}");
+        }
+        let err = refused_after(coffee, "{ contact = [\"mug\", \"coffee_machine.base\"] },\n", "{ contact = [\"mug\", \"kettle.base\"] },\n");
+        assert!(err.contains("`success` names object \"kettle\""), "{err}");
     }
 
     #[test]
