@@ -543,12 +543,11 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
 /// Where each subtask signal first held in a recorded try, in that order, and those that never
 /// did: what a failed try got through.
 fn signal_steps(signals: &BTreeMap<String, Vec<i64>>) -> String {
-    let mut fired: Vec<(Option<usize>, &str)> = signals.iter().map(|(name, flags)| (flags.iter().position(|&f| f != 0), name.as_str())).collect();
+    let mut fired: Vec<(Option<usize>, &str)> =
+        signals.iter().map(|(name, flags)| (flags.iter().position(|&f| f != 0), name.as_str())).collect();
     fired.sort_by_key(|&(step, _)| step.unwrap_or(usize::MAX));
-    let words: Vec<String> = fired
-        .iter()
-        .map(|(step, name)| step.map_or_else(|| format!("{name} never"), |t| format!("{name} at step {t}")))
-        .collect();
+    let words: Vec<String> =
+        fired.iter().map(|(step, name)| step.map_or_else(|| format!("{name} never"), |t| format!("{name} at step {t}"))).collect();
     words.join(", ")
 }
 

@@ -552,8 +552,12 @@ mod tests {
         let record = |lean: f64| {
             let mut env = crate::kinematic::PickPlace::new(0.1);
             env.reset(&mut ChaCha8Rng::seed_from_u64(3)).unwrap();
-            let script =
-                PickPlaceScript { pick: "cubeA".to_owned(), place_on: "cubeB".to_owned(), grasp_lean_deg: lean, ..PickPlaceScript::default() };
+            let script = PickPlaceScript {
+                pick: "cubeA".to_owned(),
+                place_on: "cubeB".to_owned(),
+                grasp_lean_deg: lean,
+                ..PickPlaceScript::default()
+            };
             script.record(&mut env, "demo", &mut ChaCha8Rng::seed_from_u64(4)).unwrap()
         };
         let (upright, leaning) = (record(0.0), record(15.0));

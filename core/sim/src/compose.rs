@@ -331,7 +331,9 @@ impl ObjectModel {
     fn mug_parts(&self) -> Vec<Part> {
         const WALL_BOXES: u32 = 16;
         const BOTTOM_M: f64 = 0.008;
-        let Self::Mug { radius_m: r, height_m: h, wall_m: w, handle_m: [reach, low, high], base_m, handle_yaw_deg, density, friction, .. } = *self
+        let Self::Mug {
+            radius_m: r, height_m: h, wall_m: w, handle_m: [reach, low, high], base_m, handle_yaw_deg, density, friction, ..
+        } = *self
         else {
             return Vec::new();
         };

@@ -316,9 +316,7 @@ impl Scene {
     pub fn part_geoms(&self, object: &str, part: &str) -> Vec<usize> {
         let mut geoms = Vec::new();
         for owner in [object.to_owned(), format!("{object}_lid"), format!("{object}_drawer")] {
-            geoms.extend(
-                (0..).map_while(|k| self.model.name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("{owner}_{part}_g{k}"))),
-            );
+            geoms.extend((0..).map_while(|k| self.model.name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("{owner}_{part}_g{k}"))));
         }
         geoms
     }

@@ -463,7 +463,9 @@ impl TaskFile {
         for (field, predicate) in fields {
             for (object, part) in predicate.contact_parts() {
                 if !self.objects.iter().any(|o| o.name == object && o.model.has_part(part)) {
-                    return Err(format!("field `{field}` touches {object}.{part}, but object {object:?} has no part named {part:?} (a compound part's `name`)"));
+                    return Err(format!(
+                        "field `{field}` touches {object}.{part}, but object {object:?} has no part named {part:?} (a compound part's `name`)"
+                    ));
                 }
             }
         }
@@ -758,10 +760,15 @@ mod tests {
         assert_eq!(plate, Some(true), "the machine's base plate is named");
         // A part no object has, and a part of another object, are refused with the field.
         for (side, object) in [("coffee_machine.plate", "coffee_machine"), ("drawer.base", "drawer")] {
-            let err = refused_after(coffee, "contact = [\"mug\", \"coffee_machine.base\"] }, { upright", &format!("contact = [\"mug\", \"{side}\"] }}, {{ upright"));
+            let err = refused_after(
+                coffee,
+                "contact = [\"mug\", \"coffee_machine.base\"] }, { upright",
+                &format!("contact = [\"mug\", \"{side}\"] }}, {{ upright"),
+            );
             assert!(err.contains("signals.mug_place") && err.contains(&format!("object \"{object}\" has no part named")), "{side}: {err}");
         }
-        let err = refused_after(coffee, "{ contact = [\"mug\", \"coffee_machine.base\"] },\n", "{ contact = [\"mug\", \"kettle.base\"] },\n");
+        let err =
+            refused_after(coffee, "{ contact = [\"mug\", \"coffee_machine.base\"] },\n", "{ contact = [\"mug\", \"kettle.base\"] },\n");
         assert!(err.contains("`success` names object \"kettle\""), "{err}");
     }
 

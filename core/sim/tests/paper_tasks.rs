@@ -538,7 +538,9 @@ fn coffee_preparation_machine_and_pod_are_coffee_s() {
     assert_eq!((ours.open_deg, ours.range_deg, ours.damping), (0.0, Some([0.0, 120.0]), 0.005), "shut at reset, the reference's joint");
     let pod_check = |file: &mimicgen_sim::TaskFile| match &file.success {
         Predicate::All(all) => all.iter().find_map(|p| match p {
-            Predicate::Inside { object, of_point_m, xy_m, dz_m, .. } if object == "coffee_pod" => Some(format!("{of_point_m:?} {xy_m:?} {dz_m:?}")),
+            Predicate::Inside { object, of_point_m, xy_m, dz_m, .. } if object == "coffee_pod" => {
+                Some(format!("{of_point_m:?} {xy_m:?} {dz_m:?}"))
+            }
             _ => None,
         }),
         _ => None,
