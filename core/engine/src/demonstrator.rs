@@ -544,37 +544,6 @@ mod tests {
         longest
     }
 
-    /// A lean tilts the hand's top towards the picked object's +y by that angle at the grasp,
-    /// and the hand keeps it (relative to the object) until it lets go.
-    #[test]
-    fn a_grasp_lean_tilts_the_hands_top_towards_the_objects_y_until_the_release() {
-        use crate::Environment as _;
-        let record = |lean: f64| {
-            let mut env = crate::kinematic::PickPlace::new(0.1);
-            env.reset(&mut ChaCha8Rng::seed_from_u64(3)).unwrap();
-            let script = PickPlaceScript {
-                pick: "cubeA".to_owned(),
-                place_on: "cubeB".to_owned(),
-                grasp_lean_deg: lean,
-                ..PickPlaceScript::default()
-            };
-            script.record(&mut env, "demo", &mut ChaCha8Rng::seed_from_u64(4)).unwrap()
-        };
-        let (upright, leaning) = (record(0.0), record(15.0));
-        let closed = |demo: &SourceDemo| (0..demo.len()).filter(|&t| demo.gripper_actions.row(t)[0] > 0.0).collect::<Vec<_>>();
-        let (held, held_leaning) = (closed(&upright), closed(&leaning));
-        assert!(!held.is_empty() && held.len() == held_leaning.len(), "both grasp, for as long");
-        let y = leaning.object_poses["cubeA"][0].rotation * Vec3::y();
-        for (&t, &u) in held_leaning.iter().zip(&held) {
-            let up = |p: &Pose| -(p.rotation * Vec3::z());
-            // The tilt between the two hands is the lean, about the cube's x axis, towards its +y.
-            let (a, b) = (up(&upright.target_poses[u]), up(&leaning.target_poses[t]));
-            let angle = a.angle(&b).to_degrees();
-            assert!((angle - 15.0).abs() < 1e-6, "step {t}: tilted {angle} deg from the upright hand");
-            assert!((b - a).dot(&y) > 0.2, "step {t}: leans towards the cube's +y");
-        }
-    }
-
     #[test]
     fn a_persons_move_speeds_up_slows_down_and_ends_at_the_goal() {
         let (from, to) = (at(0.0, 0.0, 0.2), at(0.3, 0.1, 0.0));
