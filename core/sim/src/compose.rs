@@ -498,7 +498,6 @@ fn write_compound(out: &mut String, name: &str, geoms: &[Part], fixed: bool, rgb
     let _ = writeln!(out, "    </body>");
 }
 
-/// Collision geoms `<prefix><i>` and their visual copies.
 /// A hinged or sliding part's given mass and inertia, if it has them.
 fn write_inertial(out: &mut String, inertial: Option<&Inertial>) {
     if let Some(i) = inertial {
@@ -507,8 +506,8 @@ fn write_inertial(out: &mut String, inertial: Option<&Inertial>) {
     }
 }
 
-/// `owner`'s geoms: `<owner>_g<i>` by their place in `geoms`, or `<owner>_<name>_g<k>` for the
-/// k-th part named `name`.
+/// `owner`'s collision geoms and their visual copies: `<owner>_g<i>` by their place in `geoms`, or
+/// `<owner>_<name>_g<k>` for the k-th part named `name`.
 fn write_parts(out: &mut String, owner: &str, geoms: &[Part], rgba: [f64; 4], indent: &str) {
     let mut named: BTreeMap<&str, usize> = BTreeMap::new();
     for (i, part) in geoms.iter().enumerate() {

@@ -400,16 +400,20 @@ impl TaskFile {
                         ));
                     }
                     // Finite already (model_numbers_not_finite); here the signs.
-                    let inertial_ok = h
-                        .inertial
-                        .as_ref()
-                        .is_none_or(|i| i.quat.iter().any(|v| *v != 0.0) && i.mass > 0.0 && i.diaginertia.iter().all(|v| *v > 0.0));
-                    if h.damping < 0.0 || h.frictionloss < 0.0 || !inertial_ok {
+                    if h.damping < 0.0 || h.frictionloss < 0.0 || !h.inertial.as_deref().is_none_or(inertial_signs_hold) {
                         return Err(format!(
                             "object {:?}: `hinge` needs a finite `start_deg`, `damping` and `frictionloss` >= 0, and an `inertial` with a positive mass and inertia and a non-zero `quat`",
                             object.name
                         ));
                     }
+                }
+                if let ObjectModel::Compound { slide: Some(slide), .. } = model
+                    && !slide.inertial.as_deref().is_none_or(inertial_signs_hold)
+                {
+                    return Err(format!(
+                        "object {:?}: `slide.inertial` needs a positive mass and inertia and a non-zero `quat`",
+                        object.name
+                    ));
                 }
                 if let ObjectModel::Compound { geoms, fixed: false, .. } = model
                     && geoms.iter().all(|g| g.visual)
@@ -592,6 +596,16 @@ impl ObsTerm {
     }
 }
 
+/// Every number of a hinged or sliding part's given mass and inertia is finite.
+fn inertial_finite(i: &crate::compose::Inertial) -> bool {
+    [i.pos.as_slice(), &i.quat, &[i.mass], &i.diaginertia].iter().all(|v| v.iter().all(|x| x.is_finite()))
+}
+
+/// A given mass and inertia MuJoCo accepts: positive mass and principal moments, a turn.
+fn inertial_signs_hold(i: &crate::compose::Inertial) -> bool {
+    i.quat.iter().any(|v| *v != 0.0) && i.mass > 0.0 && i.diaginertia.iter().all(|v| *v > 0.0)
+}
+
 /// The first number of `model` that is not finite (a NaN size, a NaN `base_m`), named as the
 /// task file names it; `None` if every number is finite.
 fn model_numbers_not_finite(model: &ObjectModel) -> Option<String> {
@@ -613,7 +627,7 @@ fn model_numbers_not_finite(model: &ObjectModel) -> Option<String> {
             .or_else(|| {
                 hinge.as_ref().and_then(|h| {
                     let numbers = [h.open_deg, h.start_deg, h.damping, h.frictionloss];
-                    let inertial = h.inertial.as_ref().is_none_or(|i| finite(&i.pos) && finite(&i.quat) && i.mass.is_finite() && finite(&i.diaginertia));
+                    let inertial = h.inertial.as_deref().is_none_or(inertial_finite);
                     (!(finite(&h.pos) && finite(&h.axis) && finite(&numbers) && inertial))
                         .then(|| "`hinge.pos`, `hinge.axis`, `hinge.open_deg`, `hinge.start_deg`, `hinge.damping`, `hinge.frictionloss` and `hinge.inertial`".to_owned())
                 })
@@ -621,8 +635,7 @@ fn model_numbers_not_finite(model: &ObjectModel) -> Option<String> {
             .or_else(|| hinge.as_ref().and_then(|h| parts("hinge.geoms", &h.geoms)))
             .or_else(|| {
                 slide.as_ref().and_then(|s| {
-                    let inertial = s.inertial.as_ref().is_none_or(|i| finite(&i.pos) && finite(&i.quat) && i.mass.is_finite() && finite(&i.diaginertia));
-                    (!(finite(&s.axis) && s.travel_m.is_finite() && s.damping.is_finite() && inertial))
+                    (!(finite(&s.axis) && s.travel_m.is_finite() && s.damping.is_finite() && s.inertial.as_deref().is_none_or(inertial_finite)))
                         .then(|| "`slide.axis`, `slide.travel_m`, `slide.damping` and `slide.inertial`".to_owned())
                 })
             })
@@ -749,6 +762,20 @@ mod tests {
         for bad in ["[5.0, 100.0]", "[100.0, 0.0]", "[0.0, nan]"] {
             let err = refused_after(coffee, "range_deg = [0.0, 120.0]", &format!("range_deg = {bad}"));
             assert!(err.contains("my.task.toml") && err.contains("\"coffee_machine\"") && err.contains("hinge.range_deg"), "{bad}: {err}");
+        }
+    }
+
+    #[test]
+    fn a_slide_s_inertial_is_checked_as_a_hinge_s() {
+        let coffee = include_str!("../tasks/coffee_preparation.task.toml");
+        for (to, what) in [
+            ("mass = -7.85398", "slide.inertial"),
+            ("mass = nan", "slide.inertial"),
+            ("quat = [0.0, 0.0, 0.0, 0.0], mass = 7.85398", "slide.inertial"),
+        ] {
+            let from = if to.starts_with("quat") { "quat = [0.5, 0.5, 0.5, 0.5], mass = 7.85398" } else { "mass = 7.85398" };
+            let err = refused_after(coffee, from, to);
+            assert!(err.contains("my.task.toml") && err.contains("\"drawer\"") && err.contains(what), "{to}: {err}");
         }
     }
 
