@@ -107,6 +107,14 @@ pub enum ObjectModel {
         /// 0.1 when absent. The reference's ShapeNet mugs have (1, 1, 1).
         #[serde(default)]
         friction: Option<[f64; 3]>,
+        /// MuJoCo solref of every geom (time constant, damping ratio); (0.02, 1) when absent.
+        /// The reference's ShapeNet mugs have (0.001, 1).
+        #[serde(default)]
+        solref: Option<[f64; 2]>,
+        /// MuJoCo margin of every geom (m): contacts count from this far apart; 0 when absent.
+        /// The reference's ShapeNet mugs have 0.001.
+        #[serde(default)]
+        margin: Option<f64>,
     },
     /// An object built from primitive geoms (ours, for the tasks whose objects robosuite does not
     /// ship): body `<name>_main`, with a free joint, or fixed in the world (a mocap body the task
@@ -211,7 +219,9 @@ fn unit_scale() -> [f64; 3] {
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Part {
-    /// MuJoCo geom type: `box`, `cylinder`, `capsule` or `sphere`.
+    /// MuJoCo geom type: `box`, `cylinder`, `capsule` or `sphere`; or `convex_box`, a box that
+    /// collides as a convex mesh (MuJoCo's general convex collider, one contact per geom pair at
+    /// the true depth), as the reference's mesh objects do: a stand-in for a mesh's hull.
     #[serde(rename = "type")]
     pub kind: String,
     /// MuJoCo `size` (half extents for a box; radius and half length for a cylinder).
@@ -239,6 +249,12 @@ pub struct Part {
     /// MuJoCo friction (sliding, torsional, rolling); robosuite's 0.95, 0.3, 0.1 when absent.
     #[serde(default)]
     pub friction: Option<[f64; 3]>,
+    /// MuJoCo solref (time constant, damping ratio); (0.02, 1) when absent.
+    #[serde(default)]
+    pub solref: Option<[f64; 2]>,
+    /// MuJoCo margin (m): contacts count from this far apart; 0 when absent.
+    #[serde(default)]
+    pub margin: Option<f64>,
     /// A name predicates can touch it by (`contact = ["mug", "coffee_machine.base"]`): its geom is
     /// `<object>_<name>_g<k>`, the k-th of the object's parts so named, as the reference names
     /// Coffee Preparation's base plate `coffee_machine_base_g0`.
@@ -332,7 +348,17 @@ impl ObjectModel {
         const WALL_BOXES: u32 = 16;
         const BOTTOM_M: f64 = 0.008;
         let Self::Mug {
-            radius_m: r, height_m: h, wall_m: w, handle_m: [reach, low, high], base_m, handle_yaw_deg, density, friction, ..
+            radius_m: r,
+            height_m: h,
+            wall_m: w,
+            handle_m: [reach, low, high],
+            base_m,
+            handle_yaw_deg,
+            density,
+            friction,
+            solref,
+            margin,
+            ..
         } = *self
         else {
             return Vec::new();
@@ -350,6 +376,8 @@ impl ObjectModel {
             density: Some(density),
             visual: false,
             friction,
+            solref,
+            margin,
             name: None,
         };
         let middle = r - w / 2.0;
@@ -360,13 +388,13 @@ impl ObjectModel {
         for k in 0..WALL_BOXES {
             let angle = step * f64::from(k);
             let pos = [middle * angle.cos(), middle * angle.sin(), (h + BOTTOM_M / 2.0) / 2.0];
-            parts.push(part(vec![w / 2.0, half_width, (h - BOTTOM_M / 2.0) / 2.0], pos, angle.to_degrees(), "box"));
+            parts.push(part(vec![w / 2.0, half_width, (h - BOTTOM_M / 2.0) / 2.0], pos, angle.to_degrees(), CONVEX_BOX));
         }
         let (arm, bar) = ([reach / 2.0, 0.005, 0.004], 0.004);
         for z in [high, low] {
-            parts.push(part(arm.to_vec(), [r + reach / 2.0, 0.0, z], 0.0, "box"));
+            parts.push(part(arm.to_vec(), [r + reach / 2.0, 0.0, z], 0.0, CONVEX_BOX));
         }
-        parts.push(part(vec![bar, 0.005, (high - low) / 2.0 + bar], [r + reach - bar, 0.0, (high + low) / 2.0], 0.0, "box"));
+        parts.push(part(vec![bar, 0.005, (high - low) / 2.0 + bar], [r + reach - bar, 0.0, (high + low) / 2.0], 0.0, CONVEX_BOX));
         parts
     }
 
@@ -378,7 +406,16 @@ impl ObjectModel {
             }
             Self::SquareNut { name } | Self::RoundNut { name } => write_brass(out, name),
             Self::FixedBox { body, .. } | Self::FixedCylinder { body, .. } => write_brass(out, body),
-            Self::Compound { .. } | Self::Mug { .. } => {}
+            Self::Mug { name, .. } => write_hulls(out, name, &self.mug_parts()),
+            Self::Compound { name, geoms, hinge, slide, .. } => {
+                write_hulls(out, name, geoms);
+                if let Some(h) = hinge {
+                    write_hulls(out, &format!("{name}_lid"), &h.geoms);
+                }
+                if let Some(s) = slide {
+                    write_hulls(out, &format!("{name}_drawer"), &s.geoms);
+                }
+            }
             Self::Mesh { name, mesh, scale: [sx, sy, sz], texture, .. } => {
                 let _ = writeln!(out, r#"    <mesh name="{name}_mesh" file="{{ASSETS}}/{mesh}" scale="{sx} {sy} {sz}"/>"#);
                 let _ = writeln!(out, r#"    <texture type="2d" name="{name}_tex" file="{{ASSETS}}/{texture}"/>"#);
@@ -506,19 +543,43 @@ fn write_inertial(out: &mut String, inertial: Option<&Inertial>) {
     }
 }
 
-/// `owner`'s collision geoms and their visual copies: `<owner>_g<i>` by their place in `geoms`, or
+/// The geom names of `owner`'s parts: `<owner>_g<i>` by their place in `geoms`, or
 /// `<owner>_<name>_g<k>` for the k-th part named `name`.
-fn write_parts(out: &mut String, owner: &str, geoms: &[Part], rgba: [f64; 4], indent: &str) {
+fn part_geom_names(owner: &str, geoms: &[Part]) -> Vec<String> {
     let mut named: BTreeMap<&str, usize> = BTreeMap::new();
-    for (i, part) in geoms.iter().enumerate() {
-        let geom = match &part.name {
+    geoms
+        .iter()
+        .enumerate()
+        .map(|(i, part)| match &part.name {
             Some(name) => {
                 let k = named.entry(name.as_str()).or_default();
                 *k += 1;
                 format!("{owner}_{name}_g{}", *k - 1)
             }
             None => format!("{owner}_g{i}"),
-        };
+        })
+        .collect()
+}
+
+/// The mesh assets of `owner`'s `convex_box` parts (`<geom>_hull`: the box's eight corners).
+fn write_hulls(out: &mut String, owner: &str, geoms: &[Part]) {
+    for (part, geom) in geoms.iter().zip(part_geom_names(owner, geoms)) {
+        if part.kind == CONVEX_BOX {
+            let [x, y, z] = [0, 1, 2].map(|k| part.size.get(k).copied().unwrap_or_default());
+            let corners: Vec<f64> = (0..8)
+                .flat_map(|c| [if c & 1 == 0 { -x } else { x }, if c & 2 == 0 { -y } else { y }, if c & 4 == 0 { -z } else { z }])
+                .collect();
+            let _ = writeln!(out, r#"    <mesh name="{geom}_hull" vertex="{}"/>"#, words(&corners));
+        }
+    }
+}
+
+/// The part kind of a box that collides as a convex mesh ([`Part::kind`]).
+const CONVEX_BOX: &str = "convex_box";
+
+/// `owner`'s collision geoms and their visual copies, named by [`part_geom_names`].
+fn write_parts(out: &mut String, owner: &str, geoms: &[Part], rgba: [f64; 4], indent: &str) {
+    for (part, geom) in geoms.iter().zip(part_geom_names(owner, geoms)) {
         let [r, g, b, a] = part.rgba.unwrap_or(rgba);
         let (roll, yaw) = (part.roll_deg.to_radians(), part.yaw_deg.to_radians());
         let turn = if yaw == 0.0 && roll == 0.0 {
@@ -531,13 +592,20 @@ fn write_parts(out: &mut String, owner: &str, geoms: &[Part], rgba: [f64; 4], in
             let q = Rot::from_axis_angle(&Vec3::z_axis(), yaw) * Rot::from_axis_angle(&Vec3::x_axis(), roll);
             format!(r#" quat="{}""#, words(&quat_to_wxyz(&q)))
         };
-        let (kind, size, pos) = (&part.kind, words(&part.size), words(&part.pos));
+        let (size, pos) = (words(&part.size), words(&part.pos));
+        let (kind, shape) = if part.kind == CONVEX_BOX {
+            ("box", format!(r#"type="mesh" mesh="{geom}_hull""#))
+        } else {
+            (part.kind.as_str(), format!(r#"type="{}" size="{size}""#, part.kind))
+        };
         let density = part.density.map_or_else(String::new, |d| format!(r#" density="{d}""#));
         let friction = words(&part.friction.unwrap_or([0.95, 0.3, 0.1]));
+        let solref = words(&part.solref.unwrap_or([0.02, 1.0]));
+        let margin = part.margin.map_or_else(String::new, |m| format!(r#" margin="{m}""#));
         if !part.visual {
             let _ = writeln!(
                 out,
-                r#"{indent}<geom name="{geom}" type="{kind}" size="{size}" pos="{pos}"{turn}{density} friction="{friction}" condim="4" solimp="0.998 0.998 0.001" solref="0.02 1" group="0" rgba="{r} {g} {b} {a}"/>"#
+                r#"{indent}<geom name="{geom}" {shape} pos="{pos}"{turn}{density} friction="{friction}" condim="4" solimp="0.998 0.998 0.001" solref="{solref}"{margin} group="0" rgba="{r} {g} {b} {a}"/>"#
             );
         }
         let _ = writeln!(
@@ -702,6 +770,8 @@ mod tests {
             density: None,
             visual: false,
             friction: None,
+            solref: None,
+            margin: None,
             name: None,
         };
         let mut xml = String::new();
@@ -711,6 +781,41 @@ mod tests {
         let [w, x, y, z] = q[..] else { panic!("{xml}") };
         let axis = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z)) * nalgebra::Vector3::z();
         assert!((axis.x.abs() - 1.0).abs() < 1e-9, "the capsule's axis {axis:?}, want along x");
+    }
+
+    #[test]
+    fn a_convex_box_collides_as_a_mesh_of_its_corners_and_is_drawn_as_a_box() {
+        let wall = Part {
+            kind: CONVEX_BOX.to_owned(),
+            size: vec![0.002, 0.01, 0.03],
+            pos: [0.0, 0.02, 0.03],
+            yaw_deg: 0.0,
+            roll_deg: 0.0,
+            rgba: None,
+            density: None,
+            visual: false,
+            friction: None,
+            solref: None,
+            margin: Some(0.001),
+            name: Some("wall".to_owned()),
+        };
+        let (mut assets, mut body) = (String::new(), String::new());
+        write_hulls(&mut assets, "mug", std::slice::from_ref(&wall));
+        write_parts(&mut body, "mug", &[wall], [1.0; 4], "");
+        let vertex = assets.split(r#"vertex=""#).nth(1).and_then(|v| v.split('"').next()).unwrap_or_default();
+        let corners: Vec<f64> = vertex.split_whitespace().map(|w| w.parse().unwrap_or(f64::NAN)).collect();
+        assert!(assets.contains(r#"<mesh name="mug_wall_g0_hull""#) && corners.len() == 24, "{assets}");
+        for corner in corners.chunks(3) {
+            assert_eq!(corner.iter().map(|v| v.abs()).collect::<Vec<_>>(), [0.002, 0.01, 0.03], "{corner:?}");
+        }
+        let distinct: std::collections::BTreeSet<String> = corners.chunks(3).map(|c| format!("{c:?}")).collect();
+        assert_eq!(distinct.len(), 8, "{assets}");
+        let mut lines = body.lines();
+        let collision = lines.next().unwrap_or_default();
+        assert!(collision.contains(r#"type="mesh" mesh="mug_wall_g0_hull""#) && !collision.contains("size="), "{collision}");
+        assert!(collision.contains(r#" margin="0.001""#), "{collision}");
+        let visual = lines.next().unwrap_or_default();
+        assert!(visual.contains(r#"type="box" size="0.002 0.01 0.03""#), "{visual}");
     }
 
     fn mug(base_m: [f64; 3], handle_yaw_deg: f64) -> ObjectModel {
@@ -725,6 +830,8 @@ mod tests {
             rgba: [1.0; 4],
             density: 100.0,
             friction: None,
+            solref: None,
+            margin: None,
         }
     }
 

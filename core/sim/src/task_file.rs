@@ -612,16 +612,20 @@ fn model_numbers_not_finite(model: &ObjectModel) -> Option<String> {
     let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
     let parts = |field: &str, parts: &[crate::compose::Part]| {
         parts.iter().enumerate().find_map(|(i, p)| {
-            let numbers = [p.yaw_deg, p.roll_deg, p.density.unwrap_or(1.0)];
-            (!(finite(&p.size) && finite(&p.pos) && finite(&numbers) && finite(&p.friction.unwrap_or_default())))
-                .then(|| format!("`{field}[{i}]`'s size, pos, yaw_deg, roll_deg, density and friction"))
+            let numbers = [p.yaw_deg, p.roll_deg, p.density.unwrap_or(1.0), p.margin.unwrap_or_default()];
+            let contact = finite(&p.friction.unwrap_or_default()) && finite(&p.solref.unwrap_or_default());
+            (!(finite(&p.size) && finite(&p.pos) && finite(&numbers) && contact))
+                .then(|| format!("`{field}[{i}]`'s size, pos, yaw_deg, roll_deg, density, friction, solref and margin"))
         })
     };
     match model {
-        ObjectModel::Mug { radius_m, height_m, wall_m, handle_m, base_m, handle_yaw_deg, density, friction, .. } => {
-            let numbers = [*radius_m, *height_m, *wall_m, *handle_yaw_deg, *density];
-            (!(finite(&numbers) && finite(handle_m) && finite(base_m) && finite(&friction.unwrap_or_default())))
-                .then(|| "the mug's `radius_m`, `height_m`, `wall_m`, `handle_m`, `base_m`, `handle_yaw_deg`, `density` and `friction`".to_owned())
+        ObjectModel::Mug { radius_m, height_m, wall_m, handle_m, base_m, handle_yaw_deg, density, friction, solref, margin, .. } => {
+            let numbers = [*radius_m, *height_m, *wall_m, *handle_yaw_deg, *density, margin.unwrap_or_default()];
+            let contact = finite(&friction.unwrap_or_default()) && finite(&solref.unwrap_or_default());
+            (!(finite(&numbers) && finite(handle_m) && finite(base_m) && contact)).then(|| {
+                "the mug's `radius_m`, `height_m`, `wall_m`, `handle_m`, `base_m`, `handle_yaw_deg`, `density`, `friction`, `solref` and `margin`"
+                    .to_owned()
+            })
         }
         ObjectModel::Compound { geoms, hinge, slide, .. } => parts("geoms", geoms)
             .or_else(|| {

@@ -405,6 +405,43 @@ fn mug_cleanup_mugs_are_the_reference_sizes_and_fit_under_the_cabinet_top() {
     assert_eq!(count, 13, "the D0 mug and the twelve instances of O1 and O2");
 }
 
+/// The reference's ShapeNet mugs (its `BlenderObject`, mug_cleanup.py:362-371 and coffee.py:859-869
+/// at 72bd767) touch with friction (1, 1, 1), solref (0.001, 1) and a 1 mm margin; so does every
+/// mug of ours, compiled: Mug Cleanup's and each of its object-transfer mugs, Coffee Preparation's.
+/// And they collide as meshes (convex hulls): our mug's walls and handle are box hulls, which
+/// MuJoCo's convex collider meets at the true depth, never the box-box contacts we soften to
+/// MuJoCo 2.3's (no explicit pair names a mug geom).
+#[test]
+fn mugs_touch_as_the_reference_s_shapenet_mugs() {
+    use mujoco_rs::prelude::*;
+    for (name, variant, object) in [("mug_cleanup", "D0", "object"), ("mug_cleanup", "O2", "object"), ("coffee_preparation", "D0", "mug")] {
+        let task = registry::task(name, variant).unwrap();
+        let scenes = Scene::instances_for_task(task.as_ref(), &mimicgen_sim::robot::PANDA).unwrap();
+        let own = Scene::for_task(task.as_ref()).unwrap();
+        assert_eq!(scenes.len(), if variant == "O2" { 12 } else { 0 }, "{name} {variant}");
+        for (label, scene) in scenes.iter().map(|(l, s)| (l.as_str(), s)).chain([("own", &own)]) {
+            let mug = scene.objects.iter().find(|o| o.name == object).unwrap();
+            assert!(mug.geoms.len() > 16, "{name} {label}: {} geoms", mug.geoms.len());
+            let hulls = mug.geoms.iter().filter(|&&g| scene.model.geom_type()[g] == MjtGeomBase::mjGEOM_MESH).count();
+            assert_eq!(hulls, mug.geoms.len() - 1, "{name} {label}: all but the base a hull");
+            let paired = scene
+                .model
+                .pair_geom1()
+                .iter()
+                .chain(scene.model.pair_geom2())
+                .any(|g| usize::try_from(*g).is_ok_and(|g| mug.geoms.contains(&g)));
+            assert!(!paired, "{name} {label}: a mug geom in an explicit pair");
+            for &g in &mug.geoms {
+                let what = format!("{name} {label} geom {g}");
+                let near = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
+                assert!(near(&scene.model.geom_friction()[g], &[1.0, 1.0, 1.0]), "{what}: friction");
+                assert!(near(&scene.model.geom_solref()[g], &[0.001, 1.0]), "{what}: solref");
+                assert!(near(&[scene.model.geom_margin()[g]], &[0.001]), "{what}: margin");
+            }
+        }
+    }
+}
+
 /// The drawer tasks' slide is the reference's (mimicgen's drawer.xml:20-21 and drawer_long.xml:53-54
 /// at 72bd767): a range of 1 m and damping 100 N s/m; it still shuts (the joint's range starts at
 /// 0, closed); and its cabinet collides with it, as the reference's welded cabinet does (the
