@@ -197,6 +197,7 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
         per_source_demo: Vec::new(),
         peak_rss_mib: None,
         failures: Vec::new(),
+        causes: Vec::new(),
         cancelled: false,
         resumed_from: 0,
         early_abort: false,

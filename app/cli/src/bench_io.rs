@@ -50,6 +50,7 @@ fn synthetic_demo(d: usize, steps: usize) -> anyhow::Result<DemoData> {
         model_xml: Some("<mujoco model=\"bench\"/>".to_owned()),
         attempt_index: None,
         failure: None,
+        cause: None,
         object_instance: None,
     })
 }

@@ -39,8 +39,10 @@ The task and variant come from --task/--variant, else from the config's experime
 (MimicGen's `Stack_D1`), else from the source file's env_args, else stack / D0; inputs that name
 different tasks are an error. Successful attempts go to --out (robomimic layout, low-dim
 observations); with --keep-failed, failed ones go to <out>_failed.hdf5. A JSON report (rate, per
-source demo, failures by subtask and reason) is printed and written next to the dataset as
-<out>.json. An existing output is never replaced without --overwrite. While running, the dataset
+source demo, failures by subtask and reason, and by subtask and cause: object_moved, arm_lagged,
+grasp_slipped, grasp_missed, ran_out_of_steps, success_unmet, simulation) is printed and written
+next to the dataset as <out>.json; each failed attempt kept in <out>_failed.hdf5 carries its cause
+as the demo attribute mimicgen_failure_cause. An existing output is never replaced without --overwrite. While running, the dataset
 is <out>.partial; after a crash or kill, the same command with --resume continues it, and the
 finished dataset equals an uninterrupted run's (a run killed after its dataset was finished but
 before its report was written gets the report from --resume). On a terminal, progress is a bar; in a log (a
@@ -371,6 +373,9 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
         report.output,
         pipeline.report_path().display()
     );
+    if !report.causes.is_empty() {
+        eprintln!("why attempts failed: {}", causes_line(&report.causes));
+    }
     let t = &report.transit;
     if !t.is_empty() {
         #[allow(clippy::cast_precision_loss)] // counts are far below 2^52
@@ -381,6 +386,24 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// A report's failure causes in a line, by subtask, most frequent first:
+/// `subtask 1: grasp missed 30, object moved 3; subtask 2: success unmet 7`.
+fn causes_line(causes: &[mimicgen_pipeline::CauseReport]) -> String {
+    let mut by_subtask: std::collections::BTreeMap<usize, Vec<(usize, String)>> = std::collections::BTreeMap::new();
+    for c in causes {
+        by_subtask.entry(c.subtask).or_default().push((c.count, c.cause.replace('_', " ")));
+    }
+    by_subtask
+        .into_iter()
+        .map(|(subtask, mut counts)| {
+            counts.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+            let counts: Vec<String> = counts.into_iter().map(|(n, cause)| format!("{cause} {n}")).collect();
+            format!("subtask {subtask}: {}", counts.join(", "))
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 /// The scripted operator's style (`mimicgen demos --style`).
@@ -530,6 +553,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             model_xml: Some(scene.xml_with_fixed_objects(&xml, &initial)?),
             attempt_index: None,
             failure: None,
+            cause: None,
             object_instance: None,
         };
         let name = writer.append(&data)?;
@@ -568,6 +592,13 @@ mod tests {
     struct Rerun {
         #[command(flatten)]
         args: crate::view::RerunArgs,
+    }
+
+    #[test]
+    fn causes_read_by_subtask_most_frequent_first() {
+        let cause = |subtask, cause: &str, count| mimicgen_pipeline::CauseReport { subtask, cause: cause.to_owned(), count };
+        let line = causes_line(&[cause(2, "success_unmet", 7), cause(1, "object_moved", 3), cause(1, "grasp_missed", 30)]);
+        assert_eq!(line, "subtask 1: grasp missed 30, object moved 3; subtask 2: success unmet 7");
     }
 
     /// A run with every field away from its default.

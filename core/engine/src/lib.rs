@@ -4,7 +4,8 @@
 //! ([`segment`]), selects a source segment for a new scene ([`select`]), transforms it so the
 //! end-effector keeps its pose relative to the subtask's object and bridges to it with an
 //! interpolation segment ([`transform`]), executes it as noisy delta-pose actions through an
-//! [`Environment`] and keeps a structured record of every attempt ([`generate`]); plus the task
+//! [`Environment`] and keeps a structured record of every attempt ([`generate`]) with the cause
+//! of each failure ([`diagnose`]); plus the task
 //! spec formats ([`spec`]), the coverage analysis ([`coverage`]) and, for cluttered scenes,
 //! SkillGen's planned collision-free transit to each segment ([`transit`]).
 //!
@@ -30,6 +31,7 @@ pub mod coverage;
 pub mod demo;
 pub mod demonstrator;
 pub mod detect;
+pub mod diagnose;
 pub mod env;
 pub mod fingerprint;
 pub mod generate;

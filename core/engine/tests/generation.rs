@@ -359,7 +359,7 @@ fn shards_joined_in_index_order_are_the_whole_run() {
             assert_eq!(joined, whole, "guarantee {guarantee}, {count} shards");
             let mut replayed = RunStats::new(g.dataset().demos.len());
             for a in &joined {
-                replayed.record_outcome(a.success, &a.src_demo_per_subtask, a.failure.as_ref());
+                replayed.record_outcome(a.success, &a.src_demo_per_subtask, a.failure.as_ref(), a.cause.as_ref());
             }
             assert_eq!(replayed, whole_stats);
         }

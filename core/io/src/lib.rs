@@ -42,6 +42,6 @@ pub use dataset::{
 };
 pub use error::{IoError, Result};
 pub use writer::{
-    ATTEMPT_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, INSTANCE_ATTR, Observation, WriterOptions, image_dataset,
+    ATTEMPT_ATTR, CAUSE_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, INSTANCE_ATTR, Observation, WriterOptions, image_dataset,
     observations_from_group,
 };

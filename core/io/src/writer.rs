@@ -62,6 +62,8 @@ pub struct DemoData {
     pub attempt_index: Option<u64>,
     /// Where and why the attempt failed (written as [`FAILURE_ATTR`]).
     pub failure: Option<String>,
+    /// What went wrong there, as JSON (written as [`CAUSE_ATTR`]).
+    pub cause: Option<String>,
     /// Which of a variant's object instances the episode used (written as [`INSTANCE_ATTR`]).
     pub object_instance: Option<String>,
 }
@@ -71,6 +73,9 @@ pub const ATTEMPT_ATTR: &str = "mimicgen_attempt";
 /// Demo attribute of a failed attempt: where and why it failed (`subtask 0: signal "grasp" never
 /// turned on`), so a failed-attempts file explains itself.
 pub const FAILURE_ATTR: &str = "mimicgen_failure";
+/// Demo attribute of a failed attempt: its cause ([`mimicgen_engine::diagnose::Cause`]) as JSON,
+/// `{"kind": "grasp_missed", "object": "cubeA", "step": 61, "off_target_m": 0.004}`.
+pub const CAUSE_ATTR: &str = "mimicgen_failure_cause";
 /// Demo attribute naming the object instance an object-transfer episode drew (`tall_green`).
 pub const INSTANCE_ATTR: &str = "mimicgen_object_instance";
 
@@ -103,6 +108,7 @@ impl DemoData {
             model_xml,
             attempt_index: Some(attempt.index),
             failure: attempt.failure.as_ref().map(|f| format!("subtask {}: {}", f.subtask, f.reason)),
+            cause: attempt.cause.as_ref().and_then(|c| serde_json::to_string(c).ok()),
             object_instance: None,
         }
     }
@@ -210,6 +216,9 @@ impl DemoData {
         }
         if let Some(failure) = &self.failure {
             g.attrs.insert(FAILURE_ATTR.into(), Array::string(failure));
+        }
+        if let Some(cause) = &self.cause {
+            g.attrs.insert(CAUSE_ATTR.into(), Array::string(cause));
         }
         if let Some(instance) = &self.object_instance {
             g.attrs.insert(INSTANCE_ATTR.into(), Array::string(instance));

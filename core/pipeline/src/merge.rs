@@ -177,7 +177,7 @@ pub fn merge(
     let mut stats = RunStats::new(shards[0].report.per_source_demo.len());
     let (mut failures_kept, mut control_steps) = (0, 0);
     for (done, record) in order.iter().enumerate() {
-        stats.record_outcome(record.success, &record.sources, record.failure.as_ref());
+        stats.record_outcome(record.success, &record.sources, record.failure.as_ref(), record.cause.as_ref());
         control_steps += record.steps;
         let part = record.index % count;
         let (target, reader) = if record.success {
@@ -225,6 +225,7 @@ pub fn merge(
         per_source_demo: crate::outputs::per_source_demo(&stats),
         peak_rss_mib: crate::memory::peak_rss_mib(),
         failures: crate::outputs::failures(&stats),
+        causes: crate::outputs::causes(&stats),
         cancelled: false,
         resumed_from: 0,
         early_abort: first.early_abort,

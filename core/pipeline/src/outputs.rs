@@ -8,7 +8,7 @@ use mimicgen_engine::{Failure, RunStats, Shard, TaskSpec};
 use mimicgen_io::DatasetWriter;
 use serde::{Deserialize, Serialize};
 
-use crate::{DemoReport, FailureReport, PipelineError};
+use crate::{CauseReport, DemoReport, FailureReport, PipelineError};
 
 /// Root attribute of the output (and of its `.partial`) holding the run description.
 pub const RUN_ATTR: &str = "mimicgen_run";
@@ -58,6 +58,9 @@ pub struct AttemptRecord {
     pub sources: Vec<usize>,
     /// Where and why it failed.
     pub failure: Option<Failure>,
+    /// What went wrong there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cause: Option<mimicgen_engine::diagnose::Cause>,
     /// Control steps.
     pub steps: usize,
     /// Its demo in the shard's dataset (a success) or failed-attempts file (a kept failure).
@@ -118,6 +121,11 @@ pub fn read_attempt_log(path: &Path) -> Result<Vec<AttemptRecord>, PipelineError
 /// The report's rows per source demo.
 pub(crate) fn per_source_demo(stats: &RunStats) -> Vec<DemoReport> {
     stats.per_source_demo.iter().enumerate().map(|(demo, d)| DemoReport { demo, attempts: d.attempts, successes: d.successes }).collect()
+}
+
+/// The report's failures by subtask and cause class.
+pub(crate) fn causes(stats: &RunStats) -> Vec<CauseReport> {
+    stats.causes.iter().map(|c| CauseReport { subtask: c.subtask, cause: c.class.clone(), count: c.count }).collect()
 }
 
 /// The report's failures by subtask and reason.

@@ -104,6 +104,7 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
             model_xml: Some(xml.to_owned()),
             attempt_index: None,
             failure: None,
+            cause: None,
             object_instance: None,
         };
         writer.append(&data)?;

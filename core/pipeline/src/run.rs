@@ -19,8 +19,8 @@ use crate::{Outcome, PipelineError, Report, RunConfig, RunInfo};
 
 use crate::events::{AttemptEvent, Event};
 use crate::outputs::{
-    AttemptLog, AttemptRecord, PROGRESS_ATTR, Progress, RUN_ATTR, RunDescription, attempt_log_path, clear_outputs, differing_fields,
-    failed_path, failures, per_source_demo, sibling,
+    AttemptLog, AttemptRecord, PROGRESS_ATTR, Progress, RUN_ATTR, RunDescription, attempt_log_path, causes, clear_outputs,
+    differing_fields, failed_path, failures, per_source_demo, sibling,
 };
 
 /// What a worker makes of an attempt that may be kept: its observations, camera images, and the
@@ -422,6 +422,7 @@ impl Pipeline {
                         success: attempt.success,
                         sources: attempt.src_demo_per_subtask.clone(),
                         failure: attempt.failure.clone(),
+                        cause: attempt.cause.clone(),
                         steps: attempt.trajectory.len(),
                         kept: match &outcome {
                             Outcome::Written { demo } | Outcome::KeptFailed { demo } => Some(demo.clone()),
@@ -499,6 +500,7 @@ impl Pipeline {
             per_source_demo: per_source_demo(stats),
             peak_rss_mib: crate::memory::peak_rss_mib(),
             failures: failures(stats),
+            causes: causes(stats),
             cancelled,
             resumed_from,
             early_abort: settings.early_abort,

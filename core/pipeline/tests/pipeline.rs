@@ -422,6 +422,16 @@ fn merged_shards_equal_the_single_process_run() {
         let single = dir.path().join(format!("single_{guarantee}.hdf5"));
         let (whole, _) = run(&base(single.clone(), guarantee)).unwrap();
         assert!(whole.successes < whole.attempts, "the test needs failures: {whole:?}");
+        // Each failure's cause counted once, and each kept failure carrying its own.
+        let count = |counts: &mut dyn Iterator<Item = usize>| counts.sum::<usize>();
+        assert_eq!(count(&mut whole.causes.iter().map(|c| c.count)), whole.attempts - whole.successes, "{:?}", whole.causes);
+        let failed = RobomimicDataset::open(dir.path().join(format!("single_{guarantee}_failed.hdf5"))).unwrap();
+        assert!(!failed.demo_names().is_empty());
+        for name in failed.demo_names() {
+            let json = failed.demo(name).unwrap().attrs[mimicgen_io::CAUSE_ATTR].as_str().unwrap().to_owned();
+            let cause: mimicgen_engine::diagnose::Cause = serde_json::from_str(&json).unwrap();
+            assert!(whole.causes.iter().any(|c| c.cause == cause.class()), "{name}: {cause:?} not in {:?}", whole.causes);
+        }
         for count in [2, 3] {
             let mut shards = Vec::new();
             for part in 0..count {

@@ -73,6 +73,19 @@ pub struct FailureReport {
     pub count: usize,
 }
 
+/// Failures of one subtask for one cause class ([`mimicgen_engine::diagnose::Cause::class`]), as
+/// reported.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CauseReport {
+    /// Subtask index.
+    pub subtask: usize,
+    /// The cause's class (`grasp_missed`, `object_moved`, `arm_lagged`, `grasp_slipped`,
+    /// `ran_out_of_steps`, `success_unmet`, `simulation`).
+    pub cause: String,
+    /// How many attempts.
+    pub count: usize,
+}
+
 /// The report of a run, written as `<out>.json` beside the dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -109,6 +122,9 @@ pub struct Report {
     pub peak_rss_mib: Option<f64>,
     /// Failures by subtask and reason.
     pub failures: Vec<FailureReport>,
+    /// Failures by subtask and cause (what went wrong where they failed).
+    #[serde(default)]
+    pub causes: Vec<CauseReport>,
     /// Whether the run was cancelled before its stopping rule (the dataset is complete and valid,
     /// with the attempts decided before the cancel).
     pub cancelled: bool,

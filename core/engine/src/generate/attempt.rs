@@ -111,6 +111,13 @@ impl Generator {
     /// As [`Generator::attempt`], and [`EngineError::Config`] for a source past the last demo or
     /// [`EngineError::Env`] for an object the scene does not have.
     pub fn attempt_with<E: Environment + ?Sized>(&self, env: &mut E, index: u64, overrides: &Overrides) -> Result<Attempt, EngineError> {
+        let mut attempt = self.run_attempt(env, index, overrides)?;
+        attempt.cause = crate::diagnose::cause(&self.spec, &self.dataset, &attempt);
+        Ok(attempt)
+    }
+
+    /// [`Generator::attempt_with`] but for its failure's cause.
+    fn run_attempt<E: Environment + ?Sized>(&self, env: &mut E, index: u64, overrides: &Overrides) -> Result<Attempt, EngineError> {
         let sources = &overrides.sources;
         self.check_overrides(sources)?;
         let settings = &self.spec.generation;
@@ -131,6 +138,7 @@ impl Generator {
             plans: Vec::new(),
             trajectory: Trajectory::new(0, env.action_dim()),
             obstacle_contact_steps: 0,
+            cause: None,
         };
         if let Err(e) = env.reset(&mut rng) {
             attempt.failure = Some(unstable(e, 0)?);

@@ -178,4 +178,6 @@ pub struct Attempt {
     pub trajectory: Trajectory,
     /// Steps at which the robot, or what it held, touched an obstacle.
     pub obstacle_contact_steps: usize,
+    /// What went wrong where it failed ([`crate::diagnose`]), if it did.
+    pub cause: Option<crate::diagnose::Cause>,
 }

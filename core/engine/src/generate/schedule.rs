@@ -33,6 +33,17 @@ pub struct FailureCount {
     pub count: usize,
 }
 
+/// How many attempts failed in one subtask for one cause class ([`crate::diagnose::Cause::class`]).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CauseCount {
+    /// The subtask.
+    pub subtask: usize,
+    /// The cause's class (`grasp_missed`).
+    pub class: String,
+    /// The count.
+    pub count: usize,
+}
+
 /// Running statistics of a generation run.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct RunStats {
@@ -44,6 +55,9 @@ pub struct RunStats {
     pub per_source_demo: Vec<DemoUse>,
     /// Failures by subtask and reason, sorted.
     pub failures: Vec<FailureCount>,
+    /// Failures by subtask and cause class, sorted.
+    #[serde(default)]
+    pub causes: Vec<CauseCount>,
     /// Planned transits and obstacle contacts (all zero in a run without either).
     #[serde(default)]
     pub transit: TransitTotals,
@@ -88,7 +102,7 @@ impl RunStats {
 
     /// Counts one attempt.
     pub fn record(&mut self, attempt: &Attempt) {
-        self.record_outcome(attempt.success, &attempt.src_demo_per_subtask, attempt.failure.as_ref());
+        self.record_outcome(attempt.success, &attempt.src_demo_per_subtask, attempt.failure.as_ref(), attempt.cause.as_ref());
         for stats in attempt.plans.iter().filter_map(|p| p.transit) {
             self.transit.planned += 1;
             self.transit.planning_s += stats.seconds;
@@ -100,8 +114,8 @@ impl RunStats {
     }
 
     /// Counts one attempt from its outcome: whether it succeeded, the source demo of each subtask,
-    /// and where it failed (what [`Self::record`] reads of an [`Attempt`]).
-    pub fn record_outcome(&mut self, success: bool, sources: &[usize], failure: Option<&Failure>) {
+    /// where it failed and why (what [`Self::record`] reads of an [`Attempt`]).
+    pub fn record_outcome(&mut self, success: bool, sources: &[usize], failure: Option<&Failure>, cause: Option<&crate::diagnose::Cause>) {
         self.attempts += 1;
         self.successes += usize::from(success);
         let mut used: Vec<usize> = sources.to_vec();
@@ -122,6 +136,15 @@ impl RunStats {
                 None => {
                     self.failures.push(FailureCount { subtask: failure.subtask, reason: failure.reason.clone(), count: 1 });
                     self.failures.sort_by(|a, b| (a.subtask, &a.reason).cmp(&(b.subtask, &b.reason)));
+                }
+            }
+            if let Some(class) = cause.map(crate::diagnose::Cause::class) {
+                match self.causes.iter_mut().find(|c| c.subtask == failure.subtask && c.class == class) {
+                    Some(c) => c.count += 1,
+                    None => {
+                        self.causes.push(CauseCount { subtask: failure.subtask, class: class.to_owned(), count: 1 });
+                        self.causes.sort_by(|a, b| (a.subtask, &a.class).cmp(&(b.subtask, &b.class)));
+                    }
                 }
             }
         }

@@ -1,0 +1,302 @@
+//! Why an attempt failed, read from what it recorded: the cause behind the place
+//! ([`FailureReason`] says which subtask and which check; a [`Cause`] says what happened there).
+//!
+//! Every cause comes from the attempt's own trajectory (hand, targets, gripper, objects) and, for
+//! an object that moved, from the source segment it copied, so that a drawer the segment pulls
+//! is not taken for a knocked one. The checks run in order; the first that holds names the cause:
+//!
+//! 1. the simulation failed (unstable, no transit path);
+//! 2. the subtask's object moved from where its segment was planned before the hand took it,
+//!    where the source's did not ([`Cause::ObjectMoved`]);
+//! 3. the hand fell behind its targets ([`Cause::ArmLagged`]);
+//! 4. an object that moved with the closed hand was lost from it ([`Cause::GraspSlipped`]);
+//! 5. the gripper closed but nothing moved with it and the signal stayed off
+//!    ([`Cause::GraspMissed`]);
+//! 6. otherwise the segment ran out with its signal off ([`Cause::RanOutOfSteps`]), or the task's
+//!    check failed at the end ([`Cause::SuccessUnmet`]).
+
+use serde::{Deserialize, Serialize};
+
+use crate::demo::SourceDataset;
+use crate::generate::{Attempt, FailureReason};
+use crate::pose::Pose;
+use crate::spec::TaskSpec;
+
+/// An object that moves this far (m) from where its segment was planned, while not held, moved.
+pub const MOVED_M: f64 = 0.01;
+/// ... or turns this far (deg).
+pub const TURNED_DEG: f64 = 10.0;
+/// The hand further than this from its target (m) ...
+pub const LAG_M: f64 = 0.04;
+/// ... for this many steps in a row fell behind.
+pub const LAG_STEPS: usize = 5;
+/// Steps over which "moves with the hand" is judged.
+pub const HOLD_WINDOW: usize = 5;
+/// The hand must move this far (m) over the window for a hold to show ...
+pub const HOLD_MIN_TRAVEL_M: f64 = 0.01;
+/// ... and the object stay within this of its place in the hand (m).
+pub const HOLD_TOL_M: f64 = 0.005;
+/// A held object this far (m) from its place in the hand, the gripper still closed, slipped.
+pub const SLIP_M: f64 = 0.02;
+
+/// What went wrong in the subtask an attempt failed in.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Cause {
+    /// The subtask's object moved from where its segment was planned for before the hand took it
+    /// (knocked by the arm or by what it carried, or it rolled), where in the source it stayed.
+    ObjectMoved {
+        /// The object.
+        object: String,
+        /// The step it had moved by then.
+        step: usize,
+        /// How far it had moved (m) and turned (deg).
+        moved_m: f64,
+        /// How far it had turned (deg).
+        turned_deg: f64,
+    },
+    /// The hand could not follow its targets (a joint at its limit, a collision, too fast a move).
+    ArmLagged {
+        /// The first step of the longest stretch behind.
+        step: usize,
+        /// The largest distance from the target in it (m).
+        error_m: f64,
+    },
+    /// An object moved with the closed hand, then was lost from it.
+    GraspSlipped {
+        /// The object.
+        object: String,
+        /// The first step it was seen moving with the hand.
+        held_from: usize,
+        /// The step it was first more than [`SLIP_M`] from its place in the hand.
+        lost_at: usize,
+    },
+    /// The gripper closed, but the subtask's object never moved with the hand and the signal
+    /// stayed off.
+    GraspMissed {
+        /// The object.
+        object: String,
+        /// The step the gripper closed.
+        step: usize,
+        /// How far the hand was from its target there (m).
+        off_target_m: f64,
+    },
+    /// The segment ran to its end with the signal off, none of the above seen.
+    RanOutOfSteps {
+        /// The subtask's steps.
+        steps: usize,
+    },
+    /// Every subtask ran but a clause of the task's success check failed at the end.
+    SuccessUnmet {
+        /// The clause, when the environment names it.
+        clause: Option<String>,
+    },
+    /// The simulation failed (unstable, or no collision-free transit).
+    Simulation,
+}
+
+impl Cause {
+    /// The cause's class, as reports count it (`object_moved`, `grasp_missed`, ...).
+    #[must_use]
+    pub fn class(&self) -> &'static str {
+        match self {
+            Self::ObjectMoved { .. } => "object_moved",
+            Self::ArmLagged { .. } => "arm_lagged",
+            Self::GraspSlipped { .. } => "grasp_slipped",
+            Self::GraspMissed { .. } => "grasp_missed",
+            Self::RanOutOfSteps { .. } => "ran_out_of_steps",
+            Self::SuccessUnmet { .. } => "success_unmet",
+            Self::Simulation => "simulation",
+        }
+    }
+}
+
+impl std::fmt::Display for Cause {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::ObjectMoved { object, step, moved_m, turned_deg } => write!(
+                f,
+                "{object} moved {:.1} cm and turned {turned_deg:.0} deg before the hand took it (by step {step})",
+                moved_m * 100.0
+            ),
+            Self::ArmLagged { step, error_m } => write!(f, "the arm fell {:.1} cm behind its targets from step {step}", error_m * 100.0),
+            Self::GraspSlipped { object, held_from, lost_at } => {
+                write!(f, "{object} slipped from the hand: held from step {held_from}, lost at step {lost_at}")
+            }
+            Self::GraspMissed { object, step, off_target_m } => write!(
+                f,
+                "the gripper closed at step {step} but {object} never moved with the hand (the hand {:.1} cm from its target)",
+                off_target_m * 100.0
+            ),
+            Self::RanOutOfSteps { steps } => write!(f, "the segment's {steps} steps ran out before its signal"),
+            Self::SuccessUnmet { clause: Some(clause) } => write!(f, "the success check's {clause} failed at the end"),
+            Self::SuccessUnmet { clause: None } => write!(f, "the success check failed at the end"),
+            Self::Simulation => write!(f, "the simulation failed"),
+        }
+    }
+}
+
+/// The cause of `attempt`'s failure (`None` for a success), made from `spec`'s subtasks and the
+/// `sources` its segments came from.
+#[must_use]
+pub fn cause(spec: &TaskSpec, sources: &SourceDataset, attempt: &Attempt) -> Option<Cause> {
+    let failure = attempt.failure.as_ref()?;
+    if matches!(failure.reason, FailureReason::Unstable { .. } | FailureReason::NoTransitPath { .. }) {
+        return Some(Cause::Simulation);
+    }
+    let trajectory = &attempt.trajectory;
+    let s = failure.subtask;
+    let start = attempt.plans.get(s).map_or(0, |p| p.first_step);
+    let end = attempt.plans.get(s + 1).map_or(trajectory.len(), |p| p.first_step).min(trajectory.len());
+    if start >= end {
+        return Some(fallback(&failure.reason, 0));
+    }
+    let closed = |t: usize| trajectory.gripper_actions.get(t).and_then(|g| g.first()).is_some_and(|&g| g > 0.0);
+    let close_step = (start..end).find(|&t| closed(t) && (t == 0 || !closed(t - 1)));
+    let object = spec.subtasks.get(s).and_then(|sub| sub.object_ref.clone());
+    let poses = |name: &str| trajectory.object_poses.get(name);
+
+    if let (Some(name), Some(plan)) = (&object, attempt.plans.get(s))
+        && let Some(obj) = poses(name)
+        && let Some(moved) = moved_before_taken(trajectory, obj, start, close_step.unwrap_or(end), &closed)
+        && !source_moved(sources, plan.src_demo, plan.src_span, name)
+    {
+        let (step, moved_m, turned_deg) = moved;
+        return Some(Cause::ObjectMoved { object: name.clone(), step, moved_m, turned_deg });
+    }
+    if let Some(lag) = lagged(trajectory, start, end) {
+        return Some(lag);
+    }
+    // An object held in this subtask or carried into it (from the last close before its end).
+    let hold_from = (0..end).rev().find(|&t| closed(t) && (t == 0 || !closed(t - 1))).unwrap_or(start);
+    for (name, obj) in &trajectory.object_poses {
+        if let Some((held_from, lost_at)) = slipped(trajectory, obj, hold_from, end, start, &closed) {
+            return Some(Cause::GraspSlipped { object: name.clone(), held_from, lost_at });
+        }
+    }
+    if let (FailureReason::SignalNeverOn { .. }, Some(step), Some(name)) = (&failure.reason, close_step, &object)
+        && let Some(obj) = poses(name)
+        && first_held(trajectory, obj, step, end, &closed).is_none()
+    {
+        let off_target_m = match (trajectory.eef_poses.get(step), trajectory.target_poses.get(step)) {
+            (Some(eef), Some(target)) => (eef.translation.vector - target.translation.vector).norm(),
+            _ => 0.0,
+        };
+        return Some(Cause::GraspMissed { object: name.clone(), step, off_target_m });
+    }
+    Some(fallback(&failure.reason, end - start))
+}
+
+fn fallback(reason: &FailureReason, steps: usize) -> Cause {
+    match reason {
+        FailureReason::TaskNotAchieved { unmet } => Cause::SuccessUnmet { clause: unmet.clone() },
+        FailureReason::SignalNeverOn { .. } => Cause::RanOutOfSteps { steps },
+        FailureReason::Unstable { .. } | FailureReason::NoTransitPath { .. } => Cause::Simulation,
+    }
+}
+
+/// How far `b` is from `a`: metres and degrees.
+fn apart(a: &Pose, b: &Pose) -> (f64, f64) {
+    ((b.translation.vector - a.translation.vector).norm(), a.rotation.angle_to(&b.rotation).to_degrees())
+}
+
+/// The first step in `start..until` at which `obj` had moved [`MOVED_M`] or turned [`TURNED_DEG`]
+/// from its pose at `start` without being held: `(step, metres, degrees)`.
+fn moved_before_taken(
+    trajectory: &crate::generate::Trajectory,
+    obj: &[Pose],
+    start: usize,
+    until: usize,
+    closed: &impl Fn(usize) -> bool,
+) -> Option<(usize, f64, f64)> {
+    let first = obj.get(start)?;
+    (start..until.min(obj.len())).find_map(|t| {
+        let (m, deg) = apart(first, obj.get(t)?);
+        let held = closed(t) && first_held(trajectory, obj, t.saturating_sub(HOLD_WINDOW), t + 1, closed).is_some();
+        ((m > MOVED_M || deg > TURNED_DEG) && !held).then_some((t, m, deg))
+    })
+}
+
+/// Whether `name` moved [`MOVED_M`] or turned [`TURNED_DEG`] over source demo `demo`'s `span`
+/// before its gripper closed there (a segment that pushes or pulls it: its moving is the plan).
+fn source_moved(sources: &SourceDataset, demo: usize, span: (usize, usize), name: &str) -> bool {
+    let Some(source) = sources.demos.get(demo) else { return false };
+    let Some(obj) = source.object_poses.get(name) else { return false };
+    let Some(first) = obj.get(span.0) else { return false };
+    let closed = |t: usize| source.gripper_actions.get(t).and_then(|g| g.first()).is_some_and(|&g| g > 0.0);
+    let until = (span.0 + 1..span.1).find(|&t| closed(t) && !closed(t - 1)).unwrap_or(span.1);
+    obj.iter().take(until.min(obj.len())).skip(span.0).any(|p| {
+        let (m, deg) = apart(first, p);
+        m > MOVED_M || deg > TURNED_DEG
+    })
+}
+
+/// The longest stretch of at least [`LAG_STEPS`] steps in `start..end` with the hand more than
+/// [`LAG_M`] from its target, as a cause.
+fn lagged(trajectory: &crate::generate::Trajectory, start: usize, end: usize) -> Option<Cause> {
+    let error = |t: usize| match (trajectory.eef_poses.get(t), trajectory.target_poses.get(t)) {
+        (Some(eef), Some(target)) => (eef.translation.vector - target.translation.vector).norm(),
+        _ => 0.0,
+    };
+    let mut best: Option<(usize, usize, f64)> = None;
+    let mut run: Option<(usize, f64)> = None;
+    for t in start..=end {
+        let e = if t < end { error(t) } else { 0.0 };
+        if e > LAG_M {
+            let (from, worst) = run.unwrap_or((t, 0.0));
+            run = Some((from, worst.max(e)));
+        } else if let Some((from, worst)) = run.take() {
+            let len = t - from;
+            if len >= LAG_STEPS && best.is_none_or(|(_, l, _)| len > l) {
+                best = Some((from, len, worst));
+            }
+        }
+    }
+    best.map(|(step, _, error_m)| Cause::ArmLagged { step, error_m })
+}
+
+/// The object's place in the hand at `t`.
+fn in_hand(trajectory: &crate::generate::Trajectory, obj: &[Pose], t: usize) -> Option<Pose> {
+    Some(trajectory.eef_poses.get(t)?.inverse() * obj.get(t)?)
+}
+
+/// The first step in `from..to` at which `obj` moved with the closed hand over the
+/// [`HOLD_WINDOW`] steps before it.
+fn first_held(
+    trajectory: &crate::generate::Trajectory,
+    obj: &[Pose],
+    from: usize,
+    to: usize,
+    closed: &impl Fn(usize) -> bool,
+) -> Option<usize> {
+    (from.max(HOLD_WINDOW)..to).find(|&t| {
+        let before = t - HOLD_WINDOW;
+        let (Some(eef_then), Some(eef_now)) = (trajectory.eef_poses.get(before), trajectory.eef_poses.get(t)) else {
+            return false;
+        };
+        let travel = (eef_now.translation.vector - eef_then.translation.vector).norm();
+        let (Some(then), Some(now)) = (in_hand(trajectory, obj, before), in_hand(trajectory, obj, t)) else {
+            return false;
+        };
+        closed(before) && closed(t) && travel >= HOLD_MIN_TRAVEL_M && apart(&then, &now).0 < HOLD_TOL_M
+    })
+}
+
+/// `(held from, lost at)` when `obj`, seen moving with the closed hand from some step in
+/// `from..to`, is more than [`SLIP_M`] from that place in the hand at a step of `start..to` with
+/// the gripper still closed.
+fn slipped(
+    trajectory: &crate::generate::Trajectory,
+    obj: &[Pose],
+    from: usize,
+    to: usize,
+    start: usize,
+    closed: &impl Fn(usize) -> bool,
+) -> Option<(usize, usize)> {
+    let held = first_held(trajectory, obj, from, to, closed)?;
+    let place = in_hand(trajectory, obj, held)?;
+    let lost = (held.max(start)..to)
+        .take_while(|&t| closed(t))
+        .find(|&t| in_hand(trajectory, obj, t).is_some_and(|p| apart(&place, &p).0 > SLIP_M))?;
+    Some((held, lost))
+}
