@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
 use mimicgen_engine::RunStats;
-use mimicgen_io::{ATTEMPT_ATTR, DemoReader, DemoSource as _, FAILURE_ATTR, INSTANCE_ATTR, ReadOptions, source_demo_from_group};
+use mimicgen_io::{
+    ATTEMPT_ATTR, CAUSE_ATTR, DemoReader, DemoSource as _, FAILURE_ATTR, INSTANCE_ATTR, ReadOptions, source_demo_from_group,
+};
 use mimicgen_pipeline::{AttemptEvent, Event, FrontEnd, Outcome, Pipeline, PipelineError, Report, RunConfig, RunInfo};
 use mimicgen_viz::RunLogger;
 
@@ -21,6 +23,7 @@ pub(crate) fn attempt_row(event: &AttemptEvent) -> AttemptRow {
         success: a.success,
         failed_subtask: a.failure.as_ref().map(|f| f.subtask),
         reason: a.failure.as_ref().map(|f| f.reason.to_string()),
+        cause: a.cause.as_ref().map(ToString::to_string),
         sources: a.src_demo_per_subtask.clone(),
         steps: a.trajectory.len(),
         outcome: match &event.outcome {
@@ -135,6 +138,12 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
                 success,
                 failed_subtask,
                 reason: if success { None } else { Some(reason.unwrap_or_else(|| "not recorded in the file".to_owned())) },
+                cause: group
+                    .attrs
+                    .get(CAUSE_ATTR)
+                    .and_then(mimicgen_io::tree::Array::as_str)
+                    .and_then(|json| serde_json::from_str::<mimicgen_engine::diagnose::Cause>(json).ok())
+                    .map(|c| c.to_string()),
                 sources,
                 steps: demo.len(),
                 outcome: if success { name.clone() } else { format!("{name} (failed)") },

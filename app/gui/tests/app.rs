@@ -521,11 +521,12 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     assert!(opened.error.is_none() && h.state().model.error.is_none(), "{:?}", h.state().model.error);
     let failed = run.rows.iter().find(|r| !r.success).expect("seed 1 has a failed attempt among the first 6").clone();
     assert!(failed.reason.as_deref().is_some_and(|r| r.contains("grasp")), "{failed:?}");
+    assert!(failed.cause.is_some(), "a failure's cause: {failed:?}");
     // Object poses compared to 1e-9: the live run's come from the simulator's rotation, the opened
     // file's from the stored 4x4 matrix, and the yaw taken from either can differ in the last bit.
     let key = |r: &mimicgen_gui::protocol::AttemptRow| {
         let objects: Vec<String> = r.objects.iter().map(|o| format!("{} {:.9?} {:.9}", o.name, o.position, o.yaw)).collect();
-        (r.index, r.success, r.steps, r.sources.clone(), r.reason.clone(), objects)
+        (r.index, r.success, r.steps, r.sources.clone(), r.reason.clone(), r.cause.clone(), objects)
     };
     assert_eq!(opened.rows.iter().map(key).collect::<Vec<_>>(), run.rows.iter().map(key).collect::<Vec<_>>());
     // The report read back from its JSON (floats parsed from text may differ in the last bit).
@@ -550,8 +551,16 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     // Re-run the failed attempt in the preview: the same seed and index give the same outcome.
     h.get_by_label("Generate").click();
     h.run_steps(2);
+    h.get_by_label("Failures by subtask and cause");
     h.get_by_label_contains(&format!("{:>5}  failure", failed.index)).click();
     h.run_steps(2);
+    // What went wrong there, as the run found it.
+    h.get_by_label_contains(&format!(
+        "failed in subtask {}: {} ({})",
+        failed.failed_subtask.unwrap(),
+        failed.reason.as_ref().unwrap(),
+        failed.cause.as_ref().unwrap()
+    ));
     // The nearest success (by where the objects were) is offered for comparison.
     let (near, _) = mimicgen_gui::model::nearest_success(&run.rows, &failed).unwrap();
     assert!(near.success && near.index != failed.index);

@@ -361,6 +361,7 @@ fn event_json(event: &Event) -> Option<String> {
             "demo": match &a.outcome { Outcome::Written { demo } | Outcome::KeptFailed { demo } => Some(demo.clone()), Outcome::Discarded => None },
             "sources": a.attempt.src_demo_per_subtask,
             "failure": a.attempt.failure.as_ref().map(|f| serde_json::json!({"subtask": f.subtask, "reason": f.reason.to_string()})),
+            "cause": a.attempt.cause,
             "steps": a.attempt.trajectory.len(),
             "stats": a.stats,
             "elapsed_s": a.elapsed_s,

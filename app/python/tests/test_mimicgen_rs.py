@@ -205,10 +205,15 @@ class NeverStacked(KinematicStack):
 
 
 def test_a_python_simulator_names_what_is_unmet_in_the_report(tmp_path):
-    report = mg.generate(tmp_path / "never.hdf5", env=NeverStacked, num_demos=4, seed=3).wait()
+    run = mg.generate(tmp_path / "never.hdf5", env=NeverStacked, num_demos=4, seed=3)
+    causes = [e["cause"] for e in run if e["kind"] == "attempt"]
+    report = run.wait()
     assert report["successes"] == 0
     reasons = {f["reason"] for f in report["failures"]}
     assert "task not achieved: cube A on cube B failed" in reasons, report
+    # Every attempt's event carries its cause; the report counts them by subtask.
+    assert causes == [{"kind": "success_unmet", "clause": "cube A on cube B"}] * 4, causes
+    assert report["causes"] == [{"subtask": 1, "cause": "success_unmet", "count": 4}], report
 
 
 def test_a_python_simulator_error_ends_the_run_with_its_message(tmp_path):

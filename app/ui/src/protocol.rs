@@ -109,6 +109,10 @@ pub struct AttemptRow {
     pub failed_subtask: Option<usize>,
     /// Why, if it failed.
     pub reason: Option<String>,
+    /// What went wrong there ([`mimicgen_engine::diagnose::Cause`], in words), if it failed and
+    /// the run or file recorded it.
+    #[serde(default)]
+    pub cause: Option<String>,
     /// The source demo of each subtask.
     pub sources: Vec<usize>,
     /// Executed steps.

@@ -109,6 +109,21 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, com
             }
         });
     }
+    let causes: Vec<(usize, String, usize)> = match run.stats().filter(|s| !s.causes.is_empty()) {
+        Some(stats) => stats.causes.iter().map(|c| (c.subtask, c.class.clone(), c.count)).collect(),
+        None => run.report.iter().flat_map(|r| &r.causes).map(|c| (c.subtask, c.cause.clone(), c.count)).collect(),
+    };
+    if !causes.is_empty() {
+        ui.strong("Failures by subtask and cause");
+        egui::Grid::new("causes").striped(true).num_columns(3).show(ui, |ui| {
+            for (subtask, cause, count) in &causes {
+                ui.label(format!("subtask {subtask}"));
+                ui.label(cause.replace('_', " "));
+                ui.label(format!("{count}"));
+                ui.end_row();
+            }
+        });
+    }
     let instances = instance_rates(&run.rows);
     if !instances.is_empty() {
         ui.strong("Success by object instance");
@@ -310,7 +325,10 @@ fn attempt_table(ui: &mut egui::Ui, model: &AppModel, run: &RunState, state: &mu
         // Wrapped: in a narrow window (a browser beside the 3D view) the buttons stay in sight.
         ui.horizontal_wrapped(|ui| {
             let what = match (&row.reason, row.failed_subtask) {
-                (Some(reason), Some(k)) => format!("attempt {}: failed in subtask {k}: {reason}", row.index),
+                (Some(reason), Some(k)) => {
+                    let cause = row.cause.as_ref().map_or(String::new(), |c| format!(" ({c})"));
+                    format!("attempt {}: failed in subtask {k}: {reason}{cause}", row.index)
+                }
                 _ => format!("attempt {}: success, written as {}", row.index, row.outcome),
             };
             ui.label(RichText::new(what).color(if row.success { SUCCESS } else { FAILURE }));
