@@ -8,7 +8,7 @@
 //! 1. the simulation failed (unstable, no transit path);
 //! 2. the subtask's object moved from where its segment was planned before the hand took it,
 //!    where the source's did not ([`Cause::ObjectMoved`]);
-//! 3. the hand fell behind its targets ([`Cause::ArmLagged`]);
+//! 3. the hand fell behind where the source's was ([`Cause::ArmLagged`]);
 //! 4. an object that moved with the closed hand was lost from it ([`Cause::GraspSlipped`]);
 //! 5. the gripper closed but nothing moved with it and the signal stayed off
 //!    ([`Cause::GraspMissed`]);
@@ -21,15 +21,19 @@ use crate::demo::SourceDataset;
 use crate::generate::{Attempt, FailureReason};
 use crate::pose::Pose;
 use crate::spec::TaskSpec;
+use crate::transform::WaypointKind;
 
 /// An object that moves this far (m) from where its segment was planned, while not held, moved.
 pub const MOVED_M: f64 = 0.01;
 /// ... or turns this far (deg).
 pub const TURNED_DEG: f64 = 10.0;
-/// The hand further than this from its target (m) ...
-pub const LAG_M: f64 = 0.04;
-/// ... for this many steps in a row fell behind.
-pub const LAG_STEPS: usize = 5;
+/// The hand further than this (m) from where the source's hand was at the same point of its
+/// segment ...
+pub const LAG_M: f64 = 0.05;
+/// ... for this many steps in a row (1.5 s at 20 Hz) fell behind. The first steps of a segment
+/// often trail the source's hand by a few centimetres for a second, the lag the interpolation
+/// left (measured on Mug Cleanup's successes: up to 22 steps over 3 cm, 13 cm at most).
+pub const LAG_STEPS: usize = 30;
 /// Steps over which "moves with the hand" is judged.
 pub const HOLD_WINDOW: usize = 5;
 /// The hand must move this far (m) over the window for a hold to show ...
@@ -55,11 +59,12 @@ pub enum Cause {
         /// How far it had turned (deg).
         turned_deg: f64,
     },
-    /// The hand could not follow its targets (a joint at its limit, a collision, too fast a move).
+    /// The hand fell behind where the source's hand was at the same point of the segment (a joint
+    /// at its limit, a collision, too fast a move).
     ArmLagged {
         /// The first step of the longest stretch behind.
         step: usize,
-        /// The largest distance from the target in it (m).
+        /// The largest distance from the source's hand in it (m).
         error_m: f64,
     },
     /// An object moved with the closed hand, then was lost from it.
@@ -78,8 +83,9 @@ pub enum Cause {
         object: String,
         /// The step the gripper closed.
         step: usize,
-        /// How far the hand was from its target there (m).
-        off_target_m: f64,
+        /// How far the hand was there from where the source's hand closed, in the object's
+        /// frame (m; `None` when the close is not in the transformed segment).
+        off_source_m: Option<f64>,
     },
     /// The segment ran to its end with the signal off, none of the above seen.
     RanOutOfSteps {
@@ -119,15 +125,20 @@ impl std::fmt::Display for Cause {
                 "{object} moved {:.1} cm and turned {turned_deg:.0} deg before the hand took it (by step {step})",
                 moved_m * 100.0
             ),
-            Self::ArmLagged { step, error_m } => write!(f, "the arm fell {:.1} cm behind its targets from step {step}", error_m * 100.0),
+            Self::ArmLagged { step, error_m } => {
+                write!(f, "the arm fell {:.1} cm behind the source's hand from step {step}", error_m * 100.0)
+            }
             Self::GraspSlipped { object, held_from, lost_at } => {
                 write!(f, "{object} slipped from the hand: held from step {held_from}, lost at step {lost_at}")
             }
-            Self::GraspMissed { object, step, off_target_m } => write!(
+            Self::GraspMissed { object, step, off_source_m: Some(off) } => write!(
                 f,
-                "the gripper closed at step {step} but {object} never moved with the hand (the hand {:.1} cm from its target)",
-                off_target_m * 100.0
+                "the gripper closed at step {step} but {object} never moved with the hand ({:.1} cm from where the source's hand closed)",
+                off * 100.0
             ),
+            Self::GraspMissed { object, step, off_source_m: None } => {
+                write!(f, "the gripper closed at step {step} but {object} never moved with the hand")
+            }
             Self::RanOutOfSteps { steps } => write!(f, "the segment's {steps} steps ran out before its signal"),
             Self::SuccessUnmet { clause: Some(clause) } => write!(f, "the success check's {clause} failed at the end"),
             Self::SuccessUnmet { clause: None } => write!(f, "the success check failed at the end"),
@@ -164,7 +175,7 @@ pub fn cause(spec: &TaskSpec, sources: &SourceDataset, attempt: &Attempt) -> Opt
         let (step, moved_m, turned_deg) = moved;
         return Some(Cause::ObjectMoved { object: name.clone(), step, moved_m, turned_deg });
     }
-    if let Some(lag) = lagged(trajectory, start, end) {
+    if let Some(lag) = lagged(sources, attempt, s) {
         return Some(lag);
     }
     // An object held in this subtask or carried into it (from the last close before its end).
@@ -178,11 +189,8 @@ pub fn cause(spec: &TaskSpec, sources: &SourceDataset, attempt: &Attempt) -> Opt
         && let Some(obj) = poses(name)
         && first_held(trajectory, obj, step, end, &closed).is_none()
     {
-        let off_target_m = match (trajectory.eef_poses.get(step), trajectory.target_poses.get(step)) {
-            (Some(eef), Some(target)) => (eef.translation.vector - target.translation.vector).norm(),
-            _ => 0.0,
-        };
-        return Some(Cause::GraspMissed { object: name.clone(), step, off_target_m });
+        let off_source_m = tracking_errors(sources, attempt, s).into_iter().find(|(t, _)| *t + 1 >= step).map(|(_, m)| m);
+        return Some(Cause::GraspMissed { object: name.clone(), step, off_source_m });
     }
     Some(fallback(&failure.reason, end - start))
 }
@@ -231,17 +239,41 @@ fn source_moved(sources: &SourceDataset, demo: usize, span: (usize, usize), name
     })
 }
 
-/// The longest stretch of at least [`LAG_STEPS`] steps in `start..end` with the hand more than
-/// [`LAG_M`] from its target, as a cause.
-fn lagged(trajectory: &crate::generate::Trajectory, start: usize, end: usize) -> Option<Cause> {
-    let error = |t: usize| match (trajectory.eef_poses.get(t), trajectory.target_poses.get(t)) {
-        (Some(eef), Some(target)) => (eef.translation.vector - target.translation.vector).norm(),
-        _ => 0.0,
+/// How far the hand was, after each step of `subtask`'s transformed segment, from where the source
+/// demo's hand was at the same point of its segment, carried into the new scene by the same
+/// transform (m), by step of the attempt. The segment replays the source's targets, so a hand that
+/// follows as the source's did stays within noise of it; one held back (a joint at its limit, a
+/// collision) falls behind.
+#[must_use]
+pub fn tracking_errors(sources: &SourceDataset, attempt: &Attempt, subtask: usize) -> Vec<(usize, f64)> {
+    let Some(plan) = attempt.plans.get(subtask) else { return Vec::new() };
+    let Some(source) = sources.demos.get(plan.src_demo) else { return Vec::new() };
+    let new_from_src = match (plan.world_from_obj_new, plan.world_from_obj_src) {
+        (Some(new), Some(src)) => new * src.inverse(),
+        _ => Pose::identity(),
     };
+    let eef = &attempt.trajectory.eef_poses;
+    plan.waypoints
+        .iter()
+        .enumerate()
+        .filter(|(_, (_, kind))| *kind == WaypointKind::Transformed)
+        .enumerate()
+        .filter_map(|(j, (i, _))| {
+            let t = plan.first_step + i;
+            let there = new_from_src * source.eef_poses.get(plan.src_span.0 + j + 1)?;
+            Some((t, (eef.get(t + 1)?.translation.vector - there.translation.vector).norm()))
+        })
+        .collect()
+}
+
+/// The longest stretch of at least [`LAG_STEPS`] steps of `subtask` with the hand more than
+/// [`LAG_M`] from where the source's was ([`tracking_errors`]), as a cause.
+fn lagged(sources: &SourceDataset, attempt: &Attempt, subtask: usize) -> Option<Cause> {
+    let errors = tracking_errors(sources, attempt, subtask);
     let mut best: Option<(usize, usize, f64)> = None;
     let mut run: Option<(usize, f64)> = None;
-    for t in start..=end {
-        let e = if t < end { error(t) } else { 0.0 };
+    let end = errors.last().map_or(0, |(t, _)| t + 1);
+    for (t, e) in errors.into_iter().chain([(end, 0.0)]) {
         if e > LAG_M {
             let (from, worst) = run.unwrap_or((t, 0.0));
             run = Some((from, worst.max(e)));

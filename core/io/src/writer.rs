@@ -74,7 +74,7 @@ pub const ATTEMPT_ATTR: &str = "mimicgen_attempt";
 /// turned on`), so a failed-attempts file explains itself.
 pub const FAILURE_ATTR: &str = "mimicgen_failure";
 /// Demo attribute of a failed attempt: its cause ([`mimicgen_engine::diagnose::Cause`]) as JSON,
-/// `{"kind": "grasp_missed", "object": "cubeA", "step": 61, "off_target_m": 0.004}`.
+/// `{"kind": "grasp_missed", "object": "cubeA", "step": 61, "off_source_m": 0.004}`.
 pub const CAUSE_ATTR: &str = "mimicgen_failure_cause";
 /// Demo attribute naming the object instance an object-transfer episode drew (`tall_green`).
 pub const INSTANCE_ATTR: &str = "mimicgen_object_instance";
