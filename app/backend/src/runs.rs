@@ -204,6 +204,8 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
         attempts_per_s: 0.0,
         control_steps: 0,
         per_source_demo: Vec::new(),
+        per_subtask_source: Vec::new(),
+        never_succeeded: Vec::new(),
         peak_rss_mib: None,
         failures: Vec::new(),
         causes: Vec::new(),

@@ -376,6 +376,14 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
     if !report.causes.is_empty() {
         eprintln!("why attempts failed: {}", causes_line(&report.causes));
     }
+    if !report.never_succeeded.is_empty() {
+        let demos: Vec<String> = report.never_succeeded.iter().map(|d| format!("demo_{d}")).collect();
+        eprintln!(
+            "source demos in {}+ attempts and never a success: {} (per subtask: the report's per_subtask_source)",
+            mimicgen_pipeline::NEVER_SUCCEEDS_MIN_USES,
+            demos.join(", ")
+        );
+    }
     let t = &report.transit;
     if !t.is_empty() {
         #[allow(clippy::cast_precision_loss)] // counts are far below 2^52

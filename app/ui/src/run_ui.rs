@@ -1,6 +1,7 @@
 //! The generate screen's run, live (its form is [`crate::run_form_ui`], its coverage figures
 //! [`crate::coverage_ui`]): progress with ETA, the generation rate over attempts,
-//! attempts and successes per source demo, failures by subtask and reason, the initial scenes from
+//! attempts and successes per source demo, failures by subtask and reason and by subtask and
+//! cause, the success matrix (subtask by source demo), the initial scenes from
 //! above coloured by outcome, support coverage against uniformly spread scenes with histograms per
 //! object coordinate, and the attempt table (filter, sort, re-run one in the preview).
 //! Reads the model, returns commands.
@@ -14,6 +15,55 @@ use crate::coverage_ui::{CoverageFigures, coverage_view};
 use crate::model::{AppModel, Command, RunState, SideBySide};
 use crate::protocol::AttemptRow;
 use crate::style::{FAILURE, SUCCESS};
+
+/// The success matrix as a heat map: a row per subtask, a column per source demo, each cell its
+/// successes of the attempts whose segment came from there, green to red by rate (grey unused);
+/// a source demo used often and never in a success is flagged.
+fn success_matrix(ui: &mut egui::Ui, run: &RunState) {
+    // Live runs count as they go; an opened run has the matrix from its report.
+    let matrix: Vec<Vec<(usize, usize)>> = match run.stats().filter(|s| !s.per_subtask_source.is_empty()) {
+        Some(stats) => stats.per_subtask_source.iter().map(|row| row.iter().map(|d| (d.successes, d.attempts)).collect()).collect(),
+        None => run
+            .report
+            .iter()
+            .flat_map(|r| &r.per_subtask_source)
+            .map(|row| row.iter().map(|d| (d.successes, d.attempts)).collect())
+            .collect(),
+    };
+    let columns = matrix.iter().map(Vec::len).max().unwrap_or(0);
+    if columns == 0 {
+        return;
+    }
+    ui.strong("Successes by subtask and source demo");
+    egui::Grid::new("success_matrix").striped(false).num_columns(columns + 1).show(ui, |ui| {
+        ui.label("");
+        for d in 0..columns {
+            ui.label(RichText::new(format!("demo_{d}")).monospace());
+        }
+        ui.end_row();
+        for (subtask, row) in matrix.iter().enumerate() {
+            ui.label(format!("subtask {subtask}"));
+            for d in 0..columns {
+                let (successes, attempts) = row.get(d).copied().unwrap_or_default();
+                #[allow(clippy::cast_precision_loss)] // counts of attempts
+                let rate = if attempts == 0 { None } else { Some(successes as f32 / attempts as f32) };
+                let colour = rate.map_or(egui::Color32::GRAY, |r| FAILURE.lerp_to_gamma(SUCCESS, r));
+                ui.label(RichText::new(format!("{successes}/{attempts}")).monospace().background_color(colour.gamma_multiply(0.6)));
+            }
+            ui.end_row();
+        }
+    });
+    let never: Vec<String> = (0..columns)
+        .filter(|&d| {
+            let (successes, attempts) = matrix.iter().filter_map(|row| row.get(d)).fold((0, 0), |(s, a), c| (s.max(c.0), a.max(c.1)));
+            attempts >= mimicgen_run::NEVER_SUCCEEDS_MIN_USES && successes == 0
+        })
+        .map(|d| format!("demo_{d}"))
+        .collect();
+    if !never.is_empty() {
+        ui.label(RichText::new(format!("never in a success: {}", never.join(", "))).color(FAILURE));
+    }
+}
 
 /// The generate screen's own state (text fields, table options, figures drawn).
 #[derive(Debug, Default)]
@@ -98,32 +148,33 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, com
         Some(stats) => stats.failures.iter().map(|f| (f.subtask, f.reason.to_string(), f.count)).collect(),
         None => run.report.iter().flat_map(|r| &r.failures).map(|f| (f.subtask, f.reason.clone(), f.count)).collect(),
     };
-    if !failures.is_empty() {
-        ui.strong("Failures by subtask and reason");
-        egui::Grid::new("failures").striped(true).num_columns(3).show(ui, |ui| {
-            for (subtask, reason, count) in &failures {
-                ui.label(format!("subtask {subtask}"));
-                ui.label(reason);
-                ui.label(format!("{count}"));
-                ui.end_row();
-            }
-        });
-    }
     let causes: Vec<(usize, String, usize)> = match run.stats().filter(|s| !s.causes.is_empty()) {
-        Some(stats) => stats.causes.iter().map(|c| (c.subtask, c.class.clone(), c.count)).collect(),
-        None => run.report.iter().flat_map(|r| &r.causes).map(|c| (c.subtask, c.cause.clone(), c.count)).collect(),
+        Some(stats) => stats.causes.iter().map(|c| (c.subtask, c.class.replace('_', " "), c.count)).collect(),
+        None => run.report.iter().flat_map(|r| &r.causes).map(|c| (c.subtask, c.cause.replace('_', " "), c.count)).collect(),
     };
-    if !causes.is_empty() {
-        ui.strong("Failures by subtask and cause");
-        egui::Grid::new("causes").striped(true).num_columns(3).show(ui, |ui| {
-            for (subtask, cause, count) in &causes {
-                ui.label(format!("subtask {subtask}"));
-                ui.label(cause.replace('_', " "));
-                ui.label(format!("{count}"));
-                ui.end_row();
-            }
-        });
-    }
+    // Side by side, so that the attempt table below stays in sight.
+    ui.horizontal_top(|ui| {
+        let table = |ui: &mut egui::Ui, title: &str, id: &str, rows: &[(usize, String, usize)]| {
+            ui.vertical(|ui| {
+                ui.strong(title);
+                egui::Grid::new(id).striped(true).num_columns(3).show(ui, |ui| {
+                    for (subtask, what, count) in rows {
+                        ui.label(format!("subtask {subtask}"));
+                        ui.label(what);
+                        ui.label(format!("{count}"));
+                        ui.end_row();
+                    }
+                });
+            });
+        };
+        if !failures.is_empty() {
+            table(ui, "Failures by subtask and reason", "failures", &failures);
+        }
+        if !causes.is_empty() {
+            table(ui, "Failures by subtask and cause", "causes", &causes);
+        }
+        ui.vertical(|ui| success_matrix(ui, run));
+    });
     let instances = instance_rates(&run.rows);
     if !instances.is_empty() {
         ui.strong("Success by object instance");

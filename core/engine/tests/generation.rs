@@ -61,6 +61,26 @@ fn generates_successful_demos_in_new_scenes() {
     assert!(used >= 40 && stats.per_source_demo.iter().filter(|d| d.attempts > 0).count() > 1);
 }
 
+/// The success matrix counts, per subtask and source demo, the attempts whose segment for that
+/// subtask came from that demo and their successes: what the attempts themselves say.
+#[test]
+fn the_success_matrix_counts_each_subtask_s_source() {
+    let mut spec = kinematic::pick_place_spec(60, 5);
+    spec.subtasks[0].action_noise = 0.6;
+    let (attempts, stats) = collect(&generator(spec), 2, 0.1);
+    assert!(stats.successes > 0 && stats.successes < stats.attempts, "{} of {}", stats.successes, stats.attempts);
+    assert_eq!(stats.per_subtask_source.len(), 2);
+    for (subtask, row) in stats.per_subtask_source.iter().enumerate() {
+        assert_eq!(row.len(), 6, "a column per source demo");
+        for (demo, cell) in row.iter().enumerate() {
+            let used: Vec<&Attempt> = attempts.iter().filter(|a| a.src_demo_per_subtask.get(subtask) == Some(&demo)).collect();
+            assert_eq!(cell.attempts, used.len(), "subtask {subtask} demo {demo}");
+            assert_eq!(cell.successes, used.iter().filter(|a| a.success).count(), "subtask {subtask} demo {demo}");
+        }
+    }
+    assert_eq!(stats.per_subtask_source[1].iter().map(|c| c.successes).sum::<usize>(), stats.successes);
+}
+
 #[test]
 fn transformed_segments_follow_the_new_object() {
     let (attempts, _) = collect(&generator(kinematic::pick_place_spec(5, 9)), 1, 0.2);

@@ -223,6 +223,8 @@ pub fn merge(
         attempts_per_s: if wall_time_s > 0.0 { stats.attempts as f64 / wall_time_s } else { 0.0 },
         control_steps,
         per_source_demo: crate::outputs::per_source_demo(&stats),
+        per_subtask_source: crate::outputs::per_subtask_source(&stats),
+        never_succeeded: crate::outputs::never_succeeded(&stats),
         peak_rss_mib: crate::memory::peak_rss_mib(),
         failures: crate::outputs::failures(&stats),
         causes: crate::outputs::causes(&stats),

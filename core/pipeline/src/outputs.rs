@@ -123,6 +123,22 @@ pub(crate) fn per_source_demo(stats: &RunStats) -> Vec<DemoReport> {
     stats.per_source_demo.iter().enumerate().map(|(demo, d)| DemoReport { demo, attempts: d.attempts, successes: d.successes }).collect()
 }
 
+/// The report's success matrix: per subtask, per source demo.
+pub(crate) fn per_subtask_source(stats: &RunStats) -> Vec<Vec<DemoReport>> {
+    stats
+        .per_subtask_source
+        .iter()
+        .map(|row| row.iter().enumerate().map(|(demo, d)| DemoReport { demo, attempts: d.attempts, successes: d.successes }).collect())
+        .collect()
+}
+
+/// The source demos used by at least [`mimicgen_run::NEVER_SUCCEEDS_MIN_USES`] attempts, none a
+/// success.
+pub(crate) fn never_succeeded(stats: &RunStats) -> Vec<usize> {
+    let flagged = |d: &mimicgen_engine::generate::DemoUse| d.attempts >= mimicgen_run::NEVER_SUCCEEDS_MIN_USES && d.successes == 0;
+    stats.per_source_demo.iter().enumerate().filter(|(_, d)| flagged(d)).map(|(demo, _)| demo).collect()
+}
+
 /// The report's failures by subtask and cause class.
 pub(crate) fn causes(stats: &RunStats) -> Vec<CauseReport> {
     stats.causes.iter().map(|c| CauseReport { subtask: c.subtask, cause: c.class.clone(), count: c.count }).collect()

@@ -20,7 +20,7 @@ use crate::{Outcome, PipelineError, Report, RunConfig, RunInfo};
 use crate::events::{AttemptEvent, Event};
 use crate::outputs::{
     AttemptLog, AttemptRecord, PROGRESS_ATTR, Progress, RUN_ATTR, RunDescription, attempt_log_path, causes, clear_outputs,
-    differing_fields, failed_path, failures, per_source_demo, sibling,
+    differing_fields, failed_path, failures, never_succeeded, per_source_demo, per_subtask_source, sibling,
 };
 
 /// What a worker makes of an attempt that may be kept: its observations, camera images, and the
@@ -498,6 +498,8 @@ impl Pipeline {
             attempts_per_s: if wall > 0.0 { session_attempts / wall } else { 0.0 },
             control_steps,
             per_source_demo: per_source_demo(stats),
+            per_subtask_source: per_subtask_source(stats),
+            never_succeeded: never_succeeded(stats),
             peak_rss_mib: crate::memory::peak_rss_mib(),
             failures: failures(stats),
             causes: causes(stats),

@@ -86,6 +86,10 @@ pub struct CauseReport {
     pub count: usize,
 }
 
+/// Uses below which a source demo without a success is not yet flagged in
+/// [`Report::never_succeeded`].
+pub const NEVER_SUCCEEDS_MIN_USES: usize = 5;
+
 /// The report of a run, written as `<out>.json` beside the dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -118,6 +122,14 @@ pub struct Report {
     pub control_steps: usize,
     /// Per source demo.
     pub per_source_demo: Vec<DemoReport>,
+    /// The success matrix: per subtask, per source demo, the attempts whose segment for that
+    /// subtask came from it and their successes.
+    #[serde(default)]
+    pub per_subtask_source: Vec<Vec<DemoReport>>,
+    /// Source demos that supplied a segment to at least [`NEVER_SUCCEEDS_MIN_USES`] attempts and
+    /// never to a success: candidates to drop.
+    #[serde(default)]
+    pub never_succeeded: Vec<usize>,
     /// Peak resident memory of the process, MiB.
     pub peak_rss_mib: Option<f64>,
     /// Failures by subtask and reason.

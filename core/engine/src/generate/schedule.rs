@@ -53,6 +53,10 @@ pub struct RunStats {
     pub successes: usize,
     /// Per source demo, by dataset index.
     pub per_source_demo: Vec<DemoUse>,
+    /// The success matrix: per subtask, per source demo (by dataset index), the attempts whose
+    /// segment for that subtask came from that demo, and their successes.
+    #[serde(default)]
+    pub per_subtask_source: Vec<Vec<DemoUse>>,
     /// Failures by subtask and reason, sorted.
     pub failures: Vec<FailureCount>,
     /// Failures by subtask and cause class, sorted.
@@ -118,6 +122,20 @@ impl RunStats {
     pub fn record_outcome(&mut self, success: bool, sources: &[usize], failure: Option<&Failure>, cause: Option<&crate::diagnose::Cause>) {
         self.attempts += 1;
         self.successes += usize::from(success);
+        for (subtask, &d) in sources.iter().enumerate() {
+            if subtask >= self.per_subtask_source.len() {
+                self.per_subtask_source.resize(subtask + 1, Vec::new());
+            }
+            if let Some(row) = self.per_subtask_source.get_mut(subtask) {
+                if d >= row.len() {
+                    row.resize(d.max(self.per_source_demo.len().saturating_sub(1)) + 1, DemoUse::default());
+                }
+                if let Some(cell) = row.get_mut(d) {
+                    cell.attempts += 1;
+                    cell.successes += usize::from(success);
+                }
+            }
+        }
         let mut used: Vec<usize> = sources.to_vec();
         used.sort_unstable();
         used.dedup();
