@@ -66,6 +66,10 @@ pub enum Cause {
         step: usize,
         /// The largest distance from the source's hand in it (m).
         error_m: f64,
+        /// The arm joint at its limit for most of the stretch, when the environment can tell
+        /// ([`crate::Environment::joints_at_limit`]).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        joint: Option<String>,
     },
     /// An object moved with the closed hand, then was lost from it.
     GraspSlipped {
@@ -125,8 +129,12 @@ impl std::fmt::Display for Cause {
                 "{object} moved {:.1} cm and turned {turned_deg:.0} deg before the hand took it (by step {step})",
                 moved_m * 100.0
             ),
-            Self::ArmLagged { step, error_m } => {
-                write!(f, "the arm fell {:.1} cm behind the source's hand from step {step}", error_m * 100.0)
+            Self::ArmLagged { step, error_m, joint } => {
+                write!(f, "the arm fell {:.1} cm behind the source's hand from step {step}", error_m * 100.0)?;
+                match joint {
+                    Some(joint) => write!(f, " ({joint} at its limit)"),
+                    None => Ok(()),
+                }
             }
             Self::GraspSlipped { object, held_from, lost_at } => {
                 write!(f, "{object} slipped from the hand: held from step {held_from}, lost at step {lost_at}")
@@ -145,6 +153,26 @@ impl std::fmt::Display for Cause {
             Self::Simulation => write!(f, "the simulation failed"),
         }
     }
+}
+
+/// A joint within this of its limit (rad) holds the arm there.
+pub const AT_LIMIT: f64 = 0.01;
+
+/// The arm joint `env` finds at its limit ([`AT_LIMIT`]) at the most steps of `steps` of
+/// `attempt` (ties to the first in the arm's order), if any.
+pub fn joint_at_limit<E: crate::Environment + ?Sized>(env: &E, attempt: &Attempt, steps: std::ops::Range<usize>) -> Option<String> {
+    let mut counts: Vec<(String, usize)> = Vec::new();
+    for t in steps {
+        let Some(state) = attempt.trajectory.states.get(t) else { break };
+        for joint in env.joints_at_limit(state, AT_LIMIT) {
+            match counts.iter_mut().find(|(name, _)| *name == joint) {
+                Some((_, n)) => *n += 1,
+                None => counts.push((joint, 1)),
+            }
+        }
+    }
+    let most = counts.iter().map(|(_, n)| *n).max()?;
+    counts.into_iter().find(|(_, n)| *n == most).map(|(name, _)| name)
 }
 
 /// The cause of `attempt`'s failure (`None` for a success), made from `spec`'s subtasks and the
@@ -284,7 +312,7 @@ fn lagged(sources: &SourceDataset, attempt: &Attempt, subtask: usize) -> Option<
             }
         }
     }
-    best.map(|(step, _, error_m)| Cause::ArmLagged { step, error_m })
+    best.map(|(step, _, error_m)| Cause::ArmLagged { step, error_m, joint: None })
 }
 
 /// The object's place in the hand at `t`.

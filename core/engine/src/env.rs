@@ -105,6 +105,13 @@ pub trait Environment {
         0
     }
 
+    /// The arm's joints within `margin` (rad, or m for a sliding joint) of a limit in `state` (one
+    /// of this environment's [`Environment::state`]s), by name; empty when it cannot tell, as by
+    /// default. Failure causes name the joint that held a lagging arm back.
+    fn joints_at_limit(&self, _state: &[f64], _margin: f64) -> Vec<String> {
+        Vec::new()
+    }
+
     /// Restores a state returned by [`Environment::state`].
     ///
     /// # Errors

@@ -76,7 +76,8 @@ fn an_arm_behind_the_source_s_hand_for_a_stretch_lagged() {
     }
     let attempt = failed(attempt, s, FailureReason::SignalNeverOn { signal: "grasp".to_owned() });
     match cause(&generator, &attempt) {
-        Cause::ArmLagged { step, error_m } => {
+        Cause::ArmLagged { step, error_m, joint } => {
+            assert_eq!(joint, None, "diagnose::cause alone knows no joints");
             assert_eq!(step, from);
             assert!((error_m - 0.06).abs() < 0.01, "{error_m}");
         }

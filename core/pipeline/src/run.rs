@@ -252,10 +252,13 @@ impl Pipeline {
         let description =
             serde_json::to_string(&self.description).map_err(|e| PipelineError::input("", "run description", e.to_string()))?;
         let partial = DatasetWriter::partial_path(out);
+        // A progress the interrupted run could not finish writing (a disk that filled as HDF5 put it
+        // down leaves its attribute pointing past the file's end): the run starts again from its
+        // first attempt, into fresh files, and makes the same dataset.
         if self.config.resume {
             let stored = DatasetWriter::partial_root_attrs(out, &[RUN_ATTR, PROGRESS_ATTR])?;
             let file = partial.display().to_string();
-            let [Some(stored_run), Some(progress)] = stored.as_slice() else {
+            let [Some(stored_run), progress] = stored.as_slice() else {
                 return Err(PipelineError::input(
                     file,
                     RUN_ATTR,
@@ -276,6 +279,9 @@ impl Pipeline {
                     ),
                 ));
             }
+            let Some(progress) = progress else {
+                return self.fresh_writers(&description, true);
+            };
             let progress: Progress =
                 serde_json::from_str(progress).map_err(|e| PipelineError::input(file, PROGRESS_ATTR, e.to_string()))?;
             let next = progress.next_attempt as u64;
@@ -299,11 +305,26 @@ impl Pipeline {
             let log = self.attempt_log_path().map(|p| AttemptLog::resume(p, progress.next_attempt)).transpose()?;
             return Ok((writer, failed_writer, progress, log));
         }
+        self.fresh_writers(&description, self.config.overwrite)
+    }
+
+    /// New writers for a run from its first attempt, the outputs there replaced if `replace`.
+    #[allow(clippy::type_complexity)]
+    fn fresh_writers(
+        &self,
+        description: &str,
+        replace: bool,
+    ) -> Result<(DatasetWriter, Option<DatasetWriter>, Progress, Option<AttemptLog>), PipelineError> {
+        let out = &self.config.out;
+        let failed = self.failed_path();
+        let keep_failed = self.generator.spec().generation.keep_failed;
+        let options = self.writer_options();
+        let failed_options = WriterOptions { valid_fraction: None, ..options.clone() };
         let log_path = self.attempt_log_path();
-        clear_outputs(out, log_path.as_deref(), self.config.overwrite, true)?;
+        clear_outputs(out, log_path.as_deref(), replace, true)?;
         let mut writer = DatasetWriter::create(out, options)?;
         let progress = Progress { next_attempt: 0, failures_kept: 0, stats: RunStats::new(self.generator.dataset().demos.len()) };
-        writer.set_root_attr(RUN_ATTR, &description)?;
+        writer.set_root_attr(RUN_ATTR, description)?;
         writer.set_root_attr(PROGRESS_ATTR, &serde_json::to_string(&progress).unwrap_or_default())?;
         let failed_writer = if keep_failed { Some(DatasetWriter::create(&failed, failed_options)?) } else { None };
         let log = log_path.map(AttemptLog::create).transpose()?;

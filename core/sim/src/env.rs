@@ -460,6 +460,26 @@ impl Environment for SimEnv {
         self.state.data.contact().iter().filter(|c| matches!((side(c.geom[0]), side(c.geom[1])), (Some(a), Some(b)) if a != b)).count()
     }
 
+    fn joints_at_limit(&self, state: &[f64], margin: f64) -> Vec<String> {
+        let scene = &self.state.scene;
+        let model = &scene.model;
+        scene
+            .robot
+            .model
+            .arm_joints
+            .iter()
+            .zip(&scene.robot.arm_qpos)
+            .filter_map(|(name, &qpos)| {
+                // A state is the time, then qpos, then qvel.
+                let q = *state.get(1 + qpos)?;
+                let joint = model.name_to_id(MjtObjBase::mjOBJ_JOINT, name)?;
+                let [low, high] = *model.jnt_range().get(joint)?;
+                let limited = model.jnt_limited().get(joint).copied().unwrap_or(false);
+                (limited && (q - low < margin || high - q < margin)).then(|| (*name).to_owned())
+            })
+            .collect()
+    }
+
     fn state(&self) -> Vec<f64> {
         let mut s = Vec::with_capacity(self.state.scene.state_dim());
         s.push(self.state.data.time());

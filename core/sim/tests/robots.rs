@@ -141,3 +141,22 @@ fn robotiq_grippers_open_and_close_as_robosuite_s_do() {
         assert!(still.iter().all(|g| (g - closed_m).abs() < 0.005), "{name}: closed {still:.4?} m, robosuite {closed_m}");
     }
 }
+
+/// Failure causes name the joint that held a lagging arm back: a state with the Panda's wrist at
+/// its limit reads `robot0_joint7`, the home posture none.
+#[test]
+fn a_joint_at_its_limit_is_named_from_a_state() {
+    let task = registry::task("stack", "D0").unwrap();
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let mut env = SimEnv::new(Arc::clone(&scene), task);
+    env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
+    let home = env.state();
+    assert_eq!(env.joints_at_limit(&home, 0.01), Vec::<String>::new());
+    let joint = scene.model.name_to_id(MjtObjBase::mjOBJ_JOINT, "robot0_joint7").unwrap();
+    let [_, high] = scene.model.jnt_range()[joint];
+    let mut wrist = home.clone();
+    // A state is the time, then qpos.
+    wrist[1 + scene.robot.arm_qpos[6]] = high - 0.005;
+    assert_eq!(env.joints_at_limit(&wrist, 0.01), ["robot0_joint7"]);
+    assert_eq!(env.joints_at_limit(&wrist, 0.001), Vec::<String>::new(), "5 mrad from the limit is outside a 1 mrad margin");
+}

@@ -113,6 +113,12 @@ impl Generator {
     pub fn attempt_with<E: Environment + ?Sized>(&self, env: &mut E, index: u64, overrides: &Overrides) -> Result<Attempt, EngineError> {
         let mut attempt = self.run_attempt(env, index, overrides)?;
         attempt.cause = crate::diagnose::cause(&self.spec, &self.dataset, &attempt);
+        if let Some(crate::diagnose::Cause::ArmLagged { step, .. }) = &attempt.cause {
+            let found = crate::diagnose::joint_at_limit(env, &attempt, *step..*step + crate::diagnose::LAG_STEPS);
+            if let Some(crate::diagnose::Cause::ArmLagged { joint, .. }) = &mut attempt.cause {
+                *joint = found;
+            }
+        }
         Ok(attempt)
     }
 
