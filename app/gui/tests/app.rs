@@ -551,6 +551,10 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     // Re-run the failed attempt in the preview: the same seed and index give the same outcome.
     h.get_by_label("Generate").click();
     h.run_steps(2);
+    // Causes and the success matrix, folded until asked for.
+    assert!(h.query_by_label("Failures by subtask and cause").is_none());
+    h.get_by_label("Causes and the success matrix").click();
+    h.run_steps(2);
     h.get_by_label("Failures by subtask and cause");
     // The success matrix: each subtask's row counts the attempts by the source of its segment.
     h.get_by_label("Successes by subtask and source demo");
@@ -558,6 +562,8 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     let used = run.rows.iter().filter(|r| r.sources.first() == Some(&first)).collect::<Vec<_>>();
     let won = used.iter().filter(|r| r.success).count();
     assert!(h.query_all_by_label(&format!("{won}/{}", used.len())).count() > 0, "a cell {won}/{}", used.len());
+    h.get_by_label("Causes and the success matrix").click();
+    h.run_steps(2);
     h.get_by_label_contains(&format!("{:>5}  failure", failed.index)).click();
     h.run_steps(2);
     // What went wrong there, as the run found it.

@@ -152,29 +152,33 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, com
         Some(stats) => stats.causes.iter().map(|c| (c.subtask, c.class.replace('_', " "), c.count)).collect(),
         None => run.report.iter().flat_map(|r| &r.causes).map(|c| (c.subtask, c.cause.replace('_', " "), c.count)).collect(),
     };
-    // Side by side, so that the attempt table below stays in sight.
-    ui.horizontal_top(|ui| {
-        let table = |ui: &mut egui::Ui, title: &str, id: &str, rows: &[(usize, String, usize)]| {
-            ui.vertical(|ui| {
-                ui.strong(title);
-                egui::Grid::new(id).striped(true).num_columns(3).show(ui, |ui| {
-                    for (subtask, what, count) in rows {
-                        ui.label(format!("subtask {subtask}"));
-                        ui.label(what);
-                        ui.label(format!("{count}"));
-                        ui.end_row();
-                    }
-                });
+    let table = |ui: &mut egui::Ui, title: &str, id: &str, rows: &[(usize, String, usize)]| {
+        ui.vertical(|ui| {
+            ui.strong(title);
+            egui::Grid::new(id).striped(true).num_columns(3).show(ui, |ui| {
+                for (subtask, what, count) in rows {
+                    ui.label(format!("subtask {subtask}"));
+                    ui.label(what);
+                    ui.label(format!("{count}"));
+                    ui.end_row();
+                }
             });
-        };
-        if !failures.is_empty() {
-            table(ui, "Failures by subtask and reason", "failures", &failures);
-        }
-        if !causes.is_empty() {
-            table(ui, "Failures by subtask and cause", "causes", &causes);
-        }
-        ui.vertical(|ui| success_matrix(ui, run));
-    });
+        });
+    };
+    if !failures.is_empty() {
+        table(ui, "Failures by subtask and reason", "failures", &failures);
+    }
+    // Folded by default, so that the attempt table below stays in sight.
+    if !causes.is_empty() || run.stats().is_some_and(|s| !s.per_subtask_source.is_empty()) || run.report.is_some() {
+        egui::CollapsingHeader::new("Causes and the success matrix").id_salt("causes_and_matrix").default_open(false).show(ui, |ui| {
+            ui.horizontal_top(|ui| {
+                if !causes.is_empty() {
+                    table(ui, "Failures by subtask and cause", "causes", &causes);
+                }
+                ui.vertical(|ui| success_matrix(ui, run));
+            });
+        });
+    }
     let instances = instance_rates(&run.rows);
     if !instances.is_empty() {
         ui.strong("Success by object instance");
