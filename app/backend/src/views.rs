@@ -87,6 +87,7 @@ pub(crate) fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<
     let executed = executed.map(|a| ExecutedView {
         success: a.success,
         failure: a.failure.as_ref().map(|f| format!("subtask {}: {}", f.subtask, f.reason)),
+        cause: a.cause.as_ref().map(ToString::to_string),
         path: a.trajectory.eef_poses.iter().map(point).collect(),
         planned: a.plans.iter().flat_map(|p| p.waypoints.iter().map(|(w, _)| point(w))).collect(),
         subtask_of_step: a.trajectory.subtask_labels.clone(),

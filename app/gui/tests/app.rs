@@ -605,6 +605,7 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     let executed = view.executed.as_ref().unwrap();
     assert!(!executed.success);
     assert_eq!(executed.failure, Some(format!("subtask {}: {}", failed.failed_subtask.unwrap(), failed.reason.as_ref().unwrap())));
+    assert_eq!(executed.cause, failed.cause, "the re-run fails for the reason and cause the run did");
     assert_eq!(executed.path.len(), failed.steps);
     // What went wrong, in numbers: the grasp pushed the cube, and the cube was left behind while
     // the gripper carried on (it "slipped" by the whole transport).

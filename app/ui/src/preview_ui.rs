@@ -83,7 +83,14 @@ pub fn controls(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>
         let (text, color) = if e.success {
             (format!("Tried: success in {} steps", e.path.len()), Color32::from_rgb(30, 140, 60))
         } else {
-            (format!("Tried: failed ({})", e.failure.as_deref().unwrap_or("")), Color32::from_rgb(200, 50, 50))
+            (
+                format!(
+                    "Tried: failed ({}){}",
+                    e.failure.as_deref().unwrap_or(""),
+                    e.cause.as_ref().map_or(String::new(), |c| format!(": {c}"))
+                ),
+                Color32::from_rgb(200, 50, 50),
+            )
         };
         ui.label(RichText::new(text).color(color).strong());
         diagnostics(ui, "diagnostics", e);

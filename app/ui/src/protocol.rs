@@ -415,6 +415,9 @@ pub struct ExecutedView {
     pub success: bool,
     /// Where and why it failed.
     pub failure: Option<String>,
+    /// What went wrong there, in words ([`crate::protocol::AttemptRow::cause`]'s).
+    #[serde(default)]
+    pub cause: Option<String>,
     /// The end effector at every step.
     pub path: Vec<Point>,
     /// The targets the attempt planned (its own, subtask by subtask as it went).
