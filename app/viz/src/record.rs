@@ -296,7 +296,10 @@ pub fn log_attempt(rec: &RecordingStream, attempt: &Attempt, source_names: &[Str
     let outcome = match &attempt.failure {
         None if attempt.success => format!("attempt {}: success (sources {sources})", attempt.index),
         None => format!("attempt {}: failed (sources {sources})", attempt.index),
-        Some(f) => format!("attempt {}: FAILED in subtask {}: {} (sources {sources})", attempt.index, f.subtask, f.reason),
+        Some(f) => {
+            let cause = attempt.cause.as_ref().map_or(String::new(), |c| format!("; {c}"));
+            format!("attempt {}: FAILED in subtask {}: {}{cause} (sources {sources})", attempt.index, f.subtask, f.reason)
+        }
     };
     rec.log(
         format!("{root}/executed_path"),
