@@ -53,13 +53,14 @@ fn success_matrix(ui: &mut egui::Ui, run: &RunState) {
             ui.end_row();
         }
     });
-    let never: Vec<String> = (0..columns)
-        .filter(|&d| {
-            let (successes, attempts) = matrix.iter().filter_map(|row| row.get(d)).fold((0, 0), |(s, a), c| (s.max(c.0), a.max(c.1)));
-            attempts >= mimicgen_run::NEVER_SUCCEEDS_MIN_USES && successes == 0
-        })
-        .map(|d| format!("demo_{d}"))
-        .collect();
+    // The run's own rule: the live statistics', or the report's list.
+    let never: Vec<String> = match run.stats().filter(|s| s.attempts > 0) {
+        Some(stats) => stats.never_succeeded(mimicgen_run::NEVER_SUCCEEDS_MIN_USES),
+        None => run.report.iter().flat_map(|r| r.never_succeeded.iter().copied()).collect(),
+    }
+    .into_iter()
+    .map(|d| format!("demo_{d}"))
+    .collect();
     if !never.is_empty() {
         ui.label(RichText::new(format!("never in a success: {}", never.join(", "))).color(FAILURE));
     }

@@ -38,7 +38,8 @@ pub struct Proposal {
     pub reason: String,
 }
 
-fn closed(command: f64) -> bool {
+/// Whether a gripper command closes the gripper (robosuite's: positive closes).
+pub(crate) fn closed(command: f64) -> bool {
     command > 0.0
 }
 

@@ -17,7 +17,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::demo::SourceDataset;
+use crate::demo::{Rows, SourceDataset};
 use crate::generate::{Attempt, FailureReason};
 use crate::pose::Pose;
 use crate::spec::TaskSpec;
@@ -190,14 +190,14 @@ pub fn cause(spec: &TaskSpec, sources: &SourceDataset, attempt: &Attempt) -> Opt
     if start >= end {
         return Some(fallback(&failure.reason, 0));
     }
-    let closed = |t: usize| trajectory.gripper_actions.get(t).and_then(|g| g.first()).is_some_and(|&g| g > 0.0);
-    let close_step = (start..end).find(|&t| closed(t) && (t == 0 || !closed(t - 1)));
+    let gripper = &trajectory.gripper_actions;
+    let close_step = first_close(gripper, start..end);
     let object = spec.subtasks.get(s).and_then(|sub| sub.object_ref.clone());
     let poses = |name: &str| trajectory.object_poses.get(name);
 
     if let (Some(name), Some(plan)) = (&object, attempt.plans.get(s))
         && let Some(obj) = poses(name)
-        && let Some(moved) = moved_before_taken(trajectory, obj, start, close_step.unwrap_or(end), &closed)
+        && let Some(moved) = moved_before_taken(trajectory, obj, start, close_step.unwrap_or(end))
         && !source_moved(sources, plan.src_demo, plan.src_span, name)
     {
         let (step, moved_m, turned_deg) = moved;
@@ -207,15 +207,15 @@ pub fn cause(spec: &TaskSpec, sources: &SourceDataset, attempt: &Attempt) -> Opt
         return Some(lag);
     }
     // An object held in this subtask or carried into it (from the last close before its end).
-    let hold_from = (0..end).rev().find(|&t| closed(t) && (t == 0 || !closed(t - 1))).unwrap_or(start);
+    let hold_from = first_close(gripper, (0..end).rev()).unwrap_or(start);
     for (name, obj) in &trajectory.object_poses {
-        if let Some((held_from, lost_at)) = slipped(trajectory, obj, hold_from, end, start, &closed) {
+        if let Some((held_from, lost_at)) = slipped(trajectory, obj, hold_from, end, start) {
             return Some(Cause::GraspSlipped { object: name.clone(), held_from, lost_at });
         }
     }
     if let (FailureReason::SignalNeverOn { .. }, Some(step), Some(name)) = (&failure.reason, close_step, &object)
         && let Some(obj) = poses(name)
-        && first_held(trajectory, obj, step, end, &closed).is_none()
+        && first_held(trajectory, obj, step, end).is_none()
     {
         let off_source_m = tracking_errors(sources, attempt, s).into_iter().find(|(t, _)| *t + 1 >= step).map(|(_, m)| m);
         return Some(Cause::GraspMissed { object: name.clone(), step, off_source_m });
@@ -236,20 +236,30 @@ fn apart(a: &Pose, b: &Pose) -> (f64, f64) {
     ((b.translation.vector - a.translation.vector).norm(), a.rotation.angle_to(&b.rotation).to_degrees())
 }
 
+/// `(metres, degrees)` from `a` to `b` when that is more than [`MOVED_M`] or [`TURNED_DEG`].
+fn moved(a: &Pose, b: &Pose) -> Option<(f64, f64)> {
+    let (m, deg) = apart(a, b);
+    (m > MOVED_M || deg > TURNED_DEG).then_some((m, deg))
+}
+
+/// Whether `gripper`'s command at step `t` closes it, as subtask detection reads a command.
+fn closed(gripper: &Rows, t: usize) -> bool {
+    gripper.get(t).and_then(|g| g.first()).is_some_and(|&g| crate::detect::closed(g))
+}
+
+/// The first of `steps` at which `gripper` switches to closed.
+fn first_close(gripper: &Rows, mut steps: impl Iterator<Item = usize>) -> Option<usize> {
+    steps.find(|&t| closed(gripper, t) && (t == 0 || !closed(gripper, t - 1)))
+}
+
 /// The first step in `start..until` at which `obj` had moved [`MOVED_M`] or turned [`TURNED_DEG`]
 /// from its pose at `start` without being held: `(step, metres, degrees)`.
-fn moved_before_taken(
-    trajectory: &crate::generate::Trajectory,
-    obj: &[Pose],
-    start: usize,
-    until: usize,
-    closed: &impl Fn(usize) -> bool,
-) -> Option<(usize, f64, f64)> {
+fn moved_before_taken(trajectory: &crate::generate::Trajectory, obj: &[Pose], start: usize, until: usize) -> Option<(usize, f64, f64)> {
     let first = obj.get(start)?;
     (start..until.min(obj.len())).find_map(|t| {
-        let (m, deg) = apart(first, obj.get(t)?);
-        let held = closed(t) && first_held(trajectory, obj, t.saturating_sub(HOLD_WINDOW), t + 1, closed).is_some();
-        ((m > MOVED_M || deg > TURNED_DEG) && !held).then_some((t, m, deg))
+        let (m, deg) = moved(first, obj.get(t)?)?;
+        let held = closed(&trajectory.gripper_actions, t) && first_held(trajectory, obj, t.saturating_sub(HOLD_WINDOW), t + 1).is_some();
+        (!held).then_some((t, m, deg))
     })
 }
 
@@ -259,12 +269,8 @@ fn source_moved(sources: &SourceDataset, demo: usize, span: (usize, usize), name
     let Some(source) = sources.demos.get(demo) else { return false };
     let Some(obj) = source.object_poses.get(name) else { return false };
     let Some(first) = obj.get(span.0) else { return false };
-    let closed = |t: usize| source.gripper_actions.get(t).and_then(|g| g.first()).is_some_and(|&g| g > 0.0);
-    let until = (span.0 + 1..span.1).find(|&t| closed(t) && !closed(t - 1)).unwrap_or(span.1);
-    obj.iter().take(until.min(obj.len())).skip(span.0).any(|p| {
-        let (m, deg) = apart(first, p);
-        m > MOVED_M || deg > TURNED_DEG
-    })
+    let until = first_close(&source.gripper_actions, span.0 + 1..span.1).unwrap_or(span.1);
+    obj.iter().take(until.min(obj.len())).skip(span.0).any(|p| moved(first, p).is_some())
 }
 
 /// How far the hand was, after each step of `subtask`'s transformed segment, from where the source
@@ -322,13 +328,8 @@ fn in_hand(trajectory: &crate::generate::Trajectory, obj: &[Pose], t: usize) -> 
 
 /// The first step in `from..to` at which `obj` moved with the closed hand over the
 /// [`HOLD_WINDOW`] steps before it.
-fn first_held(
-    trajectory: &crate::generate::Trajectory,
-    obj: &[Pose],
-    from: usize,
-    to: usize,
-    closed: &impl Fn(usize) -> bool,
-) -> Option<usize> {
+fn first_held(trajectory: &crate::generate::Trajectory, obj: &[Pose], from: usize, to: usize) -> Option<usize> {
+    let gripper = &trajectory.gripper_actions;
     (from.max(HOLD_WINDOW)..to).find(|&t| {
         let before = t - HOLD_WINDOW;
         let (Some(eef_then), Some(eef_now)) = (trajectory.eef_poses.get(before), trajectory.eef_poses.get(t)) else {
@@ -338,25 +339,18 @@ fn first_held(
         let (Some(then), Some(now)) = (in_hand(trajectory, obj, before), in_hand(trajectory, obj, t)) else {
             return false;
         };
-        closed(before) && closed(t) && travel >= HOLD_MIN_TRAVEL_M && apart(&then, &now).0 < HOLD_TOL_M
+        closed(gripper, before) && closed(gripper, t) && travel >= HOLD_MIN_TRAVEL_M && apart(&then, &now).0 < HOLD_TOL_M
     })
 }
 
 /// `(held from, lost at)` when `obj`, seen moving with the closed hand from some step in
 /// `from..to`, is more than [`SLIP_M`] from that place in the hand at a step of `start..to` with
 /// the gripper still closed.
-fn slipped(
-    trajectory: &crate::generate::Trajectory,
-    obj: &[Pose],
-    from: usize,
-    to: usize,
-    start: usize,
-    closed: &impl Fn(usize) -> bool,
-) -> Option<(usize, usize)> {
-    let held = first_held(trajectory, obj, from, to, closed)?;
+fn slipped(trajectory: &crate::generate::Trajectory, obj: &[Pose], from: usize, to: usize, start: usize) -> Option<(usize, usize)> {
+    let held = first_held(trajectory, obj, from, to)?;
     let place = in_hand(trajectory, obj, held)?;
     let lost = (held.max(start)..to)
-        .take_while(|&t| closed(t))
+        .take_while(|&t| closed(&trajectory.gripper_actions, t))
         .find(|&t| in_hand(trajectory, obj, t).is_some_and(|p| apart(&place, &p).0 > SLIP_M))?;
     Some((held, lost))
 }

@@ -61,19 +61,26 @@ fn an_object_moved_before_the_grasp_where_the_source_s_stayed() {
     }
 }
 
+/// Holds the hand 6 cm back from where the source's was for `steps` steps, from a few steps into
+/// the subtask with the longest transformed segment: `(that subtask, the first step held back)`.
+fn hold_back(generator: &Generator, attempt: &mut Attempt, steps: usize) -> (usize, usize) {
+    let errors = |attempt: &Attempt, s| diagnose::tracking_errors(generator.dataset(), attempt, s);
+    let s = (0..attempt.plans.len()).max_by_key(|&s| errors(attempt, s).len()).unwrap();
+    let errors = errors(attempt, s);
+    assert!(errors.len() > diagnose::LAG_STEPS + 5, "{} transformed steps", errors.len());
+    assert!(errors.iter().all(|(_, e)| *e < 0.01), "the kinematic hand follows the source's: {errors:?}");
+    // A step's error is the hand after it.
+    let from = errors[2].0;
+    for t in from + 1..=from + steps {
+        attempt.trajectory.eef_poses[t].translation.vector += Vec3::new(0.0, 0.0, 0.06);
+    }
+    (s, from)
+}
+
 #[test]
 fn an_arm_behind_the_source_s_hand_for_a_stretch_lagged() {
     let (generator, mut attempt) = success();
-    // The subtask with the longest transformed segment, its hand held 6 cm back from a few steps in.
-    let s = (0..attempt.plans.len()).max_by_key(|&s| diagnose::tracking_errors(generator.dataset(), &attempt, s).len()).unwrap();
-    let errors = diagnose::tracking_errors(generator.dataset(), &attempt, s);
-    assert!(errors.len() > diagnose::LAG_STEPS + 5, "{} transformed steps", errors.len());
-    assert!(errors.iter().all(|(_, e)| *e < 0.01), "the kinematic hand follows the source's: {errors:?}");
-    let from = errors[2].0;
-    let trajectory = &mut attempt.trajectory;
-    for t in from + 1..=from + diagnose::LAG_STEPS + 1 {
-        trajectory.eef_poses[t].translation.vector += Vec3::new(0.0, 0.0, 0.06);
-    }
+    let (s, from) = hold_back(&generator, &mut attempt, diagnose::LAG_STEPS + 1);
     let attempt = failed(attempt, s, FailureReason::SignalNeverOn { signal: "grasp".to_owned() });
     match cause(&generator, &attempt) {
         Cause::ArmLagged { step, error_m, joint } => {
@@ -88,11 +95,7 @@ fn an_arm_behind_the_source_s_hand_for_a_stretch_lagged() {
 #[test]
 fn a_stretch_behind_shorter_than_the_bound_is_no_lag() {
     let (generator, mut attempt) = success();
-    let s = (0..attempt.plans.len()).max_by_key(|&s| diagnose::tracking_errors(generator.dataset(), &attempt, s).len()).unwrap();
-    let from = diagnose::tracking_errors(generator.dataset(), &attempt, s)[2].0;
-    for t in from + 1..from + diagnose::LAG_STEPS {
-        attempt.trajectory.eef_poses[t].translation.vector += Vec3::new(0.0, 0.0, 0.06);
-    }
+    let (s, _) = hold_back(&generator, &mut attempt, diagnose::LAG_STEPS - 1);
     let attempt = failed(attempt, s, FailureReason::TaskNotAchieved { unmet: None });
     assert!(!matches!(cause(&generator, &attempt), Cause::ArmLagged { .. }));
 }

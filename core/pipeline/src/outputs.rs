@@ -135,8 +135,7 @@ pub(crate) fn per_subtask_source(stats: &RunStats) -> Vec<Vec<DemoReport>> {
 /// The source demos used by at least [`mimicgen_run::NEVER_SUCCEEDS_MIN_USES`] attempts, none a
 /// success.
 pub(crate) fn never_succeeded(stats: &RunStats) -> Vec<usize> {
-    let flagged = |d: &mimicgen_engine::generate::DemoUse| d.attempts >= mimicgen_run::NEVER_SUCCEEDS_MIN_USES && d.successes == 0;
-    stats.per_source_demo.iter().enumerate().filter(|(_, d)| flagged(d)).map(|(demo, _)| demo).collect()
+    stats.never_succeeded(mimicgen_run::NEVER_SUCCEEDS_MIN_USES)
 }
 
 /// The report's failures by subtask and cause class.

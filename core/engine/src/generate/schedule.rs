@@ -104,6 +104,13 @@ impl RunStats {
         if self.attempts == 0 { 0.0 } else { self.successes as f64 / self.attempts as f64 }
     }
 
+    /// The source demos that supplied a segment to at least `min_uses` attempts and never to a
+    /// success, by dataset index.
+    #[must_use]
+    pub fn never_succeeded(&self, min_uses: usize) -> Vec<usize> {
+        self.per_source_demo.iter().enumerate().filter(|(_, d)| d.attempts >= min_uses && d.successes == 0).map(|(demo, _)| demo).collect()
+    }
+
     /// Counts one attempt.
     pub fn record(&mut self, attempt: &Attempt) {
         self.record_outcome(attempt.success, &attempt.src_demo_per_subtask, attempt.failure.as_ref(), attempt.cause.as_ref());
