@@ -195,6 +195,8 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
         seed: 0,
         workers: 1,
         source: String::new(),
+        config: None,
+        robot: None,
         output: label.clone(),
         failed_output: failed.is_file().then(|| failed.display().to_string()),
         attempts: kept,

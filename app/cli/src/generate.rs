@@ -226,6 +226,10 @@ pub struct SpecArgs {
     /// near (m) the subtask's object (default 0.1).
     #[arg(long, value_name = "[K:]METRES")]
     approach_m: Vec<Scoped<f64>>,
+    /// Source demos no subtask selects, by index as the report counts them (e.g. `--exclude-source
+    /// 2,6`: the demos the report lists under never_succeeded; `mimicgen doctor` proposes it).
+    #[arg(long, value_name = "I,J,...", value_delimiter = ',')]
+    exclude_source: Vec<usize>,
 }
 
 impl SpecArgs {
@@ -241,6 +245,7 @@ impl SpecArgs {
             select_src_per_subtask: self.select_src_per_subtask,
             transit: self.transit.clone(),
             approach_m: self.approach_m.clone(),
+            exclude_source: self.exclude_source.clone(),
         }
     }
 }
@@ -630,6 +635,7 @@ mod tests {
             spec: SpecOverrides {
                 action_noise: vec![Scoped::all(0.02)],
                 nn_k: vec![Scoped { subtask: Some(1), value: 4 }],
+                exclude_source: vec![2, 6],
                 ..SpecOverrides::default()
             },
             shard: Some(mimicgen_engine::Shard { part: 1, count: 4 }),

@@ -15,6 +15,7 @@ mod bench_serve;
 mod bench_sim;
 mod bench_transit;
 mod coverage;
+mod doctor;
 mod exit;
 mod export;
 mod generate;
@@ -45,6 +46,7 @@ Examples:
   mimicgen generate --task stack --variant D0 --num-demos 100 --out stack_d0.hdf5
   mimicgen generate --task square --variant D1 --num-demos 1000 --out square_d1.hdf5
   mimicgen generate --action-noise 0.02 --nn-k 1:5   spec fields for one run (K:VALUE: subtask K)
+  mimicgen doctor out/stack_d0.hdf5            why attempts failed, changes tested on the same attempts
   mimicgen info source_D0.hdf5                 demos, lengths, obs/action shapes, objects, signals
   mimicgen export generated.hdf5 --mcap out.mcap   poses, actions, labels for Foxglove
   mimicgen view generated.hdf5 --demo 3 --spawn     one demo in the Rerun viewer
@@ -80,6 +82,9 @@ Examples:
     /// The inspection app in a browser, for machines without a display: serves the app and runs
     /// its backend here; open the printed URL (through `ssh -L 8080:localhost:8080 host`).
     Serve(serve::ServeArgs),
+    /// Why a run's attempts failed and what to change: ranks the changes its failure causes
+    /// point at and tests the best few against the run's own spec on the same attempts.
+    Doctor(doctor::DoctorArgs),
     /// Record scripted source demos of a task (the bundled defaults are made this way).
     Demos(generate::DemosArgs),
     /// List the tasks, their variants and the arms.
@@ -230,6 +235,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Serve(args) => {
             serve::run(args)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Doctor(args) => {
+            doctor::run(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Annotate(args) => {

@@ -62,12 +62,24 @@ pub fn source_distances(
 }
 
 /// Picks a demo index given the strategy's [`source_distances`] (uniformly among the `nn_k`
-/// nearest, ties in dataset order; uniformly among all demos without distances), so the choice
-/// depends only on the inputs and `rng`.
-pub fn pick_source<R: Rng + ?Sized>(strategy: &SelectionStrategy, distances: Option<&[f64]>, num_demos: usize, rng: &mut R) -> usize {
+/// nearest, ties in dataset order; uniformly among all demos without distances), never one of
+/// `excluded`, so the choice depends only on the inputs and `rng`. With nothing excluded it draws
+/// as it always has; with every demo excluded it picks the first (the generator refuses such a
+/// spec before).
+pub fn pick_source<R: Rng + ?Sized>(
+    strategy: &SelectionStrategy,
+    distances: Option<&[f64]>,
+    num_demos: usize,
+    excluded: &[usize],
+    rng: &mut R,
+) -> usize {
+    let allowed: Vec<usize> = (0..num_demos).filter(|d| !excluded.contains(d)).collect();
+    if allowed.is_empty() {
+        return 0;
+    }
     match distances {
-        Some(distances) => nearest_k_pick(distances, strategy_k(strategy), rng),
-        None => rng.random_range(0..num_demos),
+        Some(distances) => nearest_k_pick(distances, &allowed, strategy_k(strategy), rng),
+        None => allowed.get(rng.random_range(0..allowed.len())).copied().unwrap_or(0),
     }
 }
 
@@ -82,7 +94,7 @@ pub fn select_source<R: Rng + ?Sized>(
     rng: &mut R,
 ) -> usize {
     let distances = source_distances(strategy, demos, spans, subtask, object, scene);
-    pick_source(strategy, distances.as_deref(), demos.len(), rng)
+    pick_source(strategy, distances.as_deref(), demos.len(), &[], rng)
 }
 
 fn strategy_k(strategy: &SelectionStrategy) -> usize {
@@ -92,9 +104,9 @@ fn strategy_k(strategy: &SelectionStrategy) -> usize {
     }
 }
 
-/// Uniform pick among the `k` smallest distances (ties broken by index).
-fn nearest_k_pick<R: Rng + ?Sized>(distances: &[f64], k: usize, rng: &mut R) -> usize {
-    let mut order: Vec<(usize, f64)> = distances.iter().copied().enumerate().collect();
+/// Uniform pick among the `k` smallest distances of the `allowed` demos (ties broken by index).
+fn nearest_k_pick<R: Rng + ?Sized>(distances: &[f64], allowed: &[usize], k: usize, rng: &mut R) -> usize {
+    let mut order: Vec<(usize, f64)> = distances.iter().copied().enumerate().filter(|(d, _)| allowed.contains(d)).collect();
     order.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
     let k = k.min(order.len()).max(1);
     order.get(rng.random_range(0..k)).map_or(0, |&(d, _)| d)
@@ -125,6 +137,29 @@ mod tests {
         }
         // Closest to 0.12: 0.1 (d3), 0.2 (d5), 0.0 (d1).
         assert_eq!(seen.into_iter().collect::<Vec<_>>(), vec![1, 3, 5]);
+    }
+
+    #[test]
+    fn an_excluded_demo_is_never_picked_and_nothing_excluded_draws_as_before() {
+        let strategy = SelectionStrategy::NearestNeighborObject { nn_k: 2, pos_weight: 1.0, rot_weight: 1.0 };
+        // Demo 1 is the nearest: excluded, the two nearest left are 3 and 0.
+        let distances = [0.2, 0.0, 0.9, 0.1];
+        let (mut a, mut b) = (ChaCha8Rng::seed_from_u64(5), ChaCha8Rng::seed_from_u64(5));
+        let mut seen = std::collections::BTreeSet::new();
+        for _ in 0..200 {
+            seen.insert(pick_source(&strategy, Some(&distances), 4, &[1], &mut a));
+        }
+        assert_eq!(seen.into_iter().collect::<Vec<_>>(), vec![0, 3]);
+        let mut seen = std::collections::BTreeSet::new();
+        for _ in 0..200 {
+            seen.insert(pick_source(&SelectionStrategy::Random, None, 4, &[0, 2], &mut b));
+        }
+        assert_eq!(seen.into_iter().collect::<Vec<_>>(), vec![1, 3]);
+        // Without exclusions the picks are the draws of the unfiltered rule.
+        let (mut c, mut d) = (ChaCha8Rng::seed_from_u64(9), ChaCha8Rng::seed_from_u64(9));
+        for _ in 0..50 {
+            assert_eq!(pick_source(&SelectionStrategy::Random, None, 7, &[], &mut c), d.random_range(0..7));
+        }
     }
 
     #[test]

@@ -220,6 +220,11 @@ pub struct GenerationSettings {
     /// The planner of subtasks whose transit is planned.
     #[serde(skip_serializing_if = "is_default")]
     pub planner: crate::transit::PlannerSettings,
+    /// Source demos (indices in the source dataset, as the report counts them) that no selection
+    /// picks: demos that never lead to a success (`mimicgen doctor` proposes them). The others
+    /// keep their indices, so reports of runs with and without it read alike.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub exclude_sources: Vec<usize>,
 }
 
 impl Default for GenerationSettings {
@@ -236,6 +241,7 @@ impl Default for GenerationSettings {
             seed: 1,
             early_abort: false,
             planner: crate::transit::PlannerSettings::default(),
+            exclude_sources: Vec::new(),
         }
     }
 }

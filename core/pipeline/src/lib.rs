@@ -31,6 +31,7 @@ pub mod bundled;
 mod config;
 pub use config::check_spec_file;
 pub mod coverage;
+pub mod doctor;
 mod error;
 mod events;
 pub mod lerobot;

@@ -213,6 +213,8 @@ pub fn merge(
         seed: first.seed,
         workers: shards.iter().map(|s| s.report.workers).sum(),
         source: first.source.clone(),
+        config: first.config.clone(),
+        robot: first.robot.clone(),
         output: written.display().to_string(),
         failed_output: failed_written.map(|p| p.display().to_string()),
         attempts: stats.attempts,

@@ -165,6 +165,13 @@ impl Pipeline {
         })
     }
 
+    /// A simulator of the run's scene (and of its object instances, where the variant draws one
+    /// per episode): one per worker.
+    #[must_use]
+    pub fn env(&self) -> SimEnv {
+        SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task)).with_instances(self.instances.clone())
+    }
+
     /// The task.
     #[must_use]
     pub fn task(&self) -> &Arc<dyn Task> {
@@ -342,9 +349,7 @@ impl Pipeline {
     /// # Errors
     /// [`PipelineError`] for outputs that exist, fatal simulator errors and write failures.
     pub fn run(&self, cancel: &AtomicBool, on_event: impl FnMut(&Event)) -> Result<Report, PipelineError> {
-        let mut envs: Vec<SimEnv> = (0..self.config.workers)
-            .map(|_| SimEnv::new(Arc::clone(&self.scene), Arc::clone(&self.task)).with_instances(self.instances.clone()))
-            .collect();
+        let mut envs: Vec<SimEnv> = (0..self.config.workers).map(|_| self.env()).collect();
         let cameras = self.cameras.as_ref();
         // On the workers: observations, camera images and the episode's model_file.
         let observe = |env: &mut SimEnv, attempt: &Attempt| -> Result<Observed, EngineError> {
@@ -510,6 +515,8 @@ impl Pipeline {
             seed: settings.seed,
             workers: self.config.workers,
             source: self.source_path.display().to_string(),
+            config: self.config.config.as_ref().map(|p| p.display().to_string()),
+            robot: self.config.robot.clone(),
             output: written.display().to_string(),
             failed_output: failed_written.map(|p| p.display().to_string()),
             attempts: stats.attempts,

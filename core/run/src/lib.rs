@@ -19,6 +19,7 @@
 
 mod camera;
 mod config;
+pub mod doctor;
 mod overrides;
 mod report;
 mod wording;

@@ -99,11 +99,13 @@ pub struct SpecOverrides {
     pub transit: Vec<Scoped<Transit>>,
     /// With planned transit, how near the object (m) the replayed approach begins.
     pub approach_m: Vec<Scoped<f64>>,
+    /// Source demos (indices, as the report counts them) no selection picks.
+    pub exclude_source: Vec<usize>,
 }
 
 impl SpecOverrides {
     /// The fields' names (Python's `spec` keys; the flags are these with `--` and dashes).
-    pub const FIELDS: [&str; 9] = [
+    pub const FIELDS: [&str; 10] = [
         "selection",
         "nn_k",
         "action_noise",
@@ -113,12 +115,36 @@ impl SpecOverrides {
         "select_src_per_subtask",
         "transit",
         "approach_m",
+        "exclude_source",
     ];
 
     /// Whether it changes nothing.
     #[must_use]
     pub fn is_empty(&self) -> bool {
         *self == Self::default()
+    }
+
+    /// These overrides, then `later` over them: a field `later` sets for a subtask wins there.
+    #[must_use]
+    pub fn then(&self, later: &Self) -> Self {
+        fn joined<T: Clone>(a: &[T], b: &[T]) -> Vec<T> {
+            [a, b].concat()
+        }
+        let mut exclude_source = joined(&self.exclude_source, &later.exclude_source);
+        exclude_source.sort_unstable();
+        exclude_source.dedup();
+        Self {
+            selection: joined(&self.selection, &later.selection),
+            nn_k: joined(&self.nn_k, &later.nn_k),
+            action_noise: joined(&self.action_noise, &later.action_noise),
+            offset_range: joined(&self.offset_range, &later.offset_range),
+            interpolation_steps: joined(&self.interpolation_steps, &later.interpolation_steps),
+            fixed_steps: joined(&self.fixed_steps, &later.fixed_steps),
+            select_src_per_subtask: later.select_src_per_subtask.or(self.select_src_per_subtask),
+            transit: joined(&self.transit, &later.transit),
+            approach_m: joined(&self.approach_m, &later.approach_m),
+            exclude_source,
+        }
     }
 
     /// The `mimicgen generate` flags that give these overrides.
@@ -142,6 +168,10 @@ impl SpecOverrides {
         if let Some(on) = self.select_src_per_subtask {
             args.push("--select-src-per-subtask".to_owned());
             args.push(on.to_string());
+        }
+        if !self.exclude_source.is_empty() {
+            args.push("--exclude-source".to_owned());
+            args.push(self.exclude_source.iter().map(ToString::to_string).collect::<Vec<_>>().join(","));
         }
         args
     }
@@ -241,6 +271,10 @@ impl SpecOverrides {
         if let Some(on) = self.select_src_per_subtask {
             spec.generation.select_src_per_subtask = on;
         }
+        let excluded = &mut spec.generation.exclude_sources;
+        excluded.extend(&self.exclude_source);
+        excluded.sort_unstable();
+        excluded.dedup();
         Ok(())
     }
 }
@@ -296,8 +330,20 @@ mod tests {
             select_src_per_subtask: Some(true),
             transit: vec![Scoped { subtask: Some(1), value: Transit::Plan }],
             approach_m: vec![Scoped::all(0.08)],
+            exclude_source: vec![3, 1],
         };
         overrides.apply(&mut s).unwrap();
+        assert_eq!(s.generation.exclude_sources, [1, 3]);
+        // Later overrides win where they set a field; exclusions add up.
+        let later = SpecOverrides {
+            action_noise: vec![Scoped { subtask: Some(1), value: 0.0 }],
+            exclude_source: vec![1, 4],
+            ..SpecOverrides::default()
+        };
+        let mut t = spec();
+        overrides.then(&later).apply(&mut t).unwrap();
+        assert_eq!((t.subtasks[0].action_noise, t.subtasks[1].action_noise), (0.02, 0.0));
+        assert_eq!(t.generation.exclude_sources, [1, 3, 4]);
         assert_eq!(s.subtasks.iter().map(|t| t.transit).collect::<Vec<_>>(), [Transit::Interpolate, Transit::Plan]);
         assert_eq!(s.subtasks.iter().map(|t| t.approach_m).collect::<Vec<_>>(), [0.08, 0.08]);
         assert!(matches!(s.subtasks[0].selection, SelectionStrategy::NearestNeighborObject { nn_k: 5, .. }));

@@ -103,6 +103,12 @@ pub struct Report {
     pub workers: usize,
     /// Source demo file.
     pub source: String,
+    /// The task spec file the run read (`--config`); `None`: the task's bundled spec.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub config: Option<String>,
+    /// The arm the run generated with (`--robot`); `None`: the sources' own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<String>,
     /// The dataset.
     pub output: String,
     /// The failed-attempts file, if kept.

@@ -91,6 +91,7 @@ mod tests {
             select_src_per_subtask: Some(true),
             transit: vec![Scoped::all(mimicgen_engine::spec::Transit::Plan)],
             approach_m: vec![Scoped::all(0.1)],
+            exclude_source: vec![2, 6],
         };
         let flags: Vec<String> = every.to_args().into_iter().filter(|a| a.starts_with("--")).collect();
         assert_eq!(flags.len(), SpecOverrides::FIELDS.len());

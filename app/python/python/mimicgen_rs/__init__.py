@@ -101,10 +101,12 @@ def _spec_overrides(spec: Optional[Mapping[str, Any]]) -> Dict[str, Any]:
     for key, value in (spec or {}).items():
         if key == "select_src_per_subtask":
             out[key] = bool(value)
+        elif key == "exclude_source":
+            out[key] = [int(d) for d in ([value] if isinstance(value, int) else value)]
         elif key in SPEC_FIELDS:
             out[key] = _scoped(key, value)
         else:
-            raise MimicgenError(f"spec: unknown field {key!r}; known: {', '.join(SPEC_FIELDS + ('select_src_per_subtask',))}")
+            raise MimicgenError(f"spec: unknown field {key!r}; known: {', '.join(SPEC_FIELDS + ('select_src_per_subtask', 'exclude_source'))}")
     return out
 
 

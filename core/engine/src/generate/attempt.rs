@@ -40,6 +40,17 @@ impl Generator {
         dataset.validate()?;
         spec.check_names(&dataset.object_names(), &dataset.signal_names())?;
         let segmentation = Segmentation::new(&dataset.demos, &spec)?;
+        let demos = dataset.demos.len();
+        let excluded = &spec.generation.exclude_sources;
+        let refuse = |reason: String| {
+            Err(EngineError::Config { file: "task spec".to_owned(), field: "generation.exclude_sources".to_owned(), reason })
+        };
+        if let Some(d) = excluded.iter().find(|&&d| d >= demos) {
+            return refuse(format!("names source demo {d}, but the source file has {demos} (0 to {})", demos.saturating_sub(1)));
+        }
+        if (0..demos).all(|d| excluded.contains(&d)) {
+            return refuse(format!("excludes all {demos} source demos; keep at least one"));
+        }
         Ok(Self { spec, dataset, segmentation })
     }
 
@@ -352,7 +363,7 @@ impl Generator {
             _ => {
                 let scene = SceneContext { world_from_eef: &here.world_from_eef, world_from_obj: world_from_obj_new.as_ref() };
                 let distances = source_distances(&subtask.selection, demos, spans, here.subtask, subtask.object_ref.as_deref(), scene);
-                (pick_source(&subtask.selection, distances.as_deref(), demos.len(), rng), distances)
+                (pick_source(&subtask.selection, distances.as_deref(), demos.len(), &settings.exclude_sources, rng), distances)
             }
         };
         let demo_index = here.forced.unwrap_or(demo_index);
