@@ -19,6 +19,7 @@ Examples:
   mimicgen doctor out/nut.hdf5                      # suggestions, the best 3 tested on 100 attempts each
   mimicgen doctor out/nut.json --budget 1200 --top 5   # more attempts: narrower intervals
   mimicgen doctor out/nut.json --json out/nut_doctor.json
+  mimicgen doctor out/nut.json --check 1000          # then the best change on 1000 fresh attempts
 
 Reads the run's report (RUN.json, written beside RUN.hdf5 by `mimicgen generate`): its failure
 causes by subtask (grasp missed, grasp slipped, arm lagged, object moved, ran out of steps,
@@ -49,6 +50,11 @@ pub struct DoctorArgs {
     /// Worker threads, each with its own simulator.
     #[arg(long, default_value_t = std::thread::available_parallelism().map_or(1, std::num::NonZero::get))]
     workers: usize,
+    /// Then check the best change (the winner, else the largest difference) on this many fresh
+    /// attempts: the run's spec and the change on attempts 0..N of the run's seed plus one,
+    /// paired. 0: no check.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    check: usize,
     /// Also write the diagnosis as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -59,14 +65,14 @@ pub struct DoctorArgs {
 /// # Errors
 /// An unreadable report, inputs of the run that are gone, a simulator failure, an unwritable --json.
 pub fn run(args: &DoctorArgs) -> anyhow::Result<()> {
-    let config = DoctorConfig { run: args.run.clone(), budget: args.budget, top: args.top, workers: args.workers };
+    let config = DoctorConfig { run: args.run.clone(), budget: args.budget, top: args.top, workers: args.workers, check: args.check };
     let bar = ProgressBar::hidden();
     bar.set_style(
         ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:30}] {pos}/{len} {msg} ETA {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    let mut per_arm = 0;
+    let (mut per_arm, mut checking) = (0, false);
     let cancel = AtomicBool::new(false);
     let diagnosis = doctor(&config, &cancel, |event| match event {
         DoctorEvent::Started { suggestions, arms, attempts } => {
@@ -75,9 +81,21 @@ pub fn run(args: &DoctorArgs) -> anyhow::Result<()> {
             bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
             bar.set_length((arms * attempts) as u64);
         }
+        DoctorEvent::Checking { trial, attempts } => {
+            bar.finish_and_clear();
+            eprintln!("checking change {} on {attempts} fresh attempts", trial + 1);
+            checking = true;
+            per_arm = *attempts;
+            bar.reset();
+            bar.set_length((2 * attempts) as u64);
+        }
         DoctorEvent::Attempt { arm, done, successes } => {
             bar.set_position((arm * per_arm + done) as u64);
-            let name = if *arm == 0 { "the run's spec".to_owned() } else { format!("change {arm}") };
+            let name = match (*arm, checking) {
+                (0, _) => "the run's spec".to_owned(),
+                (_, true) => "the change".to_owned(),
+                (k, false) => format!("change {k}"),
+            };
             bar.set_message(format!("{name}: {successes} of {done}"));
         }
     })?;
@@ -121,6 +139,26 @@ fn print(d: &Diagnosis) -> anyhow::Result<()> {
             p.gained,
             p.lost,
             t.verdict.words()
+        );
+    }
+    if let Some(check) = &d.check
+        && let Some(t) = d.trials.get(check.trial)
+    {
+        let p = &check.paired;
+        let rate = |n: usize| 100.0 * n as f64 / p.attempts.max(1) as f64;
+        outln!(
+            "\nchecked on {} fresh attempts (seed {}): {} {:.1} % -> {:.1} %, {:+.1} points [{:+.1}, {:+.1}], gained {}, lost {}: {}",
+            p.attempts,
+            check.seed,
+            t.suggestion.flags(),
+            rate(p.base_successes),
+            rate(p.changed_successes),
+            100.0 * p.difference,
+            100.0 * (p.difference - p.half_width),
+            100.0 * (p.difference + p.half_width),
+            p.gained,
+            p.lost,
+            check.verdict.words()
         );
     }
     match d.best() {

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
 use mimicgen_engine::{Generator, RunControl};
-use mimicgen_run::doctor::{Diagnosis, Paired, Suggestion, Trial, rerun_config, suggest};
+use mimicgen_run::doctor::{Check, Diagnosis, Paired, Suggestion, Trial, rerun_config, suggest};
 
 use crate::{Pipeline, PipelineError, Report, SpecOverrides, sibling};
 
@@ -27,6 +27,9 @@ pub struct DoctorConfig {
     pub top: usize,
     /// Worker threads, each with its own simulator (the results do not depend on it).
     pub workers: usize,
+    /// Then run the winner (else the trial with the largest difference) and the run's spec on
+    /// this many fresh attempts (the run's seed plus one), paired: 0 for none.
+    pub check: usize,
 }
 
 /// What the doctor is doing, for a progress bar.
@@ -41,9 +44,17 @@ pub enum DoctorEvent {
         /// Attempts per arm.
         attempts: usize,
     },
+    /// The trials are done; `trial` is checked on `attempts` fresh attempts of each side
+    /// (the run's spec is arm 0 again, the change arm 1).
+    Checking {
+        /// The trial checked.
+        trial: usize,
+        /// Attempts per side.
+        attempts: usize,
+    },
     /// One more attempt of arm `arm` decided.
     Attempt {
-        /// 0: the run's spec; k: the k-th suggestion.
+        /// 0: the run's spec; k: the k-th suggestion (in the check, 1: the change checked).
         arm: usize,
         /// Attempts of the arm decided so far.
         done: usize,
@@ -96,9 +107,15 @@ pub fn doctor(config: &DoctorConfig, cancel: &AtomicBool, mut on_event: impl FnM
     }
     on_event(&DoctorEvent::Started { suggestions: suggestions.clone(), arms: tested + 1, attempts });
     let first = report.attempts;
-    let arm = |index: usize, change: &SpecOverrides, on_event: &mut dyn FnMut(&DoctorEvent)| -> Result<Vec<bool>, PipelineError> {
+    // Attempts `first..first + attempts` of `seed` with `change`, reported as arm `index`.
+    let arm = |index: usize,
+               change: &SpecOverrides,
+               (seed, first, attempts): (u64, usize, usize),
+               on_event: &mut dyn FnMut(&DoctorEvent)|
+     -> Result<Vec<bool>, PipelineError> {
         let mut spec = pipeline.generator().spec().clone();
         change.apply(&mut spec)?;
+        spec.generation.seed = seed;
         spec.generation.num_trials = first + attempts;
         spec.generation.guarantee = false;
         spec.generation.max_attempts = 0;
@@ -125,16 +142,30 @@ pub fn doctor(config: &DoctorConfig, cancel: &AtomicBool, mut on_event: impl FnM
         }
         Ok(outcomes)
     };
-    let base = arm(0, &SpecOverrides::default(), &mut on_event)?;
+    let seed = report.seed;
+    let base = arm(0, &SpecOverrides::default(), (seed, first, attempts), &mut on_event)?;
     let mut trials = Vec::with_capacity(tested);
     for (k, suggestion) in suggestions.iter().take(tested).enumerate() {
-        let changed = arm(k + 1, &suggestion.change, &mut on_event)?;
+        let changed = arm(k + 1, &suggestion.change, (seed, first, attempts), &mut on_event)?;
         let paired = Paired::new(&base, &changed);
         let out = sibling(Path::new(&report.output), "_doctor", "hdf5");
         let args = rerun_config(&report, &suggestion.change, out).to_args();
         trials.push(Trial { suggestion: suggestion.clone(), paired, verdict: paired.verdict(), command: command_line(&args) });
     }
+    let checked = Diagnosis::to_check(&trials).filter(|_| config.check > 0).and_then(|i| trials.get(i).map(|t| (i, &t.suggestion.change)));
+    let check = match checked {
+        Some((trial, change)) => {
+            on_event(&DoctorEvent::Checking { trial, attempts: config.check });
+            let fresh = (seed.wrapping_add(1), 0, config.check);
+            let before = arm(0, &SpecOverrides::default(), fresh, &mut on_event)?;
+            let after = arm(1, change, fresh, &mut on_event)?;
+            let paired = Paired::new(&before, &after);
+            Some(Check { trial, seed: fresh.0, paired, verdict: paired.verdict() })
+        }
+        None => None,
+    };
     Ok(Diagnosis {
+        check,
         report: label,
         task: report.task.clone(),
         variant: report.variant.clone(),

@@ -46,7 +46,7 @@ fn the_doctor_tests_what_the_causes_point_at_on_the_attempts_after_the_run() {
     let missed = report.causes.iter().find(|c| c.subtask == 0 && c.cause == "grasp_missed").map_or(0, |c| c.count);
     assert!(report.causes.iter().all(|c| c.count <= missed), "grasps should miss most with this much noise: {:?}", report.causes);
 
-    let config = DoctorConfig { run: out.clone(), budget: 2 * tested, top: 1, workers: 2 };
+    let config = DoctorConfig { run: out.clone(), budget: 2 * tested, top: 1, workers: 2, check: 12 };
     let mut events = Vec::new();
     let d = doctor(&config, &AtomicBool::new(false), |e| events.push(e.clone())).unwrap();
     // The most frequent cause's change first: half the noise where the grasps missed.
@@ -55,8 +55,9 @@ fn the_doctor_tests_what_the_causes_point_at_on_the_attempts_after_the_run() {
     assert!(top.addresses >= missed && d.suggestions.windows(2).all(|w| w[0].addresses >= w[1].addresses));
     assert_eq!((d.first_attempt, d.attempts, d.trials.len()), (run, tested, 1));
     assert!(matches!(events.first(), Some(DoctorEvent::Started { arms: 2, attempts, .. }) if *attempts == tested));
+    let checking = events.iter().position(|e| matches!(e, DoctorEvent::Checking { .. })).unwrap();
     let last = |arm: usize| {
-        events.iter().rev().find_map(|e| match e {
+        events[..checking].iter().rev().find_map(|e| match e {
             DoctorEvent::Attempt { arm: a, done, successes } if *a == arm => Some((*done, *successes)),
             _ => None,
         })
@@ -74,6 +75,13 @@ fn the_doctor_tests_what_the_causes_point_at_on_the_attempts_after_the_run() {
     assert_eq!(t.paired.changed_successes - t.paired.gained + t.paired.lost, base, "paired counts: {:?}", t.paired);
     assert!(t.command.contains("--seed 3") && t.command.contains("--action-noise 0.3 --action-noise 0:0.15"), "{}", t.command);
 
+    // Checked on 12 fresh attempts: the run's next seed from its first attempt.
+    let check = d.check.as_ref().unwrap();
+    assert_eq!((check.trial, check.seed, check.paired.attempts), (0, 4, 12));
+    let fresh = outcomes(&RunConfig { seed: Some(4), ..noisy(&dir.path().join("fresh.hdf5"), 12) });
+    assert_eq!(check.paired.base_successes, fresh.iter().filter(|&&s| s).count());
+    assert!(events.iter().any(|e| matches!(e, DoctorEvent::Checking { trial: 0, attempts: 12 })));
+
     // The same diagnosis on one worker.
     let again = doctor(&DoctorConfig { workers: 1, ..config }, &AtomicBool::new(false), |_| {}).unwrap();
     assert_eq!(again, d);
@@ -83,7 +91,7 @@ fn the_doctor_tests_what_the_causes_point_at_on_the_attempts_after_the_run() {
 fn the_doctor_names_what_it_cannot_read() {
     let dir = tempfile::tempdir().unwrap();
     let cancel = AtomicBool::new(false);
-    let run = |path: &Path, budget| doctor(&DoctorConfig { run: path.to_path_buf(), budget, top: 3, workers: 1 }, &cancel, |_| {});
+    let run = |path: &Path, budget| doctor(&DoctorConfig { run: path.to_path_buf(), budget, top: 3, workers: 1, check: 0 }, &cancel, |_| {});
     let missing = dir.path().join("gone.hdf5");
     let e = run(&missing, 100).unwrap_err().to_string();
     assert!(e.contains("gone.json") && e.contains("beside"), "{e}");

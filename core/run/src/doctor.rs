@@ -259,6 +259,23 @@ pub struct Diagnosis {
     pub trials: Vec<Trial>,
     /// The trial that helped most, if one was shown to help.
     pub winner: Option<usize>,
+    /// The winner (else the trial with the largest difference) checked on fresh attempts, when
+    /// asked for.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check: Option<Check>,
+}
+
+/// A tested change run again on attempts neither the run nor the trials saw: another seed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Check {
+    /// The trial checked (an index into [`Diagnosis::trials`]).
+    pub trial: usize,
+    /// The seed (the run's plus one).
+    pub seed: u64,
+    /// The comparison on attempts `0..paired.attempts` of that seed.
+    pub paired: Paired,
+    /// What it shows.
+    pub verdict: Verdict,
 }
 
 impl Diagnosis {
@@ -266,6 +283,21 @@ impl Diagnosis {
     #[must_use]
     pub fn best(&self) -> Option<&Trial> {
         self.trials.get(self.winner?)
+    }
+
+    /// The trial to check on fresh attempts: the winner, else the one with the largest
+    /// difference (the first of equals).
+    #[must_use]
+    pub fn to_check(trials: &[Trial]) -> Option<usize> {
+        Self::pick_winner(trials).or_else(|| {
+            let mut best: Option<usize> = None;
+            for (i, t) in trials.iter().enumerate() {
+                if best.and_then(|b| trials.get(b)).is_none_or(|b| t.paired.difference > b.paired.difference) {
+                    best = Some(i);
+                }
+            }
+            best
+        })
     }
 
     /// The index of the trial that helps most (largest difference among those whose interval is
@@ -404,6 +436,10 @@ mod tests {
         let trials = [trial(0.3, Verdict::Unproven), trial(0.1, Verdict::Helps), trial(0.2, Verdict::Helps), trial(-0.2, Verdict::Hurts)];
         assert_eq!(Diagnosis::pick_winner(&trials), Some(2));
         assert_eq!(Diagnosis::pick_winner(&trials[..1]), None);
+        // Checked on fresh attempts: the winner, else the largest difference.
+        assert_eq!(Diagnosis::to_check(&trials), Some(2));
+        assert_eq!(Diagnosis::to_check(&[trial(-0.1, Verdict::Unproven), trial(0.05, Verdict::Unproven)]), Some(1));
+        assert_eq!(Diagnosis::to_check(&[]), None);
     }
 
     #[test]
