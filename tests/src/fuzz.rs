@@ -350,7 +350,11 @@ pub fn dataset_seed() -> Group {
 fn request_paths(request: &mimicgen_ui::protocol::Request) -> Vec<std::path::PathBuf> {
     use mimicgen_ui::protocol::{Request, ViewerSink};
     match request {
-        Request::Open { path } | Request::ListDir { path } | Request::OpenCompare { path } | Request::OpenRun { path } => {
+        Request::Open { path }
+        | Request::ListDir { path }
+        | Request::OpenCompare { path }
+        | Request::OpenRun { path }
+        | Request::Doctor { run: path, .. } => {
             vec![path.clone()]
         }
         Request::Save { source, out, .. } => vec![source.clone(), out.clone()],
@@ -358,7 +362,7 @@ fn request_paths(request: &mimicgen_ui::protocol::Request) -> Vec<std::path::Pat
         Request::SideBySide(pair) => pair.iter().map(|r| r.source.clone()).collect(),
         Request::Run(config) => [Some(config.out.clone()), config.source.clone(), config.config.clone()].into_iter().flatten().collect(),
         Request::Open3d { sink: ViewerSink::Save(path), .. } => vec![path.clone()],
-        Request::Open3d { .. } | Request::ShowDemo { .. } | Request::CancelRun => Vec::new(),
+        Request::Open3d { .. } | Request::ShowDemo { .. } | Request::CancelRun | Request::CancelDoctor => Vec::new(),
     }
 }
 
@@ -397,7 +401,7 @@ impl Default for ServedRoot {
 
 /// A tab's message as `mimicgen serve` takes it: read as JSON (what does not read closes the
 /// tab's connection, no more), confined to the served folder, then answered by a backend worker
-/// with nothing open (all but runs, which start a thread). A refusal must name the path or field
+/// with nothing open (all but runs and the doctor, which start a thread). A refusal must name the path or field
 /// it refuses; every path of a request let through must lie inside the root (or be a prepared
 /// copy); nothing may panic, in the server or in the worker (which would answer "internal error").
 ///
@@ -419,7 +423,7 @@ pub fn client_message(data: &[u8], served: &ServedRoot) -> Handled {
                 let inside = path.starts_with(root.dir()) || root.prepared().is_some_and(|p| path.starts_with(p));
                 assert!(inside, "{} let through, outside {}", path.display(), root.dir().display());
             }
-            if matches!(confined, Request::Run(_)) {
+            if matches!(confined, Request::Run(_) | Request::Doctor { .. }) {
                 return Handled::Confined;
             }
             let mut worker = mimicgen_backend::Worker::new(std::sync::Arc::new(|_| {}), None);

@@ -20,7 +20,7 @@ use mimicgen_pipeline::{PipelineError, RunConfig, annotate};
 use mimicgen_viz::rerun::RecordingStream;
 use mimicgen_viz::{LogConfig, RunLogger, SceneLevel, Sink};
 
-use mimicgen_ui::protocol::{CameraView, PreviewRequest, PreviewView, Reply, Request, ViewerSink, Welcome};
+use mimicgen_ui::protocol::{CameraView, DoctorUpdate, PreviewRequest, PreviewView, Reply, Request, ViewerSink, Welcome};
 
 mod files;
 mod runs;
@@ -105,6 +105,8 @@ pub struct Worker {
     run_notify: Notify,
     /// The running generation's cancel flag and thread.
     run: RunSlot,
+    /// The running doctor's cancel flag and thread (this worker's own: a tab's diagnosis).
+    doctor: Option<RunThread>,
     /// Reads each user-chosen file in a child process first, when set.
     vetter: Option<Vetter>,
 }
@@ -134,6 +136,7 @@ impl Worker {
             notify,
             run_notify,
             run: RunSlot::default(),
+            doctor: None,
             vetter: None,
         }
     }
@@ -173,6 +176,46 @@ impl Worker {
             return Reply::Failed { what: "reading the file".to_owned(), error };
         }
         guarded(what, || self.handle(request))
+    }
+
+    /// Starts `mimicgen doctor` on its own thread; its updates go to this worker's `notify`.
+    fn start_doctor(&mut self, run: PathBuf, budget: usize, top: usize) -> Reply {
+        if self.doctor.as_ref().is_some_and(|(_, thread)| !thread.is_finished()) {
+            return Reply::Failed {
+                what: "starting the doctor".to_owned(),
+                error: "the doctor is at work; stop it or wait for it".to_owned(),
+            };
+        }
+        let cancel = Arc::new(AtomicBool::new(false));
+        let (flag, notify) = (Arc::clone(&cancel), Arc::clone(&self.notify));
+        let workers = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+        let config = mimicgen_pipeline::doctor::DoctorConfig { run, budget, top, workers, check: 0 };
+        let spawned = std::thread::Builder::new().name("mimicgen-gui-doctor".to_owned()).spawn(move || {
+            let on_event = |event: &mimicgen_pipeline::doctor::DoctorEvent| {
+                use mimicgen_pipeline::doctor::DoctorEvent;
+                notify(Reply::Doctor(match event {
+                    DoctorEvent::Started { suggestions, arms, attempts } => {
+                        DoctorUpdate::Started { suggestions: suggestions.clone(), arms: *arms, attempts: *attempts }
+                    }
+                    DoctorEvent::Attempt { arm, done, successes } => {
+                        DoctorUpdate::Attempt { arm: *arm, done: *done, successes: *successes }
+                    }
+                    DoctorEvent::Checking { .. } => return,
+                }));
+            };
+            let update = match mimicgen_pipeline::doctor::doctor(&config, &flag, on_event) {
+                Ok(diagnosis) => DoctorUpdate::Finished(Box::new(diagnosis)),
+                Err(e) => DoctorUpdate::Failed(e.worded(mimicgen_pipeline::FrontEnd::App)),
+            };
+            notify(Reply::Doctor(update));
+        });
+        match spawned {
+            Ok(thread) => {
+                self.doctor = Some((cancel, thread));
+                Reply::DoctorAccepted
+            }
+            Err(e) => Reply::Failed { what: "starting the doctor".to_owned(), error: e.to_string() },
+        }
     }
 
     fn start_run(&mut self, config: RunConfig) -> Reply {
@@ -360,6 +403,13 @@ impl Worker {
                 Ok(()) => Reply::RunOpened,
                 Err(e) => Reply::Failed { what: format!("opening the run {}", path.display()), error: e.to_string() },
             },
+            Request::Doctor { run, budget, top } => self.start_doctor(run, budget, top),
+            Request::CancelDoctor => {
+                if let Some((cancel, _)) = &self.doctor {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+                Reply::Cancelling
+            }
             Request::CancelRun => {
                 if let Some((cancel, _)) = self.run.lock().as_ref() {
                     cancel.store(true, Ordering::Relaxed);

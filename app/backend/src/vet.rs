@@ -132,7 +132,13 @@ pub fn files_read(request: &Request) -> Vec<&Path> {
         Request::Preview(r) => vec![&r.source],
         Request::SideBySide(pair) => pair.iter().map(|r| r.source.as_path()).collect(),
         Request::Run(config) => config.source.iter().map(PathBuf::as_path).collect(),
-        Request::ListDir { .. } | Request::Open3d { .. } | Request::ShowDemo { .. } | Request::CancelRun => Vec::new(),
+        // The doctor reads a report (JSON) and the source file the run read.
+        Request::ListDir { .. }
+        | Request::Open3d { .. }
+        | Request::ShowDemo { .. }
+        | Request::CancelRun
+        | Request::Doctor { .. }
+        | Request::CancelDoctor => Vec::new(),
     }
 }
 

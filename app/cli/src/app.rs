@@ -38,6 +38,10 @@ pub struct AppArgs {
     /// beside the nearest successful attempt.
     #[arg(long, requires = "run")]
     attempt: Option<u64>,
+    /// After --run: diagnose the run (`mimicgen doctor`, the best 3 changes) with this many
+    /// attempts in all, and show the Doctor panel.
+    #[arg(long, requires = "run", value_name = "BUDGET")]
+    doctor: Option<usize>,
     /// Once everything is shown, save the window to this PNG and exit.
     #[arg(long, value_name = "FILE.png")]
     screenshot: Option<PathBuf>,
@@ -62,7 +66,7 @@ enum ScreenArg {
 /// # Errors
 /// No bundled demos to open, or no window (no display).
 pub fn run(args: AppArgs) -> anyhow::Result<()> {
-    let AppArgs { file, screen, demo, step, try_it, run, variant, robot, cameras, attempt, screenshot, spec } = args;
+    let AppArgs { file, screen, demo, step, try_it, run, variant, robot, cameras, attempt, doctor, screenshot, spec } = args;
     let file = match file {
         Some(f) => f,
         None => mimicgen_pipeline::bundled::source_demos("stack")?,
@@ -83,6 +87,7 @@ pub fn run(args: AppArgs) -> anyhow::Result<()> {
         robot,
         cameras,
         attempt,
+        doctor,
         screenshot,
         spec: spec.overrides(),
         vet: mimicgen_server::Vetter::this_binary(),

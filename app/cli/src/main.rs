@@ -77,7 +77,8 @@ Examples:
   mimicgen app --run 20 --attempt 1              # then attempt 1, beside the nearest success if it failed
   mimicgen app core/sim/data/square_D0_source.hdf5 --run 3 --robot ur5e --cameras   # another arm, images
   mimicgen app --demo 3 --screenshot annotate.png  # the docs' screenshots (under Xvfb too)
-  mimicgen app --screen preview --variant C0 --transit plan   # planned transit around the clutter")]
+  mimicgen app --screen preview --variant C0 --transit plan   # planned transit around the clutter
+  mimicgen app --run 40 --action-noise 0.3 --doctor 120   # a noisy run, then the Doctor on it")]
     App(Box<app::AppArgs>),
     /// The inspection app in a browser, for machines without a display: serves the app and runs
     /// its backend here; open the printed URL (through `ssh -L 8080:localhost:8080 host`).

@@ -56,6 +56,8 @@ pub struct RunOptions {
     /// Once the run has ended, select this attempt (the 3D view stays on it) and, for a failed
     /// one, show it beside the nearest success.
     pub attempt: Option<u64>,
+    /// Once the run has ended, diagnose it (`mimicgen doctor`) with this budget of attempts.
+    pub doctor: Option<usize>,
     /// Once everything asked for is shown, save the window to this PNG and close.
     pub screenshot: Option<PathBuf>,
     /// Read each file a request names in this child process first (`mimicgen app` sets
@@ -107,13 +109,17 @@ impl Window {
             steps.push(Command::SelectAttempt(k));
             steps.push(Command::SideBySide { failed: k, success: None });
         }
+        if let Some(budget) = options.doctor {
+            steps.push(Command::SetDoctor { budget, top: 3 });
+            steps.push(Command::Diagnose);
+        }
         steps.reverse();
         Self { app, steps, screenshot: options.screenshot.clone(), idle_frames: 0, shot_requested: false }
     }
 
     /// Takes the next start-up step once the backend is idle; then the screenshot, if asked for.
     fn script(&mut self, ctx: &egui::Context) {
-        let running = self.app.model.run.as_ref().is_some_and(model::RunState::running);
+        let running = self.app.model.run.as_ref().is_some_and(model::RunState::running) || self.app.model.doctor.running;
         if self.app.model.in_flight > 0 || self.app.model.file.is_none() || running {
             self.idle_frames = 0;
             ctx.request_repaint();

@@ -635,6 +635,70 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     assert_eq!(written.demo_names().len(), report.successes);
 }
 
+/// The Doctor panel: folded until asked for, it diagnoses the finished run on its own thread
+/// (the UI goes on), shows the ranked suggestions and the tested one with its verdict, and puts
+/// the tested change into the run form over the run's own spec fields.
+#[test]
+fn the_doctor_panel_tests_a_change_and_puts_it_into_the_run_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("noisy.hdf5");
+    let mut h = harness(Some(fixture()));
+    settle(&mut h);
+    h.get_by_label("Generate").click();
+    h.step();
+    // So much noise that grasps miss: the run has failures with causes.
+    let noisy = mimicgen_gui::model::SpecOverrides { action_noise: vec![mimicgen_pipeline::Scoped::all(0.3)], ..Default::default() };
+    let form =
+        mimicgen_gui::model::RunForm { attempts: 12, seed: 3, out: out.display().to_string(), spec: noisy.clone(), ..Default::default() };
+    h.state_mut().command(Command::SetRunForm(Box::new(form)));
+    h.run_steps(2);
+    assert!(h.query_by_label("Doctor: what to change").is_none(), "no Doctor before a run has ended");
+    h.get_by_label("Start").click();
+    h.step();
+    until_run_ends(&mut h);
+    let report = h.state().model.run.as_ref().unwrap().report.clone().unwrap();
+    assert!(report.successes < report.attempts && !report.causes.is_empty(), "{report:?}");
+    assert!(h.query_by_label("Diagnose").is_none(), "folded");
+    h.get_by_label("Doctor: what to change").click();
+    h.run_steps(2);
+    assert!(h.state().model.doctor.shown);
+    h.state_mut().command(Command::SetDoctor { budget: 16, top: 1 });
+    h.run_steps(2);
+    h.get_by_label("Diagnose").click();
+    h.step();
+    let deadline = Instant::now() + Duration::from_secs(900);
+    let mut saw_progress = false;
+    while h.state().model.doctor.running {
+        saw_progress |= h.query_by_label_contains("of 16 attempts").is_some();
+        h.step();
+        assert!(Instant::now() < deadline, "the doctor did not finish");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    h.run_steps(2);
+    let doctor = h.state().model.doctor.clone();
+    assert!(doctor.error.is_none(), "{:?}", doctor.error);
+    assert!(saw_progress || doctor.diagnosis.is_some(), "a progress bar while it worked");
+    let d = doctor.diagnosis.unwrap();
+    assert_eq!((d.first_attempt, d.attempts, d.trials.len()), (12, 8, 1));
+    h.get_by_label("Suggestions, most failures addressed first");
+    h.get_by_label_contains("Tested on attempts 12..20 (seed 3)");
+    let t = &d.trials[0];
+    h.get_by_label(t.verdict.words());
+    h.get_by_label_contains(&format!("{:+.1} points [", 100.0 * t.paired.difference));
+    // "use": the run's spec fields, then the change.
+    h.get_by_label("use").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.run_form.spec, noisy.then(&t.suggestion.change));
+    // The form's command line says so.
+    let line = h.state().model.run_form.command_line(&h.state().model.file.as_ref().unwrap().path);
+    assert!(line.contains(&t.suggestion.flags()), "{line}");
+    h.get_by_label(&line);
+    // Folded again.
+    h.get_by_label("Doctor: what to change").click();
+    h.run_steps(2);
+    assert!(h.query_by_label("Diagnose").is_none());
+}
+
 /// The file browser lists folders and HDF5 files through the backend; a click goes up a folder,
 /// into one, or opens a file.
 #[test]

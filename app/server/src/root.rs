@@ -168,6 +168,7 @@ impl Root {
             Request::ListDir { path } => Request::ListDir { path: self.resolve(&path)? },
             Request::OpenCompare { path } => Request::OpenCompare { path: self.resolve_input(&path)? },
             Request::OpenRun { path } => Request::OpenRun { path: self.resolve(&path)? },
+            Request::Doctor { run, budget, top } => Request::Doctor { run: self.resolve(&run)?, budget, top },
             Request::Save { source, out, marks, signal_names, overwrite } => {
                 Request::Save { source: self.resolve_input(&source)?, out: self.resolve(&out)?, marks, signal_names, overwrite }
             }
@@ -191,7 +192,7 @@ impl Root {
                 };
                 Request::Open3d { sink, demo }
             }
-            other @ (Request::ShowDemo { .. } | Request::CancelRun) => other,
+            other @ (Request::ShowDemo { .. } | Request::CancelRun | Request::CancelDoctor) => other,
         })
     }
 

@@ -125,4 +125,19 @@ pub enum Command {
     CloseBrowser,
     /// Stream the shown demo, and every demo shown and attempt tried after, to Rerun.
     Open3d(ViewerSink),
+    /// Set the doctor's budget (attempts in all) and how many suggestions it tests.
+    SetDoctor {
+        /// Attempts to simulate in all.
+        budget: usize,
+        /// Suggestions to test.
+        top: usize,
+    },
+    /// Unfold (or fold) the Doctor panel.
+    ShowDoctor(bool),
+    /// Diagnose the finished run shown (`mimicgen doctor`).
+    Diagnose,
+    /// Stop the doctor.
+    CancelDoctor,
+    /// Put a tested change into the run form, over the diagnosed run's spec fields.
+    UseSuggestion(usize),
 }

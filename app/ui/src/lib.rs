@@ -32,6 +32,7 @@
 pub mod annotation;
 pub mod command;
 pub mod coverage_ui;
+pub mod doctor_ui;
 pub mod model;
 pub mod preview_ui;
 pub mod protocol;

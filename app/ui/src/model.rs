@@ -14,8 +14,8 @@ pub use mimicgen_run::SpecOverrides;
 
 use crate::annotation::Annotation;
 pub use crate::command::{Command, Screen};
-use crate::protocol::{Listing, LoadedFile, OpenedRun, PreviewRequest, PreviewView, Reply, Request, RunUpdate, Welcome};
-pub use crate::run_state::{RunForm, RunState, SideBySide, nearest_success};
+use crate::protocol::{DoctorUpdate, Listing, LoadedFile, OpenedRun, PreviewRequest, PreviewView, Reply, Request, RunUpdate, Welcome};
+pub use crate::run_state::{DoctorState, RunForm, RunState, SideBySide, nearest_success};
 
 /// What the preview screen shows and asks for.
 #[derive(Debug, Clone, PartialEq)]
@@ -95,6 +95,8 @@ pub struct AppModel {
     pub welcome: Welcome,
     /// Whether "Save as" may replace an existing file.
     pub save_overwrite: bool,
+    /// The run doctor.
+    pub doctor: DoctorState,
 }
 
 impl AppModel {
@@ -412,6 +414,37 @@ impl AppModel {
                 self.stay_on_selected = true;
             }
             Command::FollowLatest(on) => self.stay_on_selected = !on && self.selected_attempt.is_some(),
+            Command::ShowDoctor(shown) => self.doctor.shown = shown,
+            Command::SetDoctor { budget, top } => (self.doctor.budget, self.doctor.top) = (budget.max(1), top.max(1)),
+            Command::Diagnose => {
+                if self.doctor.running {
+                    self.error = Some("the doctor is at work: stop it or wait for it".to_owned());
+                    return None;
+                }
+                let Some(run) = self.run.as_ref().filter(|r| r.report.is_some()) else {
+                    self.error = Some("the doctor reads a finished run: run one, or open one (\"Open run\")".to_owned());
+                    return None;
+                };
+                let request = Request::Doctor { run: run.config.out.clone(), budget: self.doctor.budget, top: self.doctor.top };
+                let DoctorState { budget, top, .. } = self.doctor;
+                self.doctor = DoctorState { running: true, shown: true, budget, top, ..DoctorState::default() };
+                return Some(request);
+            }
+            Command::CancelDoctor => {
+                if self.doctor.running {
+                    return Some(Request::CancelDoctor);
+                }
+            }
+            Command::UseSuggestion(trial) => {
+                let Some(t) = self.doctor.diagnosis.as_ref().and_then(|d| d.trials.get(trial)) else { return None };
+                let base = self
+                    .run
+                    .as_ref()
+                    .and_then(|r| r.report.as_ref())
+                    .map_or_else(|| self.run_form.spec.clone(), |r| r.spec_overrides.clone());
+                self.run_form.spec = base.then(&t.suggestion.change);
+                self.status = format!("run form: {} ({})", t.suggestion.what, t.suggestion.flags());
+            }
             Command::Open3d(sink) => {
                 self.file.as_ref()?;
                 self.busy = Some("opening the 3D view".to_owned());
@@ -458,6 +491,8 @@ impl AppModel {
                 self.status = "watching the server's run".to_owned();
             }
             Reply::Run(update) => self.on_run_update(update),
+            Reply::DoctorAccepted => self.status = "the doctor is reading the run".to_owned(),
+            Reply::Doctor(update) => self.on_doctor_update(update),
             Reply::MoreDemos { path, demos, .. } => {
                 let Some(file) = self.file.as_mut().filter(|f| f.path == path) else { return };
                 self.annotation.add(&demos);
@@ -533,6 +568,35 @@ impl AppModel {
 }
 
 impl AppModel {
+    fn on_doctor_update(&mut self, update: DoctorUpdate) {
+        let doctor = &mut self.doctor;
+        match update {
+            DoctorUpdate::Started { suggestions, arms, attempts } => {
+                doctor.suggestions = suggestions;
+                doctor.attempts = attempts;
+                doctor.progress = vec![(0, 0); arms];
+            }
+            DoctorUpdate::Attempt { arm, done, successes } => {
+                if let Some(p) = doctor.progress.get_mut(arm) {
+                    *p = (done, successes);
+                }
+            }
+            DoctorUpdate::Finished(diagnosis) => {
+                doctor.running = false;
+                self.status = match diagnosis.best() {
+                    Some(best) => format!("doctor: {} helps most ({:+.1} points)", best.suggestion.what, 100.0 * best.paired.difference),
+                    None => format!("doctor: no change was shown to help on {} attempts", diagnosis.attempts),
+                };
+                doctor.diagnosis = Some(*diagnosis);
+            }
+            DoctorUpdate::Failed(error) => {
+                doctor.running = false;
+                self.error = Some(format!("the doctor stopped: {error}"));
+                doctor.error = Some(error);
+            }
+        }
+    }
+
     fn on_run_update(&mut self, update: RunUpdate) {
         let Some(run) = self.run.as_mut() else { return };
         match update {

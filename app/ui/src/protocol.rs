@@ -74,6 +74,45 @@ pub enum Request {
         /// The dataset `mimicgen generate` wrote.
         path: PathBuf,
     },
+    /// Diagnose a finished run (`mimicgen doctor`, on its own thread; it reports through
+    /// [`Reply::Doctor`]).
+    Doctor {
+        /// The dataset `mimicgen generate` wrote (its report beside it), or the report.
+        run: PathBuf,
+        /// Attempts to simulate in all.
+        budget: usize,
+        /// Suggestions to test.
+        top: usize,
+    },
+    /// Stop the doctor (it reports [`DoctorUpdate::Failed`]).
+    CancelDoctor,
+}
+
+/// What the run doctor reports (after [`Request::Doctor`] was accepted).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum DoctorUpdate {
+    /// Suggestions ranked; `arms` arms of `attempts` attempts follow (the run's spec first).
+    Started {
+        /// Every suggestion, ranked.
+        suggestions: Vec<mimicgen_run::doctor::Suggestion>,
+        /// Arms to run.
+        arms: usize,
+        /// Attempts per arm.
+        attempts: usize,
+    },
+    /// An attempt of arm `arm` was decided.
+    Attempt {
+        /// 0: the run's spec; k: the k-th suggestion.
+        arm: usize,
+        /// Attempts of the arm decided.
+        done: usize,
+        /// Of those, successes.
+        successes: usize,
+    },
+    /// The diagnosis.
+    Finished(Box<mimicgen_run::doctor::Diagnosis>),
+    /// The doctor stopped on an error or a cancel.
+    Failed(String),
 }
 
 /// What a running generation reports (after [`Request::Run`] was accepted).
@@ -224,6 +263,10 @@ pub enum Reply {
     Cancelling,
     /// What the running generation reports.
     Run(RunUpdate),
+    /// The doctor was started (its updates follow as [`Reply::Doctor`]).
+    DoctorAccepted,
+    /// What the run doctor reports.
+    Doctor(DoctorUpdate),
     /// Progress of a long request (the request's own reply comes after).
     Progress {
         /// What is being done.
@@ -455,7 +498,7 @@ impl Reply {
     #[must_use]
     pub fn ends_request(&self) -> bool {
         match self {
-            Self::Progress { .. } | Self::Run(_) | Self::Images { .. } | Self::Welcome(_) | Self::Notice(_) => false,
+            Self::Progress { .. } | Self::Run(_) | Self::Doctor(_) | Self::Images { .. } | Self::Welcome(_) | Self::Notice(_) => false,
             Self::Opened(file) => file.demos.len() >= file.total_demos,
             Self::MoreDemos { last, .. } => *last,
             Self::Saved { .. }
@@ -464,6 +507,7 @@ impl Reply {
             | Self::Previewed(_)
             | Self::SideBySide(_)
             | Self::RunAccepted
+            | Self::DoctorAccepted
             | Self::RunOpened
             | Self::Listing(_)
             | Self::Compared(_)

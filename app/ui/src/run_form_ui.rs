@@ -171,10 +171,14 @@ fn scoped<T: Clone>(values: &[Scoped<T>], subtask: Option<usize>) -> Option<T> {
     values.iter().rev().find(|s| s.subtask == subtask).map(|s| s.value.clone())
 }
 
-/// Sets (or with `None`, clears) the value of `values` for exactly `subtask`.
+/// Sets (or with `None`, clears) the value of `values` for exactly `subtask`. A value for every
+/// subtask goes first, so that values for one subtask (a doctor's change) still win over it.
 fn set_scoped<T>(values: &mut Vec<Scoped<T>>, subtask: Option<usize>, value: Option<T>) {
     values.retain(|s| s.subtask != subtask);
-    values.extend(value.map(|value| Scoped { subtask, value }));
+    if let Some(value) = value {
+        let at = if subtask.is_none() { 0 } else { values.len() };
+        values.insert(at, Scoped { subtask, value });
+    }
 }
 
 /// A spec field the run may set: unchecked, the spec's value; checked, `widget` edits it.
@@ -263,4 +267,25 @@ fn spec_fields(ui: &mut egui::Ui, spec: &mut SpecOverrides, subtasks: usize) {
         });
         set_scoped(&mut spec.transit, None, transit);
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_value_for_every_subtask_stays_before_the_values_for_one() {
+        // A doctor's change for subtask 1 over the run's noise for all: the form re-sets the value
+        // for all every frame, and subtask 1's must still win.
+        let mut noise = vec![Scoped::all(0.3), Scoped { subtask: Some(1), value: 0.15 }];
+        set_scoped(&mut noise, None, Some(0.3));
+        assert_eq!(noise, [Scoped::all(0.3), Scoped { subtask: Some(1), value: 0.15 }]);
+        let mut spec = mimicgen_engine::kinematic::pick_place_spec(1, 1);
+        SpecOverrides { action_noise: noise.clone(), ..SpecOverrides::default() }.apply(&mut spec).unwrap();
+        assert_eq!((spec.subtasks[0].action_noise, spec.subtasks[1].action_noise), (0.3, 0.15));
+        set_scoped(&mut noise, Some(1), None);
+        assert_eq!(noise, [Scoped::all(0.3)]);
+        set_scoped(&mut noise, None, None);
+        assert!(noise.is_empty());
+    }
 }

@@ -132,6 +132,53 @@ pub fn nearest_success<'a>(rows: &'a [AttemptRow], failed: &AttemptRow) -> Optio
     candidates(&same_source).or_else(|| candidates(&|_| true))
 }
 
+/// The run doctor's panel: its settings, and the diagnosis as its updates arrive.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DoctorState {
+    /// Whether the panel is unfolded.
+    pub shown: bool,
+    /// Attempts to simulate in all (`mimicgen doctor --budget`).
+    pub budget: usize,
+    /// Suggestions to test (`--top`).
+    pub top: usize,
+    /// Whether the doctor is at work.
+    pub running: bool,
+    /// Every suggestion, ranked, once the doctor has read the run.
+    pub suggestions: Vec<mimicgen_run::doctor::Suggestion>,
+    /// Attempts per arm.
+    pub attempts: usize,
+    /// Per arm (the run's spec first): attempts decided and successes.
+    pub progress: Vec<(usize, usize)>,
+    /// The diagnosis, once done.
+    pub diagnosis: Option<mimicgen_run::doctor::Diagnosis>,
+    /// What stopped it, if something did.
+    pub error: Option<String>,
+}
+
+impl Default for DoctorState {
+    fn default() -> Self {
+        Self {
+            shown: false,
+            budget: 200,
+            top: 3,
+            running: false,
+            suggestions: Vec::new(),
+            attempts: 0,
+            progress: Vec::new(),
+            diagnosis: None,
+            error: None,
+        }
+    }
+}
+
+impl DoctorState {
+    /// Attempts decided and to decide, over every arm.
+    #[must_use]
+    pub fn done_of(&self) -> (usize, usize) {
+        (self.progress.iter().map(|p| p.0).sum(), self.attempts * self.progress.len())
+    }
+}
+
 /// Two attempts of a run re-run to be seen side by side (a failure and the nearest success).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SideBySide {

@@ -180,6 +180,7 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, com
             });
         });
     }
+    crate::doctor_ui::doctor_panel(ui, model, commands);
     let instances = instance_rates(&run.rows);
     if !instances.is_empty() {
         ui.strong("Success by object instance");

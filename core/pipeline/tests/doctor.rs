@@ -91,7 +91,8 @@ fn the_doctor_tests_what_the_causes_point_at_on_the_attempts_after_the_run() {
 fn the_doctor_names_what_it_cannot_read() {
     let dir = tempfile::tempdir().unwrap();
     let cancel = AtomicBool::new(false);
-    let run = |path: &Path, budget| doctor(&DoctorConfig { run: path.to_path_buf(), budget, top: 3, workers: 1, check: 0 }, &cancel, |_| {});
+    let run =
+        |path: &Path, budget| doctor(&DoctorConfig { run: path.to_path_buf(), budget, top: 3, workers: 1, check: 0 }, &cancel, |_| {});
     let missing = dir.path().join("gone.hdf5");
     let e = run(&missing, 100).unwrap_err().to_string();
     assert!(e.contains("gone.json") && e.contains("beside"), "{e}");
