@@ -216,6 +216,7 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
         early_abort: false,
         spec_overrides: mimicgen_pipeline::SpecOverrides::default(),
         shard: None,
+        quality: None,
         transit: mimicgen_engine::generate::TransitTotals::default(),
     });
     Ok(OpenedRun { path: path.to_path_buf(), info, dimensions: task.coverage_dimensions(), rows, report })

@@ -41,7 +41,9 @@ different tasks are an error. Successful attempts go to --out (robomimic layout,
 observations); with --keep-failed, failed ones go to <out>_failed.hdf5. A JSON report (rate, per
 source demo, failures by subtask and reason, and by subtask and cause: object_moved, arm_lagged,
 grasp_slipped, grasp_missed, ran_out_of_steps, success_unmet, simulation) is printed and written
-next to the dataset as <out>.json; each failed attempt kept in <out>_failed.hdf5 carries its cause
+next to the dataset as <out>.json; a quality report (stitch jumps and jerks per subtask, pose
+actions against the controller's limits, support coverage of the successes, 3 written demos
+replayed from their first state) as <out>_quality.json and in the report; each failed attempt kept in <out>_failed.hdf5 carries its cause
 as the demo attribute mimicgen_failure_cause. An existing output is never replaced without --overwrite. While running, the dataset
 is <out>.partial; after a crash or kill, the same command with --resume continues it, and the
 finished dataset equals an uninterrupted run's (a run killed after its dataset was finished but
@@ -389,6 +391,9 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
             demos.join(", ")
         );
     }
+    if let Some(q) = &report.quality {
+        eprintln!("quality ({}): {}", mimicgen_pipeline::quality_path(&args.out).display(), quality_line(q));
+    }
     let t = &report.transit;
     if !t.is_empty() {
         #[allow(clippy::cast_precision_loss)] // counts are far below 2^52
@@ -417,6 +422,42 @@ fn causes_line(causes: &[mimicgen_pipeline::CauseReport]) -> String {
         })
         .collect::<Vec<_>>()
         .join("; ")
+}
+
+/// A dataset's quality report in a line: the largest stitch jump and where, the pose actions at
+/// their limits, coverage, the replay sample.
+fn quality_line(q: &mimicgen_pipeline::DatasetQuality) -> String {
+    let mut parts = Vec::new();
+    if let Some(s) = q.quality.stitches.iter().max_by(|a, b| a.jump_m_max.total_cmp(&b.jump_m_max)) {
+        let at = match s.at {
+            mimicgen_engine::quality::StitchAt::InterpolationStart => "interpolation start",
+            mimicgen_engine::quality::StitchAt::InterpolationEnd => "interpolation end",
+        };
+        parts.push(format!(
+            "largest stitch jump {:.1} cm (subtask {} {at}; p95 {:.1} cm, steps there p95 {:.1} cm)",
+            100.0 * s.jump_m_max,
+            s.subtask,
+            100.0 * s.jump_m_p95,
+            100.0 * s.step_m_p95
+        ));
+    }
+    let a = &q.quality.actions;
+    if a.steps > 0 {
+        #[allow(clippy::cast_precision_loss)] // step counts
+        let share = 100.0 * a.saturated_steps as f64 / a.steps as f64;
+        parts.push(format!("pose actions at their limit in {share:.1} % of steps"));
+    }
+    if let Some(c) = &q.coverage {
+        parts.push(format!(
+            "support coverage {:.1} % (as many uniform scenes: {:.1} %)",
+            100.0 * c.support_coverage,
+            100.0 * c.uniform_support_coverage
+        ));
+    }
+    if let Some(r) = &q.replay {
+        parts.push(format!("{} of {} demos replay to success", r.succeeded, r.demos.len()));
+    }
+    parts.join("; ")
 }
 
 /// The scripted operator's style (`mimicgen demos --style`).

@@ -635,7 +635,7 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     assert_eq!(written.demo_names().len(), report.successes);
 }
 
-/// The Doctor panel: folded until asked for, it diagnoses the finished run on its own thread
+/// The quality report and the Doctor panel: folded until asked for, the Doctor it diagnoses the finished run on its own thread
 /// (the UI goes on), shows the ranked suggestions and the tested one with its verdict, and puts
 /// the tested change into the run form over the run's own spec fields.
 #[test]
@@ -659,6 +659,14 @@ fn the_doctor_panel_tests_a_change_and_puts_it_into_the_run_form() {
     let report = h.state().model.run.as_ref().unwrap().report.clone().unwrap();
     assert!(report.successes < report.attempts && !report.causes.is_empty(), "{report:?}");
     assert!(h.query_by_label("Diagnose").is_none(), "folded");
+    // The quality report, folded too: the replay sample's outcome as the report has it.
+    let replay = report.quality.as_ref().unwrap().replay.clone().unwrap();
+    h.get_by_label("Quality of the dataset").click();
+    h.run_steps(2);
+    h.get_by_label_contains(&format!("{} of {} written demos replay to success", replay.succeeded, replay.demos.len()));
+    h.get_by_label("subtask 1 interpolation start");
+    h.get_by_label("Quality of the dataset").click();
+    h.run_steps(2);
     h.get_by_label("Doctor: what to change").click();
     h.run_steps(2);
     assert!(h.state().model.doctor.shown);

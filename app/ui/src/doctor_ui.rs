@@ -124,3 +124,64 @@ fn trials(ui: &mut egui::Ui, doctor: &DoctorState, commands: &mut Vec<Command>) 
         }
     }
 }
+
+/// The run's quality report (folded): stitches per subtask, the pose actions against their
+/// limits, coverage, the replay sample.
+pub fn quality_panel(ui: &mut egui::Ui, report: &mimicgen_run::Report) {
+    let Some(q) = &report.quality else { return };
+    egui::CollapsingHeader::new("Quality of the dataset").id_salt("quality").default_open(false).show(ui, |ui| {
+        ui.label(RichText::new(format!("also in {}", quality_file(&report.output))).weak());
+        egui::Grid::new("quality_stitches").striped(true).num_columns(6).show(ui, |ui| {
+            for h in ["stitch", "count", "jump max / p95 (cm)", "turn max / p95 (deg)", "jerk max / p95 (m/s³)", "steps p95 (cm)"] {
+                ui.strong(h);
+            }
+            ui.end_row();
+            for s in &q.quality.stitches {
+                let at = match s.at {
+                    mimicgen_engine::quality::StitchAt::InterpolationStart => "interpolation start",
+                    mimicgen_engine::quality::StitchAt::InterpolationEnd => "interpolation end",
+                };
+                ui.label(format!("subtask {} {at}", s.subtask));
+                ui.label(format!("{}", s.count));
+                ui.label(format!("{:.1} / {:.1}", 100.0 * s.jump_m_max, 100.0 * s.jump_m_p95));
+                ui.label(format!("{:.1} / {:.1}", s.jump_deg_max, s.jump_deg_p95));
+                ui.label(format!("{:.0} / {:.0}", s.jerk_max, s.jerk_p95));
+                ui.label(format!("{:.1}", 100.0 * s.step_m_p95));
+                ui.end_row();
+            }
+        });
+        let a = &q.quality.actions;
+        #[allow(clippy::cast_precision_loss)] // step counts
+        let share = 100.0 * a.saturated_steps as f64 / a.steps.max(1) as f64;
+        let dims: Vec<String> = a.max_abs.iter().zip(&a.p95_abs).map(|(m, p)| format!("{m:.2}/{p:.2}")).collect();
+        ui.label(format!(
+            "pose actions at their limit (|a| = 1) in {share:.1} % of {} steps; |a| max/p95 per dimension: {}",
+            a.steps,
+            dims.join(", ")
+        ));
+        if let Some(c) = &q.coverage {
+            ui.label(format!(
+                "support coverage of the successes: {:.1} % ({} scenes, {} bins per coordinate; as many uniform scenes: {:.1} %)",
+                100.0 * c.support_coverage,
+                c.scenes,
+                c.bins,
+                100.0 * c.uniform_support_coverage
+            ));
+        }
+        if let Some(r) = &q.replay {
+            ui.label(format!(
+                "{} of {} written demos replay to success from their first state ({})",
+                r.succeeded,
+                r.demos.len(),
+                r.demos.join(", ")
+            ));
+        }
+    });
+}
+
+/// `<dataset>_quality.json` of a dataset path, as `mimicgen generate` names it.
+fn quality_file(output: &str) -> String {
+    let path = std::path::Path::new(output);
+    let stem = path.file_stem().map_or_else(|| "generated".into(), |s| s.to_string_lossy().into_owned());
+    path.with_file_name(format!("{stem}_quality.json")).display().to_string()
+}

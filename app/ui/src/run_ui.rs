@@ -180,6 +180,9 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, com
             });
         });
     }
+    if let Some(report) = &run.report {
+        crate::doctor_ui::quality_panel(ui, report);
+    }
     crate::doctor_ui::doctor_panel(ui, model, commands);
     let instances = instance_rates(&run.rows);
     if !instances.is_empty() {

@@ -38,6 +38,7 @@ pub mod generate;
 pub mod image;
 pub mod kinematic;
 pub mod pose;
+pub mod quality;
 pub mod segment;
 pub mod select;
 pub mod spec;

@@ -507,3 +507,34 @@ fn human_style_demos_are_seeded_longer_than_careful_ones_and_still_succeed() {
     // Reaction, hesitation, corrections and slower starts and stops take time.
     assert!(steps(&human) > steps(&careful) * 11 / 10, "steps: human {}, careful {}", steps(&human), steps(&careful));
 }
+
+#[test]
+fn the_quality_figures_show_a_stitch_made_to_jump() {
+    // Without a bridge into the place, the commanded pose jumps from the grasp's last target to
+    // the place segment's first; with the spec's 5 interpolation steps it moves there in 6 steps.
+    let quality = |steps: usize| {
+        let mut spec = kinematic::pick_place_spec(20, 5);
+        spec.subtasks[1].num_interpolation_steps = steps;
+        let (attempts, _) = collect(&generator(spec), 1, 0.1);
+        let mut q = mimicgen_engine::quality::QualityStats::default();
+        for a in attempts.iter().filter(|a| a.success) {
+            q.add(a, 0.05);
+        }
+        q.summary()
+    };
+    let (smooth, jumpy) = (quality(5), quality(0));
+    let place_start = |q: &mimicgen_engine::quality::Quality| {
+        q.stitches.iter().find(|s| s.subtask == 1 && s.at == mimicgen_engine::quality::StitchAt::InterpolationStart).cloned().unwrap()
+    };
+    let (s, j) = (place_start(&smooth), place_start(&jumpy));
+    assert!(s.count > 10 && j.count > 10, "{s:?} {j:?}");
+    assert!(j.jump_m_max > 3.0 * s.jump_m_max && j.jump_m_p95 > 3.0 * s.jump_m_p95, "jumpy {j:?}, smooth {s:?}");
+    assert!(j.jump_m_p95 > 3.0 * j.step_m_p95, "a jump stands out from the subtask's steps: {j:?}");
+    // The smooth one bridges: its segment starts after interpolation, the jumpy one's does not.
+    assert!(smooth.stitches.iter().any(|s| s.subtask == 1 && s.at == mimicgen_engine::quality::StitchAt::InterpolationEnd));
+    assert!(!jumpy.stitches.iter().any(|s| s.subtask == 1 && s.at == mimicgen_engine::quality::StitchAt::InterpolationEnd));
+    // Actions: every step counted, none beyond the controller's limits.
+    let a = &smooth.actions;
+    assert!(a.steps > 0 && a.max_abs.len() == 6 && a.max_abs.iter().all(|&m| m <= 1.0));
+    assert!(a.p95_abs.iter().zip(&a.max_abs).all(|(p, m)| *p <= m + 0.01), "{a:?}");
+}

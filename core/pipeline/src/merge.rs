@@ -235,6 +235,7 @@ pub fn merge(
         early_abort: first.early_abort,
         spec_overrides: first.spec_overrides.clone(),
         shard: None,
+        quality: None,
         transit: mimicgen_engine::generate::TransitTotals::default(),
     };
     std::fs::write(&report_path, serde_json::to_string_pretty(&report).unwrap_or_default())

@@ -169,7 +169,14 @@ pub(crate) fn differing_fields(a: &serde_json::Value, b: &serde_json::Value) -> 
 pub(crate) fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, resumable: bool) -> Result<(), PipelineError> {
     let failed = failed_path(out);
     let partial = DatasetWriter::partial_path(out);
-    let outputs = [out.to_path_buf(), partial.clone(), failed.clone(), DatasetWriter::partial_path(&failed), sibling(out, "", "json")];
+    let outputs = [
+        out.to_path_buf(),
+        partial.clone(),
+        failed.clone(),
+        DatasetWriter::partial_path(&failed),
+        sibling(out, "", "json"),
+        quality_path(out),
+    ];
     let existing: Vec<&Path> = outputs.iter().map(PathBuf::as_path).chain(extra).filter(|p| p.exists()).collect();
     if let Some(first) = existing.first() {
         if !overwrite {
@@ -184,6 +191,12 @@ pub(crate) fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, r
         std::fs::create_dir_all(dir).map_err(|e| PipelineError::Fs { file: dir.display().to_string(), reason: e.to_string() })?;
     }
     Ok(())
+}
+
+/// Where the quality report of the dataset `out` goes.
+#[must_use]
+pub fn quality_path(out: &Path) -> PathBuf {
+    sibling(out, "_quality", "json")
 }
 
 /// Where a shard writing `out` logs its attempts.

@@ -18,6 +18,13 @@ use crate::config::{Resolved, output_env_args, resolve};
 use crate::{Outcome, PipelineError, Report, RunConfig, RunInfo};
 
 use crate::events::{AttemptEvent, Event};
+
+/// The control period of every task (robosuite's `control_freq` 20 Hz), s.
+const CONTROL_PERIOD_S: f64 = 0.05;
+/// Bins per object coordinate of the quality report's coverage (the paper's and the app's).
+const COVERAGE_BINS: usize = 3;
+/// Demos of a written dataset the quality report replays.
+pub const QUALITY_REPLAYS: usize = 3;
 use crate::outputs::{
     AttemptLog, AttemptRecord, PROGRESS_ATTR, Progress, RUN_ATTR, RunDescription, attempt_log_path, causes, clear_outputs,
     differing_fields, failed_path, failures, never_succeeded, per_source_demo, per_subtask_source, sibling,
@@ -416,6 +423,8 @@ impl Pipeline {
         };
         let started = Instant::now();
         let mut write_error: Option<PipelineError> = None;
+        let mut quality = mimicgen_engine::quality::QualityStats::default();
+        let mut initial_scenes: Vec<BTreeMap<String, mimicgen_engine::Pose>> = Vec::new();
         let mut control_steps = 0usize;
         let control = RunControl {
             start: progress.next_attempt,
@@ -425,6 +434,10 @@ impl Pipeline {
         };
         let result = mimicgen_engine::run_with(&self.generator, envs, control, finish, |attempt, (payload, instance), stats| {
             control_steps += attempt.trajectory.len();
+            if attempt.success {
+                quality.add(&attempt, CONTROL_PERIOD_S);
+                initial_scenes.push(attempt.initial_object_poses.clone());
+            }
             let step = (|| -> Result<Outcome, PipelineError> {
                 let target = if attempt.success {
                     Some((&mut writer, true))
@@ -488,10 +501,46 @@ impl Pipeline {
         // between the two resumes, and takes the finished failed file back).
         let failed_written = failed_writer.map(DatasetWriter::finish).transpose()?;
         let written = writer.finish()?;
-        let report = self.report(&stats, resumed_from, started.elapsed().as_secs_f64(), control_steps, cancelled, &written, failed_written);
+        let mut report =
+            self.report(&stats, resumed_from, started.elapsed().as_secs_f64(), control_steps, cancelled, &written, failed_written);
+        let dataset_quality = self.dataset_quality(&written, quality.summary(), &initial_scenes)?;
+        let quality_path = crate::outputs::quality_path(&self.config.out);
+        std::fs::write(&quality_path, serde_json::to_string_pretty(&dataset_quality).unwrap_or_default())
+            .map_err(|e| PipelineError::Fs { file: quality_path.display().to_string(), reason: e.to_string() })?;
+        report.quality = Some(dataset_quality);
         self.write_report(&report)?;
         on_event(&Event::Finished(Box::new(report.clone())));
         Ok(report)
+    }
+
+    /// The quality report of the written dataset: `quality` of its attempts, the coverage of
+    /// `scenes` (their initial object poses), and [`QUALITY_REPLAYS`] of its demos replayed.
+    fn dataset_quality(
+        &self,
+        written: &Path,
+        quality: mimicgen_engine::quality::Quality,
+        scenes: &[BTreeMap<String, mimicgen_engine::Pose>],
+    ) -> Result<mimicgen_run::DatasetQuality, PipelineError> {
+        let dimensions = self.task.coverage_dimensions();
+        let coverage = (!scenes.is_empty() && !dimensions.is_empty())
+            .then(|| mimicgen_engine::coverage::coverage(scenes, &dimensions, COVERAGE_BINS).ok())
+            .flatten()
+            .map(|c| mimicgen_run::CoverageFigure {
+                bins: COVERAGE_BINS,
+                scenes: c.scenes,
+                support_coverage: c.support_coverage(),
+                uniform_support_coverage: mimicgen_engine::coverage::uniform_support_coverage(c.joint_bins_total, c.scenes),
+            });
+        let names = mimicgen_io::RobomimicDataset::open(written)?.demo_names().to_vec();
+        let replay = if names.is_empty() {
+            None
+        } else {
+            let k = QUALITY_REPLAYS.min(names.len());
+            let demos: Vec<String> = (0..k).filter_map(|i| names.get(i * names.len() / k).cloned()).collect();
+            let traces = crate::replay::replay(written, &demos, crate::replay::ReplayMode::Actions, Some(self.task.name()), |_, _, _| {})?;
+            Some(mimicgen_run::ReplayCheck { demos, succeeded: traces.iter().filter(|t| t.success).count() })
+        };
+        Ok(mimicgen_run::DatasetQuality { dataset: written.display().to_string(), quality, coverage, replay })
     }
 
     /// The report of this session of the run.
@@ -536,6 +585,7 @@ impl Pipeline {
             early_abort: settings.early_abort,
             spec_overrides: self.config.spec.clone(),
             shard: self.config.shard,
+            quality: None,
             transit: stats.transit,
         }
     }

@@ -676,3 +676,41 @@ fn object_transfer_draws_a_mug_per_episode_records_it_and_does_not_depend_on_the
     let distinct: std::collections::BTreeSet<&String> = scenes.values().collect();
     assert_eq!(distinct.len(), scenes.len(), "each mug's scene is its own");
 }
+
+/// Every run writes its quality report beside its dataset (and in its report): stitches per
+/// subtask, actions against the limits, coverage of the successes, and written demos replayed to
+/// success. A run made without a bridge into the place shows the jump there.
+#[test]
+fn a_run_writes_its_quality_report_and_a_missing_bridge_shows_as_a_jump() {
+    use mimicgen_engine::quality::StitchAt;
+    use mimicgen_pipeline::{Scoped, SpecOverrides};
+    let dir = tempfile::tempdir().unwrap();
+    let smooth_out = dir.path().join("smooth.hdf5");
+    let (report, _) = run(&config(&smooth_out, 6, 2)).unwrap();
+    let text = std::fs::read_to_string(mimicgen_pipeline::quality_path(&smooth_out)).unwrap();
+    let written: mimicgen_pipeline::DatasetQuality = serde_json::from_str(&text).unwrap();
+    let quality = report.quality.clone().unwrap();
+    assert_eq!(written, quality, "the file and the report say the same");
+    assert_eq!(quality.quality.attempts, report.successes);
+    let coverage = quality.coverage.as_ref().unwrap();
+    assert_eq!((coverage.scenes, coverage.bins), (report.successes, 3));
+    // `mimicgen coverage`'s figure on the written dataset.
+    let on_file = mimicgen_pipeline::coverage::dataset_coverage(&smooth_out, None, None, 3).unwrap();
+    assert!((coverage.support_coverage - on_file.coverage.support_coverage()).abs() < 1e-12, "{coverage:?}");
+    let replay = quality.replay.as_ref().unwrap();
+    assert_eq!(replay.demos.len(), 3.min(report.successes));
+    assert_eq!(replay.succeeded, replay.demos.len(), "the written demos replay to success from their first state");
+    let actions = &quality.quality.actions;
+    assert!(actions.steps > 0 && actions.max_abs.iter().all(|&a| a <= 1.0 + 1e-9), "{actions:?}");
+    let stitch =
+        |q: &mimicgen_pipeline::DatasetQuality, at| q.quality.stitches.iter().find(|s| s.subtask == 1 && s.at == at).cloned().unwrap();
+    let smooth = stitch(&quality, StitchAt::InterpolationStart);
+    assert_eq!(smooth.count, report.successes);
+    // No interpolation into the place: the grasp's last target to the place segment's first.
+    let jumpy_out = dir.path().join("jumpy.hdf5");
+    let no_bridge = SpecOverrides { interpolation_steps: vec![Scoped { subtask: Some(1), value: 0 }], ..SpecOverrides::default() };
+    let (jumpy_report, _) = run(&RunConfig { spec: no_bridge, ..config(&jumpy_out, 6, 2) }).unwrap();
+    let jumpy = stitch(jumpy_report.quality.as_ref().unwrap(), StitchAt::InterpolationStart);
+    assert!(jumpy.jump_m_max > 2.0 * smooth.jump_m_max, "jumpy {jumpy:?}, smooth {smooth:?}");
+    assert!(jumpy.jump_m_p95 > 2.0 * jumpy.step_m_p95, "the jump stands out from the steps: {jumpy:?}");
+}

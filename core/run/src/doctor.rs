@@ -371,6 +371,7 @@ mod tests {
             early_abort: false,
             spec_overrides: SpecOverrides::default(),
             shard: None,
+            quality: None,
             transit: mimicgen_engine::generate::TransitTotals::default(),
         }
     }

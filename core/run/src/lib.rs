@@ -27,7 +27,9 @@ mod wording;
 pub use camera::CameraConfig;
 pub use config::RunConfig;
 pub use overrides::{OffsetRange, Scoped, SpecOverrides};
-pub use report::{CauseReport, DemoReport, FailureReport, NEVER_SUCCEEDS_MIN_USES, Outcome, Report, RunInfo};
+pub use report::{
+    CauseReport, CoverageFigure, DatasetQuality, DemoReport, FailureReport, NEVER_SUCCEEDS_MIN_USES, Outcome, ReplayCheck, Report, RunInfo,
+};
 pub use wording::{Choice, FrontEnd};
 
 /// A run description that cannot be applied.

@@ -86,6 +86,43 @@ pub struct CauseReport {
     pub count: usize,
 }
 
+/// The quality report of a generated dataset (its successful attempts).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DatasetQuality {
+    /// The dataset.
+    pub dataset: String,
+    /// Stitch jumps and jerks per subtask, and the pose actions against the controller's limits,
+    /// over the successes of this session (a resumed run's earlier sessions are not in them).
+    pub quality: mimicgen_engine::quality::Quality,
+    /// Support coverage of the successes' initial object poses over the variant's reset region.
+    pub coverage: Option<CoverageFigure>,
+    /// A sample of the written demos replayed from their first state with their stored actions
+    /// (robomimic's playback), in the run's simulator.
+    pub replay: Option<ReplayCheck>,
+}
+
+/// The paper's support coverage of a set of initial scenes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CoverageFigure {
+    /// Bins per object coordinate.
+    pub bins: usize,
+    /// Scenes binned.
+    pub scenes: usize,
+    /// Share of the joint bins hit.
+    pub support_coverage: f64,
+    /// What as many uniformly spread scenes would hit.
+    pub uniform_support_coverage: f64,
+}
+
+/// Demos of the written dataset replayed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReplayCheck {
+    /// The demos replayed (evenly spread over the dataset).
+    pub demos: Vec<String>,
+    /// Of those, the ones that achieved the task again.
+    pub succeeded: usize,
+}
+
 /// Uses below which a source demo without a success is not yet flagged in
 /// [`Report::never_succeeded`].
 pub const NEVER_SUCCEEDS_MIN_USES: usize = 5;
@@ -156,6 +193,10 @@ pub struct Report {
     /// The share of the attempts this run made, if it was a shard.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shard: Option<Shard>,
+    /// What a user checks before training: stitches, actions, coverage, a replay sample
+    /// (also written as `<out>_quality.json`). `None` for a merged run's report.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quality: Option<DatasetQuality>,
     /// Planned transits and obstacle contacts over the run's attempts (`--transit plan`, a
     /// cluttered variant); left out when there were none. A merged run's report leaves them out.
     #[serde(default, skip_serializing_if = "TransitTotals::is_empty")]
