@@ -73,6 +73,8 @@ pub fn run(args: &DoctorArgs) -> anyhow::Result<()> {
             .progress_chars("=> "),
     );
     let (mut per_arm, mut checking) = (0, false);
+    // In a log (a batch job) a bar draws nothing: a line per tenth of each arm instead.
+    let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let cancel = AtomicBool::new(false);
     let diagnosis = doctor(&config, &cancel, |event| match event {
         DoctorEvent::Started { suggestions, arms, attempts } => {
@@ -96,6 +98,9 @@ pub fn run(args: &DoctorArgs) -> anyhow::Result<()> {
                 (_, true) => "the change".to_owned(),
                 (k, false) => format!("change {k}"),
             };
+            if !terminal && (done * 10 % per_arm.max(1) < 10 || *done == per_arm) {
+                eprintln!("progress {name}: {successes} of {done} of {per_arm}");
+            }
             bar.set_message(format!("{name}: {successes} of {done}"));
         }
     })?;

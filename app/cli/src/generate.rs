@@ -454,8 +454,12 @@ fn quality_line(q: &mimicgen_pipeline::DatasetQuality) -> String {
             100.0 * c.uniform_support_coverage
         ));
     }
-    if let Some(r) = &q.replay {
-        parts.push(format!("{} of {} demos replay to success", r.succeeded, r.demos.len()));
+    match &q.replay {
+        Some(r) if r.error.is_some() => {
+            parts.push(format!("the written demos could not be replayed: {}", r.error.as_deref().unwrap_or_default()));
+        }
+        Some(r) => parts.push(format!("{} of {} demos replay to success", r.succeeded, r.demos.len())),
+        None => {}
     }
     parts.join("; ")
 }

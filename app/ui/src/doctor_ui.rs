@@ -168,7 +168,9 @@ pub fn quality_panel(ui: &mut egui::Ui, report: &mimicgen_run::Report) {
                 100.0 * c.uniform_support_coverage
             ));
         }
-        if let Some(r) = &q.replay {
+        if let Some(error) = q.replay.as_ref().and_then(|r| r.error.as_ref()) {
+            ui.colored_label(Color32::LIGHT_RED, format!("the written demos could not be replayed: {error}"));
+        } else if let Some(r) = &q.replay {
             ui.label(format!(
                 "{} of {} written demos replay to success from their first state ({})",
                 r.succeeded,

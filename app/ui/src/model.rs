@@ -436,7 +436,7 @@ impl AppModel {
                 }
             }
             Command::UseSuggestion(trial) => {
-                let Some(t) = self.doctor.diagnosis.as_ref().and_then(|d| d.trials.get(trial)) else { return None };
+                let t = self.doctor.diagnosis.as_ref().and_then(|d| d.trials.get(trial))?;
                 let base = self
                     .run
                     .as_ref()

@@ -61,12 +61,20 @@ pub struct ActionSummary {
     pub p95_abs: Vec<f64>,
 }
 
+/// One stitch's figures over the attempts: jumps (m), turns (deg), jerks (m/s^3).
+#[derive(Debug, Clone, Default)]
+struct Samples {
+    jumps: Vec<f64>,
+    turns: Vec<f64>,
+    jerks: Vec<f64>,
+}
+
 /// Collects the figures of the attempts added; [`QualityStats::summary`] gives them.
 #[derive(Debug, Clone, Default)]
 pub struct QualityStats {
     attempts: usize,
-    /// Per (subtask, stitch): jumps (m, deg) and jerks.
-    stitches: std::collections::BTreeMap<(usize, StitchAt), (Vec<f64>, Vec<f64>, Vec<f64>)>,
+    /// Per (subtask, stitch): what each attempt had there.
+    stitches: std::collections::BTreeMap<(usize, StitchAt), Samples>,
     /// Per subtask: step-to-step changes off the stitches.
     steps: std::collections::BTreeMap<usize, Vec<f64>>,
     action_steps: usize,
@@ -140,9 +148,9 @@ impl QualityStats {
                     continue;
                 };
                 let entry = self.stitches.entry((subtask, at)).or_default();
-                entry.0.push(jump_m);
-                entry.1.push(before.rotation.angle_to(&pose.rotation).to_degrees());
-                entry.2.push(jerk(plan.first_step + j));
+                entry.jumps.push(jump_m);
+                entry.turns.push(before.rotation.angle_to(&pose.rotation).to_degrees());
+                entry.jerks.push(jerk(plan.first_step + j));
             }
             previous = last;
         }
@@ -175,16 +183,16 @@ impl QualityStats {
         let stitches = self
             .stitches
             .iter()
-            .map(|(&(subtask, at), (jumps, degrees, jerks))| StitchSummary {
+            .map(|(&(subtask, at), s)| StitchSummary {
                 subtask,
                 at,
-                count: jumps.len(),
-                jump_m_max: max(jumps),
-                jump_m_p95: quantile(jumps, 0.95),
-                jump_deg_max: max(degrees),
-                jump_deg_p95: quantile(degrees, 0.95),
-                jerk_max: max(jerks),
-                jerk_p95: quantile(jerks, 0.95),
+                count: s.jumps.len(),
+                jump_m_max: max(&s.jumps),
+                jump_m_p95: quantile(&s.jumps, 0.95),
+                jump_deg_max: max(&s.turns),
+                jump_deg_p95: quantile(&s.turns, 0.95),
+                jerk_max: max(&s.jerks),
+                jerk_p95: quantile(&s.jerks, 0.95),
                 step_m_p95: self.steps.get(&subtask).map_or(0.0, |s| quantile(s, 0.95)),
             })
             .collect();

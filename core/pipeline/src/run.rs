@@ -377,12 +377,14 @@ impl Pipeline {
                 .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;
             Ok(Observed { obs, images, model_xml: Some(xml) })
         };
-        self.run_on(&mut envs, observe, cancel, on_event)
+        self.run_envs(&mut envs, observe, cancel, on_event, true)
     }
 
     /// [`Pipeline::run`] on other simulators (one driven from Python, say), one per worker:
     /// `observe` makes the observations (and `model_file`) of each attempt that may be kept, on
     /// the worker that ran it. Writers, resume, shards, events and report are `run`'s.
+    ///
+    /// The quality report replays no demo: they were made in another simulator.
     ///
     /// # Errors
     /// As [`Pipeline::run`].
@@ -391,7 +393,20 @@ impl Pipeline {
         envs: &mut [E],
         observe: impl Fn(&mut E, &Attempt) -> Result<Observed, EngineError> + Sync,
         cancel: &AtomicBool,
+        on_event: impl FnMut(&Event),
+    ) -> Result<Report, PipelineError> {
+        self.run_envs(envs, observe, cancel, on_event, false)
+    }
+
+    /// [`Pipeline::run_on`]; with `replay`, the quality report replays a sample of the written
+    /// demos in this pipeline's simulator.
+    fn run_envs<E: Environment + Send>(
+        &self,
+        envs: &mut [E],
+        observe: impl Fn(&mut E, &Attempt) -> Result<Observed, EngineError> + Sync,
+        cancel: &AtomicBool,
         mut on_event: impl FnMut(&Event),
+        replay: bool,
     ) -> Result<Report, PipelineError> {
         if let Some(report) = self.report_of_a_finished_run()? {
             on_event(&Event::Finished(Box::new(report.clone())));
@@ -503,7 +518,7 @@ impl Pipeline {
         let written = writer.finish()?;
         let mut report =
             self.report(&stats, resumed_from, started.elapsed().as_secs_f64(), control_steps, cancelled, &written, failed_written);
-        let dataset_quality = self.dataset_quality(&written, quality.summary(), &initial_scenes)?;
+        let dataset_quality = self.dataset_quality(&written, quality.summary(), &initial_scenes, replay)?;
         let quality_path = crate::outputs::quality_path(&self.config.out);
         std::fs::write(&quality_path, serde_json::to_string_pretty(&dataset_quality).unwrap_or_default())
             .map_err(|e| PipelineError::Fs { file: quality_path.display().to_string(), reason: e.to_string() })?;
@@ -520,6 +535,7 @@ impl Pipeline {
         written: &Path,
         quality: mimicgen_engine::quality::Quality,
         scenes: &[BTreeMap<String, mimicgen_engine::Pose>],
+        replay: bool,
     ) -> Result<mimicgen_run::DatasetQuality, PipelineError> {
         let dimensions = self.task.coverage_dimensions();
         let coverage = (!scenes.is_empty() && !dimensions.is_empty())
@@ -531,14 +547,17 @@ impl Pipeline {
                 support_coverage: c.support_coverage(),
                 uniform_support_coverage: mimicgen_engine::coverage::uniform_support_coverage(c.joint_bins_total, c.scenes),
             });
-        let names = mimicgen_io::RobomimicDataset::open(written)?.demo_names().to_vec();
+        let names = if replay { mimicgen_io::RobomimicDataset::open(written)?.demo_names().to_vec() } else { Vec::new() };
         let replay = if names.is_empty() {
             None
         } else {
             let k = QUALITY_REPLAYS.min(names.len());
             let demos: Vec<String> = (0..k).filter_map(|i| names.get(i * names.len() / k).cloned()).collect();
-            let traces = crate::replay::replay(written, &demos, crate::replay::ReplayMode::Actions, Some(self.task.name()), |_, _, _| {})?;
-            Some(mimicgen_run::ReplayCheck { demos, succeeded: traces.iter().filter(|t| t.success).count() })
+            // A replay that cannot run is the report's finding, not the run's failure.
+            Some(match crate::replay::replay(written, &demos, crate::replay::ReplayMode::Actions, Some(self.task.name()), |_, _, _| {}) {
+                Ok(traces) => mimicgen_run::ReplayCheck { succeeded: traces.iter().filter(|t| t.success).count(), demos, error: None },
+                Err(e) => mimicgen_run::ReplayCheck { demos, succeeded: 0, error: Some(e.to_string()) },
+            })
         };
         Ok(mimicgen_run::DatasetQuality { dataset: written.display().to_string(), quality, coverage, replay })
     }

@@ -131,7 +131,7 @@ pub fn suggest(report: &Report, spec: &TaskSpec) -> Vec<Suggestion> {
         }
     }
     // Stable: equal counts keep the rules' order.
-    out.sort_by(|a, b| b.addresses.cmp(&a.addresses));
+    out.sort_by_key(|s| std::cmp::Reverse(s.addresses));
     out
 }
 
@@ -409,7 +409,7 @@ mod tests {
     #[test]
     fn paired_outcomes_give_the_difference_and_its_interval() {
         // 100 pairs: 20 gained, 5 lost, the rest equal.
-        let base: Vec<bool> = (0..100).map(|i| i >= 20 && i < 60).collect();
+        let base: Vec<bool> = (0..100).map(|i| (20..60).contains(&i)).collect();
         let changed: Vec<bool> = (0..100).map(|i| i < 55).collect();
         let p = Paired::new(&base, &changed);
         assert_eq!((p.attempts, p.base_successes, p.changed_successes, p.gained, p.lost), (100, 40, 55, 20, 5));

@@ -121,6 +121,9 @@ pub struct ReplayCheck {
     pub demos: Vec<String>,
     /// Of those, the ones that achieved the task again.
     pub succeeded: usize,
+    /// Why the replay could not run, if it could not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
 }
 
 /// Uses below which a source demo without a success is not yet flagged in
