@@ -416,6 +416,8 @@ fn merged_shards_equal_the_single_process_run() {
         workers: 0,
         output: String::new(),
         failed_output: None,
+        // A shard's quality covers its own attempts; a merged run has none (stated in the field).
+        quality: None,
         ..r.clone()
     };
     for guarantee in [false, true] {
