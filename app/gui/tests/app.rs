@@ -535,9 +535,12 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
         attempts_per_s: 0.0,
         generation_rate: 0.0,
         peak_rss_mib: None,
+        quality: None,
         ..r.clone()
     };
     assert_eq!(exact(opened.report.as_ref().unwrap()), exact(report));
+    let replay = |r: &mimicgen_pipeline::Report| r.quality.as_ref().map(|q| q.replay.clone());
+    assert_eq!(replay(opened.report.as_ref().unwrap()), replay(report), "the quality report read back");
     assert_eq!(opened.config.source, run.config.source, "the report names the source, so its attempts can be re-run");
     // Compared with itself, the second coverage row says the same as the first.
     h.get_by_label("Compare").click();
