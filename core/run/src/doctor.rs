@@ -327,6 +327,7 @@ pub fn rerun_config(report: &Report, change: &SpecOverrides, out: std::path::Pat
         seed: Some(report.seed),
         num_demos: Some(report.attempts),
         early_abort: report.early_abort,
+        workers: report.workers.max(1),
         spec: report.spec_overrides.then(change),
         out,
         ..RunConfig::default()
