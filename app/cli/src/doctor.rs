@@ -134,13 +134,11 @@ fn print(d: &Diagnosis) -> anyhow::Result<()> {
     for (i, t) in d.trials.iter().enumerate() {
         let p = &t.paired;
         outln!(
-            "  {}. {:<44} {:>5.1} %  {:+5.1} points [{:+.1}, {:+.1}]  gained {}, lost {}: {}",
+            "  {}. {:<44} {:>5.1} %  {:<28} gained {}, lost {}: {}",
             i + 1,
             t.suggestion.flags(),
             pct(p.changed_successes),
-            100.0 * p.difference,
-            100.0 * (p.difference - p.half_width),
-            100.0 * (p.difference + p.half_width),
+            p.interval(),
             p.gained,
             p.lost,
             t.verdict.words()
@@ -152,15 +150,13 @@ fn print(d: &Diagnosis) -> anyhow::Result<()> {
         let p = &check.paired;
         let rate = |n: usize| 100.0 * n as f64 / p.attempts.max(1) as f64;
         outln!(
-            "\nchecked on {} fresh attempts (seed {}): {} {:.1} % -> {:.1} %, {:+.1} points [{:+.1}, {:+.1}], gained {}, lost {}: {}",
+            "\nchecked on {} fresh attempts (seed {}): {} {:.1} % -> {:.1} %, {}, gained {}, lost {}: {}",
             p.attempts,
             check.seed,
             t.suggestion.flags(),
             rate(p.base_successes),
             rate(p.changed_successes),
-            100.0 * p.difference,
-            100.0 * (p.difference - p.half_width),
-            100.0 * (p.difference + p.half_width),
+            p.interval(),
             p.gained,
             p.lost,
             check.verdict.words()

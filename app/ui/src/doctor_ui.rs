@@ -94,12 +94,7 @@ fn trials(ui: &mut egui::Ui, doctor: &DoctorState, commands: &mut Vec<Command>) 
             let p = &t.paired;
             ui.monospace(t.suggestion.flags());
             ui.label(format!("{:.1} %", rate(p.changed_successes)));
-            ui.label(format!(
-                "{:+.1} points [{:+.1}, {:+.1}]",
-                100.0 * p.difference,
-                100.0 * (p.difference - p.half_width),
-                100.0 * (p.difference + p.half_width)
-            ));
+            ui.label(p.interval());
             ui.label(format!("gained {}, lost {}", p.gained, p.lost));
             let colour = match t.verdict {
                 Verdict::Helps => Color32::LIGHT_GREEN,
@@ -130,7 +125,7 @@ fn trials(ui: &mut egui::Ui, doctor: &DoctorState, commands: &mut Vec<Command>) 
 pub fn quality_panel(ui: &mut egui::Ui, report: &mimicgen_run::Report) {
     let Some(q) = &report.quality else { return };
     egui::CollapsingHeader::new("Quality of the dataset").id_salt("quality").default_open(false).show(ui, |ui| {
-        ui.label(RichText::new(format!("also in {}", quality_file(&report.output))).weak());
+        ui.label(RichText::new(format!("also in {}", mimicgen_run::quality_path(std::path::Path::new(&report.output)).display())).weak());
         egui::Grid::new("quality_stitches").striped(true).num_columns(6).show(ui, |ui| {
             for h in ["stitch", "count", "jump max / p95 (cm)", "turn max / p95 (deg)", "jerk max / p95 (m/s³)", "steps p95 (cm)"] {
                 ui.strong(h);
@@ -179,11 +174,4 @@ pub fn quality_panel(ui: &mut egui::Ui, report: &mimicgen_run::Report) {
             ));
         }
     });
-}
-
-/// `<dataset>_quality.json` of a dataset path, as `mimicgen generate` names it.
-fn quality_file(output: &str) -> String {
-    let path = std::path::Path::new(output);
-    let stem = path.file_stem().map_or_else(|| "generated".into(), |s| s.to_string_lossy().into_owned());
-    path.with_file_name(format!("{stem}_quality.json")).display().to_string()
 }

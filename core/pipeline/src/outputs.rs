@@ -193,21 +193,10 @@ pub(crate) fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, r
     Ok(())
 }
 
-/// Where the quality report of the dataset `out` goes.
-#[must_use]
-pub fn quality_path(out: &Path) -> PathBuf {
-    sibling(out, "_quality", "json")
-}
-
 /// Where a shard writing `out` logs its attempts.
 #[must_use]
 pub fn attempt_log_path(out: &Path) -> PathBuf {
     sibling(out, "", "attempts.jsonl")
 }
 
-/// `<out stem><suffix>.<ext>` beside `out`.
-#[must_use]
-pub fn sibling(out: &Path, suffix: &str, ext: &str) -> PathBuf {
-    let stem = out.file_stem().map_or_else(|| "generated".into(), |s| s.to_string_lossy().into_owned());
-    out.with_file_name(format!("{stem}{suffix}.{ext}"))
-}
+pub use mimicgen_run::{quality_path, sibling};

@@ -208,6 +208,17 @@ impl Paired {
         }
     }
 
+    /// The difference with its interval, in points: `+13.3 points [-7.1, +33.8]`.
+    #[must_use]
+    pub fn interval(&self) -> String {
+        format!(
+            "{:+.1} points [{:+.1}, {:+.1}]",
+            100.0 * self.difference,
+            100.0 * (self.difference - self.half_width),
+            100.0 * (self.difference + self.half_width)
+        )
+    }
+
     /// Whether the interval lies above zero, below it, or holds it.
     #[must_use]
     pub fn verdict(&self) -> Verdict {
@@ -417,6 +428,7 @@ mod tests {
         assert!((p.difference - 0.15).abs() < 1e-12);
         // sd of the differences: sqrt((25 - 100 * 0.0225) / 99) = 0.4794; half = 1.96 * 0.04794.
         assert!((p.half_width - 0.093_97).abs() < 1e-4, "{}", p.half_width);
+        assert_eq!(p.interval(), "+15.0 points [+5.6, +24.4]");
         assert_eq!(p.verdict(), Verdict::Helps);
         assert_eq!(Paired::new(&changed, &base).verdict(), Verdict::Hurts);
         let same = Paired::new(&base, &base);

@@ -32,6 +32,20 @@ pub use report::{
 };
 pub use wording::{Choice, FrontEnd};
 
+/// `<out stem><suffix>.<ext>` beside `out`: where a run's outputs go beside its dataset (the
+/// report `.json`, `_failed.hdf5`, `_quality.json`).
+#[must_use]
+pub fn sibling(out: &std::path::Path, suffix: &str, ext: &str) -> std::path::PathBuf {
+    let stem = out.file_stem().map_or_else(|| "generated".into(), |s| s.to_string_lossy().into_owned());
+    out.with_file_name(format!("{stem}{suffix}.{ext}"))
+}
+
+/// Where the quality report of the dataset `out` goes: `<out stem>_quality.json`.
+#[must_use]
+pub fn quality_path(out: &std::path::Path) -> std::path::PathBuf {
+    sibling(out, "_quality", "json")
+}
+
 /// A run description that cannot be applied.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
