@@ -58,6 +58,9 @@ pub struct DoctorArgs {
     /// Also write the diagnosis as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Replace the --json file if it exists.
+    #[arg(long)]
+    overwrite: bool,
 }
 
 /// Runs `mimicgen doctor`.
@@ -65,6 +68,10 @@ pub struct DoctorArgs {
 /// # Errors
 /// An unreadable report, inputs of the run that are gone, a simulator failure, an unwritable --json.
 pub fn run(args: &DoctorArgs) -> anyhow::Result<()> {
+    // Refused before the trials, not after them.
+    if let Some(json) = &args.json {
+        crate::check_output(json, Some(&args.run), args.overwrite)?;
+    }
     let config = DoctorConfig { run: args.run.clone(), budget: args.budget, top: args.top, workers: args.workers, check: args.check };
     let bar = ProgressBar::hidden();
     bar.set_style(

@@ -291,7 +291,11 @@ fn commands_refuse_to_replace_an_existing_output() {
     refused(&["generate", "--source", source, "--num-demos", "1", "--out", out], advice);
     refused(&["render", source, "--out", out], advice);
     refused(&["annotate", source, "--auto", "--out", out], advice);
+    // The doctor refuses before it reads the run: the run need not exist for that.
+    refused(&["doctor", "no_such_run.json", "--json", out], advice);
     assert_eq!(std::fs::read(&existing).unwrap(), bytes);
+    // A run without its report: the file named, a user's mistake.
+    refused(&["doctor", dir.path().join("gone.hdf5").to_str().unwrap()], "gone.json");
     // Onto the input itself: refused even when asked to replace.
     refused(&["prepare", input.to_str().unwrap(), "--out", input.to_str().unwrap(), "--overwrite"], "is the input");
     refused(&["export", input.to_str().unwrap(), "--mcap", input.to_str().unwrap(), "--overwrite"], "is the input");
