@@ -43,7 +43,8 @@ source demo, failures by subtask and reason, and by subtask and cause: object_mo
 grasp_slipped, grasp_missed, ran_out_of_steps, success_unmet, simulation) is printed and written
 next to the dataset as <out>.json; a quality report (stitch jumps and jerks per subtask, pose
 actions against the controller's limits, support coverage of the successes, 3 written demos
-replayed from their first state) as <out>_quality.json and in the report; each failed attempt kept in <out>_failed.hdf5 carries its cause
+replayed from their first state) as <out>_quality.json and in the report; a JSON line per attempt
+(sources, cause, a success's figures) as <out>.attempts.jsonl; each failed attempt kept in <out>_failed.hdf5 carries its cause
 as the demo attribute mimicgen_failure_cause. An existing output is never replaced without --overwrite. While running, the dataset
 is <out>.partial; after a crash or kill, the same command with --resume continues it, and the
 finished dataset equals an uninterrupted run's (a run killed after its dataset was finished but
@@ -98,15 +99,16 @@ pub struct GenerateArgs {
     /// would have recovered by luck is lost (see BENCHMARKS.md).
     #[arg(long)]
     early_abort: bool,
-    /// Replace existing outputs (dataset, failed attempts, report, an interrupted run's .partial).
+    /// Replace existing outputs (dataset, failed attempts, reports, attempt log, an interrupted
+    /// run's .partial).
     #[arg(long, conflicts_with = "resume")]
     overwrite: bool,
     /// Continue the interrupted run that left `<out>.partial` (same arguments; --workers may differ).
     #[arg(long)]
     resume: bool,
     /// Make only share PART of COUNT of the attempts (indices = PART modulo COUNT), e.g. on
-    /// several machines; `mimicgen merge` joins the shards into the whole run's dataset. The shard
-    /// also logs its attempts to OUT.attempts.jsonl for the merge.
+    /// several machines; `mimicgen merge` joins the shards into the whole run's dataset, reading
+    /// the attempt log (OUT.attempts.jsonl) each run writes.
     #[arg(long, value_name = "PART/COUNT")]
     shard: Option<mimicgen_engine::Shard>,
     /// Spec fields for this run over the spec's.

@@ -124,6 +124,16 @@ fn a_run_killed_five_times_and_resumed_equals_an_uninterrupted_run() {
         assert_eq!(a.data(), b.data(), "demos differ after {kills} kills");
         assert_eq!(a.masks().unwrap(), b.masks().unwrap());
     }
+    // The quality report covers every demo, those of the killed sessions from the attempt log.
+    let quality = |stem: &str| {
+        let text = std::fs::read_to_string(dir.path().join(format!("{stem}_quality.json"))).unwrap();
+        let mut q: serde_json::Value = serde_json::from_str(&text).unwrap();
+        q["dataset"] = serde_json::Value::Null;
+        q
+    };
+    let demos = RobomimicDataset::open(&whole).unwrap().demo_names().len();
+    assert_eq!(quality("whole")["quality"]["attempts"].as_u64(), Some(u64::try_from(demos).unwrap()));
+    assert_eq!(quality("whole"), quality("pieces"));
 }
 
 #[test]

@@ -4,6 +4,8 @@
 //! the pose actions against the controller's limits (OSC_POSE takes each of them in [-1, 1] and
 //! clips beyond).
 
+use std::collections::BTreeMap;
+
 use serde::{Deserialize, Serialize};
 
 use crate::action::POSE_ACTION_DIM;
@@ -61,6 +63,46 @@ pub struct ActionSummary {
     pub p95_abs: Vec<f64>,
 }
 
+/// One stitch in one attempt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StitchFigure {
+    /// The subtask.
+    pub subtask: usize,
+    /// Which stitch.
+    pub at: StitchAt,
+    /// The commanded pose's jump across it, m.
+    pub jump_m: f64,
+    /// The commanded orientation's jump across it, degrees.
+    pub turn_deg: f64,
+    /// The executed hand's jerk there, m/s^3.
+    pub jerk: f64,
+}
+
+/// Counts per bin: `(bin, count)`, bins without a count left out.
+pub type Bins = Vec<(u32, usize)>;
+
+/// One attempt's figures, what [`QualityStats`] sums: small and serializable, so that a run's
+/// attempt log carries them and a merged or resumed run sums them again to the same report.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct AttemptFigures {
+    /// Its stitches.
+    pub stitches: Vec<StitchFigure>,
+    /// Per subtask: the commanded pose's step-to-step changes off the stitches, in bins of
+    /// 0.1 mm.
+    pub step_bins: Vec<(usize, Bins)>,
+    /// Control steps.
+    pub action_steps: usize,
+    /// Steps with a pose action at its limit.
+    pub saturated_steps: usize,
+    /// Per pose dimension: the largest |a|.
+    pub action_max_abs: Vec<f64>,
+    /// Per pose dimension: |a| in bins of 0.01 (the last, 99, holds 0.99 and above).
+    pub action_bins: Vec<Bins>,
+}
+
+/// Bins of the step-to-step changes per metre (0.1 mm wide).
+pub const STEP_BINS_PER_M: f64 = 10_000.0;
+
 /// One stitch's figures over the attempts: jumps (m), turns (deg), jerks (m/s^3).
 #[derive(Debug, Clone, Default)]
 struct Samples {
@@ -74,9 +116,9 @@ struct Samples {
 pub struct QualityStats {
     attempts: usize,
     /// Per (subtask, stitch): what each attempt had there.
-    stitches: std::collections::BTreeMap<(usize, StitchAt), Samples>,
-    /// Per subtask: step-to-step changes off the stitches.
-    steps: std::collections::BTreeMap<usize, Vec<f64>>,
+    stitches: BTreeMap<(usize, StitchAt), Samples>,
+    /// Per subtask: step-to-step changes off the stitches, counts per bin of 0.1 mm.
+    steps: BTreeMap<usize, BTreeMap<u32, usize>>,
     action_steps: usize,
     saturated: usize,
     max_abs: [f64; POSE_ACTION_DIM],
@@ -108,11 +150,32 @@ fn max(values: &[f64]) -> f64 {
     values.iter().copied().fold(0.0, f64::max)
 }
 
-impl QualityStats {
-    /// Adds an attempt: its plans' waypoints (what the transform and the bridge commanded) for
-    /// the jumps, its executed hand for the jerk, its actions; `dt` is the control period (s).
-    pub fn add(&mut self, attempt: &Attempt, dt: f64) {
-        self.attempts += 1;
+/// `value` to `decimals` places: short enough (15 significant digits at most for the figures'
+/// sizes) that JSON gives back the same number, so that a merged or resumed run's report, summed
+/// from the attempt log, equals the one summed as the attempts ran.
+fn stored(value: f64, decimals: i32) -> f64 {
+    let scale = 10f64.powi(decimals);
+    (value * scale).round() / scale
+}
+
+/// The bin of `value` in bins `1 / per_unit` wide from 0 (the last bin, `last`, holds the rest).
+fn bin(value: f64, per_unit: f64, last: u32) -> u32 {
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // clamped to [0, last]
+    let bin = (value * per_unit).floor().clamp(0.0, f64::from(last)) as u32;
+    bin
+}
+
+/// Adds `count` to `bin` of a sparse histogram.
+fn count_into(bins: &mut BTreeMap<u32, usize>, bin: u32, count: usize) {
+    *bins.entry(bin).or_default() += count;
+}
+
+impl AttemptFigures {
+    /// The figures of `attempt`: its plans' waypoints (what the transform and the bridge
+    /// commanded) for the jumps, its executed hand for the jerk, its actions; `dt` is the
+    /// control period (s).
+    #[must_use]
+    pub fn of(attempt: &Attempt, dt: f64) -> Self {
         let t = &attempt.trajectory;
         // The third difference of the executed position around step `i`.
         let jerk = |i: usize| match (
@@ -127,6 +190,8 @@ impl QualityStats {
             }
             _ => 0.0,
         };
+        let mut stitches = Vec::new();
+        let mut steps: BTreeMap<usize, BTreeMap<u32, usize>> = BTreeMap::new();
         let mut previous: Option<crate::pose::Pose> = None;
         for (subtask, plan) in attempt.plans.iter().enumerate() {
             let mut last = previous;
@@ -143,37 +208,99 @@ impl QualityStats {
                     Some(_) => None,
                 };
                 last = Some(*pose);
-                let Some(at) = at else {
-                    self.steps.entry(subtask).or_default().push(jump_m);
-                    continue;
-                };
-                let entry = self.stitches.entry((subtask, at)).or_default();
-                entry.jumps.push(jump_m);
-                entry.turns.push(before.rotation.angle_to(&pose.rotation).to_degrees());
-                entry.jerks.push(jerk(plan.first_step + j));
+                match at {
+                    Some(at) => stitches.push(StitchFigure {
+                        subtask,
+                        at,
+                        jump_m: stored(jump_m, 9),
+                        turn_deg: stored(before.rotation.angle_to(&pose.rotation).to_degrees(), 9),
+                        jerk: stored(jerk(plan.first_step + j), 6),
+                    }),
+                    None => count_into(steps.entry(subtask).or_default(), bin(jump_m, STEP_BINS_PER_M, u32::MAX), 1),
+                }
             }
             previous = last;
         }
-        if self.histograms.is_empty() {
-            self.histograms = vec![[0; 100]; POSE_ACTION_DIM];
-        }
+        let mut max_abs = vec![0.0; POSE_ACTION_DIM];
+        let mut histograms = vec![BTreeMap::new(); POSE_ACTION_DIM];
+        let mut saturated_steps = 0;
         for row in 0..t.actions.len() {
             let action = t.actions.row(row);
             let mut saturated = false;
             for (d, &a) in action.iter().take(POSE_ACTION_DIM).enumerate() {
                 let a = a.abs();
                 saturated |= a >= 1.0 - 1e-9;
-                if let Some(m) = self.max_abs.get_mut(d) {
-                    *m = m.max(a);
+                if let Some(m) = max_abs.get_mut(d) {
+                    *m = f64::max(*m, a);
                 }
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // a bin of [0, 1]
-                let bin = ((a * 100.0).floor() as usize).min(99);
-                if let Some(h) = self.histograms.get_mut(d).and_then(|h| h.get_mut(bin)) {
-                    *h += 1;
+                if let Some(h) = histograms.get_mut(d) {
+                    count_into(h, bin(a, 100.0, 99), 1);
                 }
             }
-            self.action_steps += 1;
-            self.saturated += usize::from(saturated);
+            saturated_steps += usize::from(saturated);
+        }
+        let sparse = |h: BTreeMap<u32, usize>| h.into_iter().collect::<Bins>();
+        Self {
+            stitches,
+            step_bins: steps.into_iter().map(|(subtask, h)| (subtask, sparse(h))).collect(),
+            action_steps: t.actions.len(),
+            saturated_steps,
+            action_max_abs: max_abs.into_iter().map(|m| stored(m, 9)).collect(),
+            action_bins: histograms.into_iter().map(sparse).collect(),
+        }
+    }
+}
+
+/// The upper edge of the bin where `q` of the counts lie at or below (0 for none); the bins are
+/// `1 / per_unit` wide (divided, not multiplied, so that the edge is the short decimal it names).
+fn binned_quantile<'a>(bins: impl Iterator<Item = (&'a u32, &'a usize)> + Clone, q: f64, per_unit: f64) -> f64 {
+    let total: usize = bins.clone().map(|(_, c)| c).sum();
+    let mut seen = 0;
+    for (&bin, &count) in bins {
+        seen += count;
+        #[allow(clippy::cast_precision_loss)] // counts of steps
+        if total > 0 && seen as f64 >= q * total as f64 - 1e-9 {
+            return (f64::from(bin) + 1.0) / per_unit;
+        }
+    }
+    0.0
+}
+
+impl QualityStats {
+    /// Adds an attempt ([`AttemptFigures::of`]); `dt` is the control period (s).
+    pub fn add(&mut self, attempt: &Attempt, dt: f64) {
+        self.add_figures(&AttemptFigures::of(attempt, dt));
+    }
+
+    /// Adds an attempt's figures.
+    pub fn add_figures(&mut self, figures: &AttemptFigures) {
+        self.attempts += 1;
+        for s in &figures.stitches {
+            let entry = self.stitches.entry((s.subtask, s.at)).or_default();
+            entry.jumps.push(s.jump_m);
+            entry.turns.push(s.turn_deg);
+            entry.jerks.push(s.jerk);
+        }
+        for (subtask, bins) in &figures.step_bins {
+            let steps = self.steps.entry(*subtask).or_default();
+            for &(bin, count) in bins {
+                count_into(steps, bin, count);
+            }
+        }
+        self.action_steps += figures.action_steps;
+        self.saturated += figures.saturated_steps;
+        for (m, &a) in self.max_abs.iter_mut().zip(&figures.action_max_abs) {
+            *m = m.max(a);
+        }
+        if self.histograms.is_empty() {
+            self.histograms = vec![[0; 100]; POSE_ACTION_DIM];
+        }
+        for (h, bins) in self.histograms.iter_mut().zip(&figures.action_bins) {
+            for &(bin, count) in bins {
+                if let Some(c) = usize::try_from(bin).ok().and_then(|b| h.get_mut(b)) {
+                    *c += count;
+                }
+            }
         }
     }
 
@@ -193,20 +320,12 @@ impl QualityStats {
                 jump_deg_p95: quantile(&s.turns, 0.95),
                 jerk_max: max(&s.jerks),
                 jerk_p95: quantile(&s.jerks, 0.95),
-                step_m_p95: self.steps.get(&subtask).map_or(0.0, |s| quantile(s, 0.95)),
+                step_m_p95: self.steps.get(&subtask).map_or(0.0, |h| binned_quantile(h.iter(), 0.95, STEP_BINS_PER_M)),
             })
             .collect();
         let p95 = |h: &[usize; 100]| {
-            let total: usize = h.iter().sum();
-            let mut seen = 0;
-            for (bin, &count) in h.iter().enumerate() {
-                seen += count;
-                if total > 0 && 100 * seen >= 95 * total {
-                    #[allow(clippy::cast_precision_loss)] // a bin index below 100
-                    return (bin + 1) as f64 / 100.0;
-                }
-            }
-            0.0
+            let indexed: BTreeMap<u32, usize> = (0u32..).zip(h.iter().copied()).filter(|&(_, c)| c > 0).collect();
+            binned_quantile(indexed.iter(), 0.95, 100.0)
         };
         Quality {
             attempts: self.attempts,

@@ -41,8 +41,11 @@ pub fn source_demos(task: &str) -> Result<PathBuf, PipelineError> {
     }
     let fs = |e: std::io::Error| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() };
     std::fs::create_dir_all(&dir).map_err(fs)?;
-    // Written under a temporary name and renamed, so a concurrent run never reads half a file.
-    let tmp = dir.join(format!("{name}.{}.tmp", std::process::id()));
+    // Written under a name of its own and renamed, so that a concurrent run, in this process or
+    // another, never reads half a file nor renames this one's.
+    static WRITES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let write = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = dir.join(format!("{name}.{}.{write}.tmp", std::process::id()));
     std::fs::write(&tmp, bytes).map_err(fs)?;
     std::fs::rename(&tmp, &path).map_err(fs)?;
     Ok(path)

@@ -1,6 +1,6 @@
 //! What a run writes beside its dataset, and what it needs to resume: the run's description and
-//! progress (attributes of the dataset and its `.partial`), a shard's attempt log, the
-//! failed-attempts file and report paths, and clearing them for a new run.
+//! progress (attributes of the dataset and its `.partial`), the attempt log, the failed-attempts
+//! file, report and quality report paths, and clearing them for a new run.
 
 use std::path::{Path, PathBuf};
 
@@ -45,9 +45,10 @@ pub(crate) struct Progress {
     pub(crate) stats: RunStats,
 }
 
-/// One decided attempt, as a shard logs it (`<out>.attempts.jsonl`, a line each, in index order)
+/// One decided attempt, as a run logs it (`<out>.attempts.jsonl`, a line each, in index order)
 /// so that `mimicgen merge` can cut the joined run where the whole run stops and count what it
-/// counts, failures that were not kept included.
+/// counts, failures that were not kept included, and so that a merged or resumed run's quality
+/// report sums the figures of every demo in its dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AttemptRecord {
     /// Attempt index.
@@ -68,6 +69,12 @@ pub struct AttemptRecord {
     /// The object instance its episode drew (object transfer); absent for the other tasks.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub instance: Option<String>,
+    /// A success's figures for the quality report (absent for failures).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub figures: Option<mimicgen_engine::quality::AttemptFigures>,
+    /// A success's initial object poses, for the quality report's coverage (absent for failures).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_object_poses: Option<std::collections::BTreeMap<String, mimicgen_engine::Pose>>,
 }
 
 /// A shard's attempt log: a JSON line per decided attempt, flushed after each (before the
@@ -84,14 +91,16 @@ impl AttemptLog {
         Ok(Self { file: std::io::BufWriter::new(file), path })
     }
 
-    /// The log of an interrupted shard, cut to the attempts before `next`, to go on appending.
-    pub(crate) fn resume(path: PathBuf, next: usize) -> Result<Self, PipelineError> {
-        let kept: Vec<AttemptRecord> = read_attempt_log(&path)?.into_iter().filter(|r| r.index < next).collect();
+    /// The log of an interrupted run, cut to the attempts before `next`, to go on appending,
+    /// and those records. A run that has no log (one an older version began) starts one.
+    pub(crate) fn resume(path: PathBuf, next: usize) -> Result<(Self, Vec<AttemptRecord>), PipelineError> {
+        let kept: Vec<AttemptRecord> =
+            if path.is_file() { read_attempt_log(&path)?.into_iter().filter(|r| r.index < next).collect() } else { Vec::new() };
         let mut log = Self::create(path)?;
         for r in &kept {
             log.append(r)?;
         }
-        Ok(log)
+        Ok((log, kept))
     }
 
     pub(crate) fn append(&mut self, record: &AttemptRecord) -> Result<(), PipelineError> {
@@ -103,7 +112,7 @@ impl AttemptLog {
     }
 }
 
-/// Reads a shard's attempt log.
+/// Reads a run's attempt log.
 ///
 /// # Errors
 /// [`PipelineError::Fs`] when it cannot be read, [`PipelineError::Input`] naming the line that
@@ -193,7 +202,7 @@ pub(crate) fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, r
     Ok(())
 }
 
-/// Where a shard writing `out` logs its attempts.
+/// Where a run writing `out` logs its attempts.
 #[must_use]
 pub fn attempt_log_path(out: &Path) -> PathBuf {
     sibling(out, "", "attempts.jsonl")

@@ -239,10 +239,10 @@ impl Pipeline {
         sibling(&self.config.out, "", "json")
     }
 
-    /// The attempt log of a shard (`None` for a whole run).
+    /// The attempt log of this run.
     #[must_use]
-    pub fn attempt_log_path(&self) -> Option<PathBuf> {
-        self.config.shard.map(|_| attempt_log_path(&self.config.out))
+    pub fn attempt_log_path(&self) -> PathBuf {
+        attempt_log_path(&self.config.out)
     }
 
     fn writer_options(&self) -> WriterOptions {
@@ -255,9 +255,9 @@ impl Pipeline {
     }
 
     /// Opens the writers: fresh ones, or (with `resume`) those of the interrupted run, checked to
-    /// describe the same dataset. Returns them with the progress to go on from.
-    #[allow(clippy::type_complexity)]
-    fn open_writers(&self) -> Result<(DatasetWriter, Option<DatasetWriter>, Progress, Option<AttemptLog>), PipelineError> {
+    /// describe the same dataset. Returns them with the progress to go on from and the log of
+    /// the attempts before it.
+    fn open_writers(&self) -> Result<Opened, PipelineError> {
         let out = &self.config.out;
         let failed = self.failed_path();
         let keep_failed = self.generator.spec().generation.keep_failed;
@@ -316,33 +316,28 @@ impl Pipeline {
             } else {
                 None
             };
-            let log = self.attempt_log_path().map(|p| AttemptLog::resume(p, progress.next_attempt)).transpose()?;
-            return Ok((writer, failed_writer, progress, log));
+            let (log, records) = AttemptLog::resume(self.attempt_log_path(), progress.next_attempt)?;
+            return Ok(Opened { writer, failed_writer, progress, log, records });
         }
         self.fresh_writers(&description, self.config.overwrite)
     }
 
     /// New writers for a run from its first attempt, the outputs there replaced if `replace`.
-    #[allow(clippy::type_complexity)]
-    fn fresh_writers(
-        &self,
-        description: &str,
-        replace: bool,
-    ) -> Result<(DatasetWriter, Option<DatasetWriter>, Progress, Option<AttemptLog>), PipelineError> {
+    fn fresh_writers(&self, description: &str, replace: bool) -> Result<Opened, PipelineError> {
         let out = &self.config.out;
         let failed = self.failed_path();
         let keep_failed = self.generator.spec().generation.keep_failed;
         let options = self.writer_options();
         let failed_options = WriterOptions { valid_fraction: None, ..options.clone() };
         let log_path = self.attempt_log_path();
-        clear_outputs(out, log_path.as_deref(), replace, true)?;
+        clear_outputs(out, Some(&log_path), replace, true)?;
         let mut writer = DatasetWriter::create(out, options)?;
         let progress = Progress { next_attempt: 0, failures_kept: 0, stats: RunStats::new(self.generator.dataset().demos.len()) };
         writer.set_root_attr(RUN_ATTR, description)?;
         writer.set_root_attr(PROGRESS_ATTR, &serde_json::to_string(&progress).unwrap_or_default())?;
         let failed_writer = if keep_failed { Some(DatasetWriter::create(&failed, failed_options)?) } else { None };
-        let log = log_path.map(AttemptLog::create).transpose()?;
-        Ok((writer, failed_writer, progress, log))
+        let log = AttemptLog::create(log_path)?;
+        Ok(Opened { writer, failed_writer, progress, log, records: Vec::new() })
     }
 
     /// Runs generation: `workers` threads each simulate attempts and compute the observations of
@@ -412,7 +407,7 @@ impl Pipeline {
             on_event(&Event::Finished(Box::new(report.clone())));
             return Ok(report);
         }
-        let (mut writer, mut failed_writer, progress, mut log) = self.open_writers()?;
+        let Opened { mut writer, mut failed_writer, progress, mut log, records } = self.open_writers()?;
         let settings = &self.generator.spec().generation;
         let resumed_from = progress.next_attempt;
         let mut failures_kept = progress.failures_kept;
@@ -438,8 +433,16 @@ impl Pipeline {
         };
         let started = Instant::now();
         let mut write_error: Option<PipelineError> = None;
+        // The quality report covers every demo of the dataset: those of an earlier session from
+        // the log.
         let mut quality = mimicgen_engine::quality::QualityStats::default();
         let mut initial_scenes: Vec<BTreeMap<String, mimicgen_engine::Pose>> = Vec::new();
+        for r in &records {
+            if let Some(f) = &r.figures {
+                quality.add_figures(f);
+            }
+            initial_scenes.extend(r.initial_object_poses.clone());
+        }
         let mut control_steps = 0usize;
         let control = RunControl {
             start: progress.next_attempt,
@@ -449,8 +452,9 @@ impl Pipeline {
         };
         let result = mimicgen_engine::run_with(&self.generator, envs, control, finish, |attempt, (payload, instance), stats| {
             control_steps += attempt.trajectory.len();
-            if attempt.success {
-                quality.add(&attempt, CONTROL_PERIOD_S);
+            let figures = attempt.success.then(|| mimicgen_engine::quality::AttemptFigures::of(&attempt, CONTROL_PERIOD_S));
+            if let Some(f) = &figures {
+                quality.add_figures(f);
                 initial_scenes.push(attempt.initial_object_poses.clone());
             }
             let step = (|| -> Result<Outcome, PipelineError> {
@@ -470,21 +474,21 @@ impl Pipeline {
                     }
                     _ => Outcome::Discarded,
                 };
-                if let Some(log) = &mut log {
-                    log.append(&AttemptRecord {
-                        index: usize::try_from(attempt.index).unwrap_or(usize::MAX),
-                        success: attempt.success,
-                        sources: attempt.src_demo_per_subtask.clone(),
-                        failure: attempt.failure.clone(),
-                        cause: attempt.cause.clone(),
-                        steps: attempt.trajectory.len(),
-                        kept: match &outcome {
-                            Outcome::Written { demo } | Outcome::KeptFailed { demo } => Some(demo.clone()),
-                            Outcome::Discarded => None,
-                        },
-                        instance: instance.clone(),
-                    })?;
-                }
+                log.append(&AttemptRecord {
+                    index: usize::try_from(attempt.index).unwrap_or(usize::MAX),
+                    success: attempt.success,
+                    sources: attempt.src_demo_per_subtask.clone(),
+                    failure: attempt.failure.clone(),
+                    cause: attempt.cause.clone(),
+                    steps: attempt.trajectory.len(),
+                    kept: match &outcome {
+                        Outcome::Written { demo } | Outcome::KeptFailed { demo } => Some(demo.clone()),
+                        Outcome::Discarded => None,
+                    },
+                    instance: instance.clone(),
+                    initial_object_poses: figures.is_some().then(|| attempt.initial_object_poses.clone()),
+                    figures,
+                })?;
                 let progress = Progress {
                     next_attempt: usize::try_from(attempt.index).unwrap_or(usize::MAX) + 1,
                     failures_kept,
@@ -518,7 +522,7 @@ impl Pipeline {
         let written = writer.finish()?;
         let mut report =
             self.report(&stats, resumed_from, started.elapsed().as_secs_f64(), control_steps, cancelled, &written, failed_written);
-        let dataset_quality = self.dataset_quality(&written, quality.summary(), &initial_scenes, replay)?;
+        let dataset_quality = dataset_quality(self.task.as_ref(), &written, quality.summary(), &initial_scenes, replay);
         let quality_path = crate::outputs::quality_path(&self.config.out);
         std::fs::write(&quality_path, serde_json::to_string_pretty(&dataset_quality).unwrap_or_default())
             .map_err(|e| PipelineError::Fs { file: quality_path.display().to_string(), reason: e.to_string() })?;
@@ -526,40 +530,6 @@ impl Pipeline {
         self.write_report(&report)?;
         on_event(&Event::Finished(Box::new(report.clone())));
         Ok(report)
-    }
-
-    /// The quality report of the written dataset: `quality` of its attempts, the coverage of
-    /// `scenes` (their initial object poses), and [`QUALITY_REPLAYS`] of its demos replayed.
-    fn dataset_quality(
-        &self,
-        written: &Path,
-        quality: mimicgen_engine::quality::Quality,
-        scenes: &[BTreeMap<String, mimicgen_engine::Pose>],
-        replay: bool,
-    ) -> Result<mimicgen_run::DatasetQuality, PipelineError> {
-        let dimensions = self.task.coverage_dimensions();
-        let coverage = (!scenes.is_empty() && !dimensions.is_empty())
-            .then(|| mimicgen_engine::coverage::coverage(scenes, &dimensions, COVERAGE_BINS).ok())
-            .flatten()
-            .map(|c| mimicgen_run::CoverageFigure {
-                bins: COVERAGE_BINS,
-                scenes: c.scenes,
-                support_coverage: c.support_coverage(),
-                uniform_support_coverage: mimicgen_engine::coverage::uniform_support_coverage(c.joint_bins_total, c.scenes),
-            });
-        let names = if replay { mimicgen_io::RobomimicDataset::open(written)?.demo_names().to_vec() } else { Vec::new() };
-        let replay = if names.is_empty() {
-            None
-        } else {
-            let k = QUALITY_REPLAYS.min(names.len());
-            let demos: Vec<String> = (0..k).filter_map(|i| names.get(i * names.len() / k).cloned()).collect();
-            // A replay that cannot run is the report's finding, not the run's failure.
-            Some(match crate::replay::replay(written, &demos, crate::replay::ReplayMode::Actions, Some(self.task.name()), |_, _, _| {}) {
-                Ok(traces) => mimicgen_run::ReplayCheck { succeeded: traces.iter().filter(|t| t.success).count(), demos, error: None },
-                Err(e) => mimicgen_run::ReplayCheck { demos, succeeded: 0, error: Some(e.to_string()) },
-            })
-        };
-        Ok(mimicgen_run::DatasetQuality { dataset: written.display().to_string(), quality, coverage, replay })
     }
 
     /// The report of this session of the run.
@@ -652,4 +622,54 @@ impl Pipeline {
         self.write_report(&report)?;
         Ok(Some(report))
     }
+}
+
+/// What [`Pipeline::open_writers`] opens.
+struct Opened {
+    writer: DatasetWriter,
+    failed_writer: Option<DatasetWriter>,
+    progress: Progress,
+    log: AttemptLog,
+    /// The log's records of the attempts before `progress`'s next.
+    records: Vec<AttemptRecord>,
+}
+
+/// The quality report of `written`, a dataset of `task`: `quality` of its demos' attempts, the
+/// coverage of `scenes` (their initial object poses), and with `replay` [`QUALITY_REPLAYS`] of
+/// its demos replayed in MuJoCo (a replay that cannot run is the report's finding, not an error).
+pub(crate) fn dataset_quality(
+    task: &dyn Task,
+    written: &Path,
+    quality: mimicgen_engine::quality::Quality,
+    scenes: &[BTreeMap<String, mimicgen_engine::Pose>],
+    replay: bool,
+) -> mimicgen_run::DatasetQuality {
+    let dimensions = task.coverage_dimensions();
+    let coverage = (!scenes.is_empty() && !dimensions.is_empty())
+        .then(|| mimicgen_engine::coverage::coverage(scenes, &dimensions, COVERAGE_BINS).ok())
+        .flatten()
+        .map(|c| mimicgen_run::CoverageFigure {
+            bins: COVERAGE_BINS,
+            scenes: c.scenes,
+            support_coverage: c.support_coverage(),
+            uniform_support_coverage: mimicgen_engine::coverage::uniform_support_coverage(c.joint_bins_total, c.scenes),
+        });
+    let names = if replay {
+        mimicgen_io::RobomimicDataset::open(written).map(|d| d.demo_names().to_vec()).map_err(|e| e.to_string())
+    } else {
+        Ok(Vec::new())
+    };
+    let replay = match names {
+        Ok(names) if names.is_empty() => None,
+        Ok(names) => {
+            let k = QUALITY_REPLAYS.min(names.len());
+            let demos: Vec<String> = (0..k).filter_map(|i| names.get(i * names.len() / k).cloned()).collect();
+            Some(match crate::replay::replay(written, &demos, crate::replay::ReplayMode::Actions, Some(task.name()), |_, _, _| {}) {
+                Ok(traces) => mimicgen_run::ReplayCheck { succeeded: traces.iter().filter(|t| t.success).count(), demos, error: None },
+                Err(e) => mimicgen_run::ReplayCheck { demos, succeeded: 0, error: Some(e.to_string()) },
+            })
+        }
+        Err(error) => Some(mimicgen_run::ReplayCheck { demos: Vec::new(), succeeded: 0, error: Some(error) }),
+    };
+    mimicgen_run::DatasetQuality { dataset: written.display().to_string(), quality, coverage, replay }
 }

@@ -416,8 +416,9 @@ fn merged_shards_equal_the_single_process_run() {
         workers: 0,
         output: String::new(),
         failed_output: None,
-        // A shard's quality covers its own attempts; a merged run has none (stated in the field).
-        quality: None,
+        // The merged run's quality report sums its demos' figures from the shards' logs: the same
+        // report as the single process's, but for the file it names.
+        quality: r.quality.clone().map(|q| mimicgen_pipeline::DatasetQuality { dataset: String::new(), ..q }),
         ..r.clone()
     };
     for guarantee in [false, true] {
@@ -449,6 +450,8 @@ fn merged_shards_equal_the_single_process_run() {
             let failed = |p: &Path| tree(&mimicgen_pipeline::sibling(p, "_failed", "hdf5"));
             assert_eq!(failed(&merged), failed(&single));
             assert_eq!(timeless(&report), timeless(&whole));
+            assert!(report.quality.as_ref().is_some_and(|q| q.quality.attempts == report.successes), "{:?}", report.quality);
+            assert!(mimicgen_pipeline::quality_path(&merged).is_file());
             // A shard left out, or given twice, is refused.
             let err = merge(&shards[1..], &dir.path().join("x.hdf5"), false, |_, _| {}).unwrap_err().to_string();
             assert!(err.contains(&format!("shards 0/{count} are missing")), "{err}");
