@@ -44,6 +44,7 @@ pub mod select;
 pub mod spec;
 pub mod transform;
 pub mod transit;
+pub mod two_arm;
 
 #[cfg(test)]
 pub(crate) mod testing;

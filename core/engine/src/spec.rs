@@ -18,7 +18,7 @@ mod mimicgen_json;
 mod text;
 
 pub use text::field_line;
-use text::toml_error;
+pub(crate) use text::toml_error;
 
 /// How the source demo for a subtask is chosen (paper appendix "Reference Segment Selection").
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

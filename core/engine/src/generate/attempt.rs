@@ -176,6 +176,7 @@ impl Generator {
                 last_target,
                 selected,
                 forced: sources.get(subtask_index).copied().flatten(),
+                world_from_obj_src: None,
             };
             let (mut plan, mut waypoints) =
                 self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
@@ -268,6 +269,7 @@ impl Generator {
                 last_target,
                 selected,
                 forced: sources.get(subtask).copied().flatten(),
+                world_from_obj_src: None,
             };
             let (mut planned, mut waypoints) =
                 self.plan_subtask(&here, &spans, &mut rng).map_err(|reason| fatal(EnvError::Fatal { reason }))?;
@@ -338,7 +340,7 @@ impl Generator {
         reason = "a span lies inside its demo, start < end <= len (Segmentation::new checks every boundary against the \
                   demo's length), and a validated demo has every per-step field len long (Generator::new validates)"
     )]
-    fn plan_subtask<R: Rng + ?Sized>(
+    pub(crate) fn plan_subtask<R: Rng + ?Sized>(
         &self,
         here: &PlanInput,
         spans: &[Vec<Span>],
@@ -379,17 +381,20 @@ impl Generator {
         }
         source_poses.extend_from_slice(&demo.target_poses[start..end]);
         gripper.extend((start..end).map(|t| demo.gripper_actions.row(t).to_vec()));
-        let world_from_obj_src = subtask
-            .object_ref
-            .as_ref()
-            .map(|name| {
-                demo.object_poses
-                    .get(name)
-                    .and_then(|poses| poses.get(start))
-                    .copied()
-                    .ok_or_else(|| format!("{} has no pose of {name:?}", demo.name))
-            })
-            .transpose()?;
+        let world_from_obj_src = match here.world_from_obj_src {
+            Some(pose) => Some(pose),
+            None => subtask
+                .object_ref
+                .as_ref()
+                .map(|name| {
+                    demo.object_poses
+                        .get(name)
+                        .and_then(|poses| poses.get(start))
+                        .copied()
+                        .ok_or_else(|| format!("{} has no pose of {name:?}", demo.name))
+                })
+                .transpose()?,
+        };
         let transformed = match (&world_from_obj_new, &world_from_obj_src) {
             (Some(new), Some(src)) => transform_segment(new, src, &source_poses),
             _ => source_poses.clone(),
@@ -462,15 +467,18 @@ pub struct Overrides {
 }
 
 /// Where one subtask is planned from.
-struct PlanInput {
-    subtask: usize,
-    world_from_eef: Pose,
-    objects: BTreeMap<String, Pose>,
-    last_target: Option<Pose>,
+pub(crate) struct PlanInput {
+    pub(crate) subtask: usize,
+    pub(crate) world_from_eef: Pose,
+    pub(crate) objects: BTreeMap<String, Pose>,
+    pub(crate) last_target: Option<Pose>,
     /// The source demo of the previous subtask.
-    selected: Option<usize>,
+    pub(crate) selected: Option<usize>,
     /// A source demo the caller chose.
-    forced: Option<usize>,
+    pub(crate) forced: Option<usize>,
+    /// The reference object's source pose to transform from, in place of the demo's at the
+    /// segment's start (two arms coordinated: one transform for both).
+    pub(crate) world_from_obj_src: Option<Pose>,
 }
 
 /// An attempt planned but not executed ([`Generator::plan`]).

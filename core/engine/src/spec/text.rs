@@ -40,7 +40,7 @@ pub fn field_line(text: &str, field: &str) -> Option<usize> {
 }
 
 /// A TOML error as `file:line`, the dotted field (`subtask[1].object_ref`) and the message.
-pub(super) fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> EngineError {
+pub(crate) fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> EngineError {
     let Some(span) = e.span() else {
         return EngineError::Config { file: origin.to_owned(), field: String::new(), reason: e.message().to_owned() };
     };
