@@ -44,6 +44,7 @@ fn synthetic_demo(d: usize, steps: usize) -> anyhow::Result<DemoData> {
                 ("cubeB".to_owned(), (0..steps).map(|t| pose(t, 0.6)).collect()),
             ]),
             subtask_term_signals: BTreeMap::from([("grasp".to_owned(), (0..steps).map(|t| i64::from(t >= steps / 2)).collect())]),
+            arms: Vec::new(),
         }),
         src_demo_inds: vec![0, 1],
         src_demo_labels: vec![0; steps],

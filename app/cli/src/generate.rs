@@ -607,6 +607,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
                 gripper_actions: demo.gripper_actions,
                 object_poses: demo.object_poses,
                 subtask_term_signals: demo.subtask_term_signals,
+                arms: Vec::new(),
             }),
             src_demo_inds: Vec::new(),
             src_demo_labels: Vec::new(),

@@ -13,7 +13,7 @@ use mimicgen_engine::spec::SourceSelection;
 use serde::Serialize;
 
 use crate::error::{IoError, Result};
-pub use crate::source_demo::{STARTS_ATTR, demo_steps, source_demo_from_group};
+pub use crate::source_demo::{STARTS_ATTR, demo_steps, source_demo_from_group, source_demo_of_arm};
 use crate::source_demo::{check_demo, collect_paths, missing};
 use crate::tree::{self, Array, Group, Node};
 
@@ -273,6 +273,34 @@ impl RobomimicDataset {
         let dataset = SourceDataset { demos, env_args: self.env_args().map(str::to_owned) };
         dataset.validate().map_err(|source| IoError::Engine { file: self.file.clone(), field: String::new(), source: Box::new(source) })?;
         Ok(dataset)
+    }
+
+    /// The source demos a selection picks, one view per arm of a two-arm file: each arm's own
+    /// `datagen_info/eef_pose/<arm>`, `target_pose/<arm>` and `gripper_action/<arm>`, the objects
+    /// and signals shared ([`crate::source_demo::source_demo_of_arm`]).
+    ///
+    /// # Errors
+    /// As [`RobomimicDataset::to_source_dataset`], naming the arm's missing field.
+    pub fn to_arm_source_datasets(&self, selection: &SourceSelection, arms: &[&str]) -> Result<Vec<SourceDataset>> {
+        let names = self.select(selection)?;
+        arms.iter()
+            .map(|&arm| {
+                let demos = names
+                    .iter()
+                    .map(|n| {
+                        let demo = self.demo(n).ok_or_else(|| self.missing("data", n))?;
+                        source_demo_of_arm(&self.file, n, demo, Some(arm))
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                let dataset = SourceDataset { demos, env_args: self.env_args().map(str::to_owned) };
+                dataset.validate().map_err(|source| IoError::Engine {
+                    file: self.file.clone(),
+                    field: format!("datagen_info (arm {arm})"),
+                    source: Box::new(source),
+                })?;
+                Ok(dataset)
+            })
+            .collect()
     }
 
     fn source_demo(&self, name: &str) -> Result<SourceDemo> {

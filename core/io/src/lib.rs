@@ -38,10 +38,10 @@ pub mod writer;
 
 pub use dataset::{
     DatasetReport, DemoReader, DemoSource, ReadOptions, RobomimicDataset, read_source_dataset, root_string_attrs, source_demo_from_group,
-    write_tree,
+    source_demo_of_arm, write_tree,
 };
 pub use error::{IoError, Result};
 pub use writer::{
-    ATTEMPT_ATTR, CAUSE_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, INSTANCE_ATTR, Observation, WriterOptions, image_dataset,
-    observations_from_group,
+    ATTEMPT_ATTR, ArmInfo, CAUSE_ATTR, DatagenInfo, DatasetWriter, DemoData, FAILURE_ATTR, INSTANCE_ATTR, Observation, WriterOptions,
+    image_dataset, observations_from_group,
 };

@@ -28,6 +28,16 @@ pub fn demo_steps(demo: &Group) -> usize {
 /// [`IoError::Missing`] for a missing `datagen_info` field, [`IoError::Shape`] or
 /// [`IoError::Invalid`] naming the field that does not fit.
 pub fn source_demo_from_group(file: &str, name: &str, demo: &Group) -> Result<SourceDemo> {
+    source_demo_of_arm(file, name, demo, None)
+}
+
+/// [`source_demo_from_group`] as one arm of a two-arm demo sees it: the arm's own end effector
+/// (`datagen_info/eef_pose/<arm>`, `target_pose/<arm>`, `gripper_action/<arm>`, Isaac Lab
+/// Mimic's layout of several end effectors), the objects and signals both arms share.
+///
+/// # Errors
+/// As [`source_demo_from_group`], naming the arm's field.
+pub fn source_demo_of_arm(file: &str, name: &str, demo: &Group, arm: Option<&str>) -> Result<SourceDemo> {
     let group = format!("data/{name}");
     let steps = demo_steps(demo);
     let dg_group = format!("{group}/datagen_info");
@@ -77,11 +87,29 @@ pub fn source_demo_from_group(file: &str, name: &str, demo: &Group) -> Result<So
             )
         }
     };
+    // One arm's field: the dataset itself, or with `arm` the arm's dataset in its group.
+    let arm_field = |field: &str| -> Result<(&Group, String, String)> {
+        match arm {
+            None => Ok((info, dg_group.clone(), field.to_owned())),
+            Some(arm) => {
+                let g = info.group(field).ok_or_else(|| missing(file, &dg_group, field))?;
+                Ok((g, format!("{dg_group}/{field}"), arm.to_owned()))
+            }
+        }
+    };
+    let (eef_group, eef_path, eef_field) = arm_field("eef_pose")?;
+    let (target_group, target_path, target_field) = arm_field("target_pose")?;
+    let (gripper_group, gripper_path, gripper_field) = arm_field("gripper_action")?;
+    let eef_poses = poses_of(&eef_field, eef_group, &eef_path)?;
+    let target_poses = poses_of(&target_field, target_group, &target_path)?;
+    if arm.is_some() && gripper_group.dataset(&gripper_field).is_none() {
+        return Err(missing(file, &gripper_path, &gripper_field));
+    }
     Ok(SourceDemo {
         name: name.to_owned(),
-        eef_poses: poses_of("eef_pose", info, &dg_group)?,
-        target_poses: poses_of("target_pose", info, &dg_group)?,
-        gripper_actions: rows(file, &dg_group, "gripper_action", info.dataset("gripper_action"))?,
+        eef_poses,
+        target_poses,
+        gripper_actions: rows(file, &gripper_path, &gripper_field, gripper_group.dataset(&gripper_field))?,
         object_poses,
         subtask_term_signals,
         manual_subtask_ends: None,

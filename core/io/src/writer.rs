@@ -31,6 +31,23 @@ pub struct DatagenInfo {
     pub object_poses: BTreeMap<String, Vec<Pose>>,
     /// Subtask-end signals per name, per step.
     pub subtask_term_signals: BTreeMap<String, Vec<i64>>,
+    /// Two arms: each arm's own end effector, written in place of `eef_poses`, `target_poses`
+    /// and `gripper_actions` as `datagen_info/eef_pose/<arm>` (Isaac Lab Mimic's layout of
+    /// several end effectors); empty for one arm.
+    pub arms: Vec<ArmInfo>,
+}
+
+/// One arm's per-step annotations in a two-arm demo.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ArmInfo {
+    /// The arm (`robot0`).
+    pub name: String,
+    /// `world_from_eef` per step.
+    pub eef_poses: Vec<Pose>,
+    /// `world_from_target` per step.
+    pub target_poses: Vec<Pose>,
+    /// Gripper actions, `(T, gripper_dim)`.
+    pub gripper_actions: Rows,
 }
 
 /// Everything written for one demo.
@@ -102,6 +119,7 @@ impl DemoData {
                 gripper_actions: t.gripper_actions.clone(),
                 object_poses: t.object_poses.clone(),
                 subtask_term_signals: t.subtask_term_signals.clone(),
+                arms: Vec::new(),
             }),
             src_demo_inds: to_i64(&attempt.src_demo_per_subtask),
             src_demo_labels: to_i64(&t.src_demo_labels),
@@ -181,12 +199,28 @@ impl DemoData {
         }
         if let Some(info) = &self.datagen_info {
             let mut dg = Group::default();
-            check("datagen_info/eef_pose", info.eef_poses.len())?;
-            check("datagen_info/target_pose", info.target_poses.len())?;
-            check("datagen_info/gripper_action", info.gripper_actions.len())?;
-            put(&mut dg, "eef_pose", poses_array(&info.eef_poses));
-            put(&mut dg, "target_pose", poses_array(&info.target_poses));
-            put(&mut dg, "gripper_action", rows_array(&info.gripper_actions));
+            if info.arms.is_empty() {
+                check("datagen_info/eef_pose", info.eef_poses.len())?;
+                check("datagen_info/target_pose", info.target_poses.len())?;
+                check("datagen_info/gripper_action", info.gripper_actions.len())?;
+                put(&mut dg, "eef_pose", poses_array(&info.eef_poses));
+                put(&mut dg, "target_pose", poses_array(&info.target_poses));
+                put(&mut dg, "gripper_action", rows_array(&info.gripper_actions));
+            }
+            let (mut eef, mut target, mut gripper) = (Group::default(), Group::default(), Group::default());
+            for arm in &info.arms {
+                check(&format!("datagen_info/eef_pose/{}", arm.name), arm.eef_poses.len())?;
+                check(&format!("datagen_info/target_pose/{}", arm.name), arm.target_poses.len())?;
+                check(&format!("datagen_info/gripper_action/{}", arm.name), arm.gripper_actions.len())?;
+                put(&mut eef, &arm.name, poses_array(&arm.eef_poses));
+                put(&mut target, &arm.name, poses_array(&arm.target_poses));
+                put(&mut gripper, &arm.name, rows_array(&arm.gripper_actions));
+            }
+            if !info.arms.is_empty() {
+                dg.members.insert("eef_pose".into(), Node::Group(eef));
+                dg.members.insert("target_pose".into(), Node::Group(target));
+                dg.members.insert("gripper_action".into(), Node::Group(gripper));
+            }
             let mut objects = Group::default();
             for (name, poses) in &info.object_poses {
                 check(&format!("datagen_info/object_poses/{name}"), poses.len())?;

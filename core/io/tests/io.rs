@@ -511,3 +511,52 @@ fn h5py_masks_select_demos_and_round_trip() {
     file.write(&copy).unwrap();
     run_python("compare_hdf5.py", &[&masked, &copy]);
 }
+
+/// A two-arm demo written with each arm's end effector under `datagen_info/<field>/<arm>` reads
+/// back as one view per arm: the arm's own poses and gripper, the objects and signals shared; a
+/// missing arm is refused naming its field.
+#[test]
+fn a_two_arm_demo_reads_back_as_one_view_per_arm() {
+    use mimicgen_engine::Pose;
+    use mimicgen_engine::demo::Rows;
+    use mimicgen_io::{ArmInfo, DatagenInfo, DemoData};
+    let _guard = shared();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("two.hdf5");
+    let steps = 6;
+    let poses = |x: f64| (0..steps).map(|t| Pose::translation(x, 0.01 * t as f64, 1.0)).collect::<Vec<_>>();
+    let gripper = |v: f64| Rows::from_vec(1, vec![v; steps], "gripper").unwrap();
+    let arm = |name: &str, x: f64, g: f64| ArmInfo {
+        name: name.to_owned(),
+        eef_poses: poses(x),
+        target_poses: poses(x + 0.001),
+        gripper_actions: gripper(g),
+    };
+    let demo = DemoData {
+        actions: Rows::from_vec(14, vec![0.0; 14 * steps], "actions").unwrap(),
+        states: Rows::from_vec(3, vec![0.0; 3 * steps], "states").unwrap(),
+        datagen_info: Some(DatagenInfo {
+            object_poses: BTreeMap::from([("pot".to_owned(), poses(0.5))]),
+            subtask_term_signals: BTreeMap::from([("grasp0".to_owned(), vec![0, 0, 1, 1, 1, 1])]),
+            arms: vec![arm("robot0", -0.3, -1.0), arm("robot1", 0.3, 1.0)],
+            ..DatagenInfo::default()
+        }),
+        ..DemoData::default()
+    };
+    let mut writer = DatasetWriter::create(&path, WriterOptions::default()).unwrap();
+    writer.append(&demo).unwrap();
+    writer.finish().unwrap();
+    let file = RobomimicDataset::open(&path).unwrap();
+    let views = file.to_arm_source_datasets(&SourceSelection::default(), &["robot0", "robot1"]).unwrap();
+    assert_eq!(views.len(), 2);
+    for (view, (x, g)) in views.iter().zip([(-0.3, -1.0), (0.3, 1.0)]) {
+        let d = &view.demos[0];
+        assert_eq!(d.eef_poses, poses(x));
+        assert_eq!(d.target_poses, poses(x + 0.001));
+        assert_eq!(d.gripper_actions.row(0), &[g]);
+        assert_eq!(d.object_poses["pot"], poses(0.5));
+        assert_eq!(d.subtask_term_signals["grasp0"], vec![0, 0, 1, 1, 1, 1]);
+    }
+    let err = file.to_arm_source_datasets(&SourceSelection::default(), &["robot0", "robot2"]).unwrap_err().to_string();
+    assert!(err.contains("two.hdf5") && err.contains("datagen_info/eef_pose") && err.contains("robot2"), "{err}");
+}
