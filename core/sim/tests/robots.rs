@@ -160,3 +160,20 @@ fn a_joint_at_its_limit_is_named_from_a_state() {
     assert_eq!(env.joints_at_limit(&wrist, 0.01), ["robot0_joint7"]);
     assert_eq!(env.joints_at_limit(&wrist, 0.001), Vec::<String>::new(), "5 mrad from the limit is outside a 1 mrad margin");
 }
+
+/// The two-arm base scene compiles under our MuJoCo with both arms as robosuite builds them.
+#[test]
+fn the_two_arm_base_scene_compiles_with_both_pandas() {
+    let assets = mimicgen_sim::assets::robosuite_assets_dir().unwrap();
+    let xml = robot::TWO_ARM_LIFT_BASE_XML.replace("{ASSETS}", &assets.display().to_string());
+    let model = mimicgen_sim::scene::compile_mjcf(&xml).unwrap();
+    let joint = |name: &str| model.name_to_id(MjtObjBase::mjOBJ_JOINT, name).is_some();
+    for arm in 0..2 {
+        for j in 1..=7 {
+            assert!(joint(&format!("robot{arm}_joint{j}")), "robot{arm}_joint{j}");
+        }
+        assert!(model.name_to_id(MjtObjBase::mjOBJ_BODY, &format!("gripper{arm}_eef")).is_some());
+    }
+    // 7 arm joints and 2 finger joints per arm, nothing else (the pot is out).
+    assert_eq!(model.ffi().nq, 18);
+}
