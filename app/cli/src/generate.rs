@@ -373,8 +373,10 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
         v.finish().context("flushing the Rerun recording")?;
     }
     outln!("{}", serde_json::to_string_pretty(&report)?);
+    // A resumed run's time is this session's, from the attempt it resumed at.
+    let session = if report.resumed_from > 0 { format!(" (this session, from attempt {})", report.resumed_from) } else { String::new() };
     eprintln!(
-        "{} of {} attempts succeeded ({:.1}%) in {:.1} s; dataset {}, report {}",
+        "{} of {} attempts succeeded ({:.1}%) in {:.1} s{session}; dataset {}, report {}",
         report.successes,
         report.attempts,
         100.0 * report.generation_rate,
