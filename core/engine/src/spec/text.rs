@@ -48,17 +48,35 @@ pub(crate) fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> Engin
     let line = text[..start].matches('\n').count() + 1;
     let lines: Vec<&str> = text.lines().take(line).collect();
     let key = lines.last().and_then(|l| l.split_once('=')).map(|(k, _)| k.trim().trim_matches('"').to_owned());
-    // The table the line sits in, with its index when it is an array of tables.
+    // The table the line sits in, with its index when it is an array of tables, and the index
+    // of each array of tables it is nested in (`arm[1].subtask[0]`: counted within its arm).
     let mut table: Option<String> = None;
     let mut counts: std::collections::BTreeMap<String, usize> = std::collections::BTreeMap::new();
+    let render = |segments: &[&str], counts: &std::collections::BTreeMap<String, usize>| {
+        let mut path = String::new();
+        for s in segments {
+            if !path.is_empty() {
+                path.push('.');
+            }
+            path.push_str(s.trim());
+            if let Some(&n) = counts.get(&path) {
+                path = format!("{path}[{}]", n.saturating_sub(1));
+            }
+        }
+        path
+    };
     for l in &lines {
         let l = l.trim();
         if let Some(name) = l.strip_prefix("[[").and_then(|r| r.strip_suffix("]]")) {
-            let n = counts.entry(name.trim().to_owned()).or_insert(0);
-            table = Some(format!("{}[{n}]", name.trim()));
+            let segments: Vec<&str> = name.split('.').collect();
+            let (last, parents) = segments.split_last().unwrap_or((&"", &[]));
+            let parent = render(parents, &counts);
+            let key = if parent.is_empty() { last.trim().to_owned() } else { format!("{parent}.{}", last.trim()) };
+            let n = counts.entry(key.clone()).or_insert(0);
+            table = Some(format!("{key}[{n}]"));
             *n += 1;
         } else if let Some(name) = l.strip_prefix('[').and_then(|r| r.strip_suffix(']')) {
-            table = Some(name.trim().to_owned());
+            table = Some(render(&name.split('.').collect::<Vec<_>>(), &counts));
         }
     }
     let field = match (table, key) {
