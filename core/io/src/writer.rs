@@ -206,17 +206,16 @@ impl DemoData {
                 put(&mut dg, "eef_pose", poses_array(&info.eef_poses));
                 put(&mut dg, "target_pose", poses_array(&info.target_poses));
                 put(&mut dg, "gripper_action", rows_array(&info.gripper_actions));
-            }
-            let (mut eef, mut target, mut gripper) = (Group::default(), Group::default(), Group::default());
-            for arm in &info.arms {
-                check(&format!("datagen_info/eef_pose/{}", arm.name), arm.eef_poses.len())?;
-                check(&format!("datagen_info/target_pose/{}", arm.name), arm.target_poses.len())?;
-                check(&format!("datagen_info/gripper_action/{}", arm.name), arm.gripper_actions.len())?;
-                put(&mut eef, &arm.name, poses_array(&arm.eef_poses));
-                put(&mut target, &arm.name, poses_array(&arm.target_poses));
-                put(&mut gripper, &arm.name, rows_array(&arm.gripper_actions));
-            }
-            if !info.arms.is_empty() {
+            } else {
+                let (mut eef, mut target, mut gripper) = (Group::default(), Group::default(), Group::default());
+                for arm in &info.arms {
+                    check(&format!("datagen_info/eef_pose/{}", arm.name), arm.eef_poses.len())?;
+                    check(&format!("datagen_info/target_pose/{}", arm.name), arm.target_poses.len())?;
+                    check(&format!("datagen_info/gripper_action/{}", arm.name), arm.gripper_actions.len())?;
+                    put(&mut eef, &arm.name, poses_array(&arm.eef_poses));
+                    put(&mut target, &arm.name, poses_array(&arm.target_poses));
+                    put(&mut gripper, &arm.name, rows_array(&arm.gripper_actions));
+                }
                 dg.members.insert("eef_pose".into(), Node::Group(eef));
                 dg.members.insert("target_pose".into(), Node::Group(target));
                 dg.members.insert("gripper_action".into(), Node::Group(gripper));

@@ -206,22 +206,13 @@ pub fn merge(
     let failed_written = failed_writer.map(DatasetWriter::finish).transpose()?;
     let first = &shards[0].report;
     // The quality report of the joined dataset, from its demos' figures in the shards' logs.
-    let mut quality = mimicgen_engine::quality::QualityStats::default();
-    let mut scenes = Vec::new();
-    for record in order.iter().filter(|r| r.success) {
-        if let Some(f) = &record.figures {
-            quality.add_figures(f);
-        }
-        scenes.extend(record.initial_object_poses.clone());
-    }
+    let (quality, scenes) = crate::outputs::logged_quality(order.iter().copied());
     let dataset_quality = match mimicgen_sim::registry::task(&first.task, &first.variant) {
         Ok(task) => Some(crate::run::dataset_quality(task.as_ref(), &written, quality.summary(), &scenes, true)),
         Err(_) => None,
     };
     if let Some(q) = &dataset_quality {
-        let path = crate::quality_path(out);
-        std::fs::write(&path, serde_json::to_string_pretty(q).unwrap_or_default())
-            .map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
+        crate::outputs::write_quality(out, q)?;
     }
     // The shards ran side by side: the run took as long as the slowest.
     let wall_time_s = shards.iter().map(|s| s.report.wall_time_s).fold(0.0, f64::max);

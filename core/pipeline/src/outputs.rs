@@ -112,6 +112,29 @@ impl AttemptLog {
     }
 }
 
+/// The quality figures and initial scenes of the successes among `records`: what a resumed run
+/// (its earlier sessions) and a merged run (its shards) sum their quality report from.
+pub(crate) fn logged_quality<'a>(
+    records: impl IntoIterator<Item = &'a AttemptRecord>,
+) -> (mimicgen_engine::quality::QualityStats, Vec<std::collections::BTreeMap<String, mimicgen_engine::Pose>>) {
+    let mut quality = mimicgen_engine::quality::QualityStats::default();
+    let mut scenes = Vec::new();
+    for record in records.into_iter().filter(|r| r.success) {
+        if let Some(f) = &record.figures {
+            quality.add_figures(f);
+        }
+        scenes.extend(record.initial_object_poses.clone());
+    }
+    (quality, scenes)
+}
+
+/// Writes the quality report of the dataset at `out` beside it.
+pub(crate) fn write_quality(out: &Path, quality: &crate::DatasetQuality) -> Result<(), PipelineError> {
+    let path = quality_path(out);
+    std::fs::write(&path, serde_json::to_string_pretty(quality).unwrap_or_default())
+        .map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })
+}
+
 /// Reads a run's attempt log.
 ///
 /// # Errors

@@ -435,14 +435,7 @@ impl Pipeline {
         let mut write_error: Option<PipelineError> = None;
         // The quality report covers every demo of the dataset: those of an earlier session from
         // the log.
-        let mut quality = mimicgen_engine::quality::QualityStats::default();
-        let mut initial_scenes: Vec<BTreeMap<String, mimicgen_engine::Pose>> = Vec::new();
-        for r in &records {
-            if let Some(f) = &r.figures {
-                quality.add_figures(f);
-            }
-            initial_scenes.extend(r.initial_object_poses.clone());
-        }
+        let (mut quality, mut initial_scenes) = crate::outputs::logged_quality(&records);
         let mut control_steps = 0usize;
         let control = RunControl {
             start: progress.next_attempt,
@@ -523,9 +516,7 @@ impl Pipeline {
         let mut report =
             self.report(&stats, resumed_from, started.elapsed().as_secs_f64(), control_steps, cancelled, &written, failed_written);
         let dataset_quality = dataset_quality(self.task.as_ref(), &written, quality.summary(), &initial_scenes, replay);
-        let quality_path = crate::outputs::quality_path(&self.config.out);
-        std::fs::write(&quality_path, serde_json::to_string_pretty(&dataset_quality).unwrap_or_default())
-            .map_err(|e| PipelineError::Fs { file: quality_path.display().to_string(), reason: e.to_string() })?;
+        crate::outputs::write_quality(&self.config.out, &dataset_quality)?;
         report.quality = Some(dataset_quality);
         self.write_report(&report)?;
         on_event(&Event::Finished(Box::new(report.clone())));

@@ -507,6 +507,17 @@ pub struct StepLabels {
     pub kind: WaypointKind,
 }
 
+/// Adds Gaussian noise of standard deviation `noise` to each pose dimension of an action, clipped
+/// to `[-1, 1]`; draws nothing when `noise` is 0 (an arm holding still keeps the stream as it is).
+pub(crate) fn add_noise<R: Rng + ?Sized>(pose_action: &mut [f64; 6], noise: f64, rng: &mut R) {
+    if noise > 0.0 {
+        for a in pose_action {
+            let z: f64 = rng.sample(StandardNormal);
+            *a = (*a + noise * z).clamp(-1.0, 1.0);
+        }
+    }
+}
+
 /// Converts a waypoint to an action (with the waypoint's noise, clipped to `[-1, 1]`), records the
 /// step in `traj` as MimicGen records `datagen_info`, and applies it. Returns the signals recorded
 /// before the action.
@@ -521,12 +532,7 @@ pub fn execute_step<E: Environment + ?Sized, R: Rng + ?Sized>(
     rng: &mut R,
 ) -> Result<BTreeMap<String, i64>, EnvError> {
     let mut pose_action = env.target_pose_to_action(&waypoint.pose);
-    if waypoint.noise > 0.0 {
-        for a in &mut pose_action {
-            let z: f64 = rng.sample(StandardNormal);
-            *a = (*a + waypoint.noise * z).clamp(-1.0, 1.0);
-        }
-    }
+    add_noise(&mut pose_action, waypoint.noise, rng);
     let mut action = Vec::with_capacity(POSE_ACTION_DIM + waypoint.gripper.len());
     action.extend_from_slice(&pose_action);
     action.extend_from_slice(&waypoint.gripper);

@@ -10,14 +10,13 @@
 use std::collections::BTreeMap;
 
 use rand::{Rng, RngCore};
-use rand_distr::StandardNormal;
 
 use super::{ArmStep, ArmSubtask, TwoArmSpec};
 use crate::EngineError;
 use crate::action::POSE_ACTION_DIM;
 use crate::demo::{Rows, SourceDataset};
 use crate::env::EnvError;
-use crate::generate::{FailureReason, Generator, PlanInput, SubtaskPlan, attempt_rng};
+use crate::generate::{FailureReason, Generator, PlanInput, SubtaskPlan, add_noise, attempt_rng};
 use crate::pose::Pose;
 use crate::segment::Span;
 use crate::spec::Transit;
@@ -290,12 +289,7 @@ impl TwoArmGenerator {
                     }
                 };
                 let mut pose_action = env.target_pose_to_action(arm, &pose);
-                if noise > 0.0 {
-                    for a in &mut pose_action {
-                        let z: f64 = rng.sample(StandardNormal);
-                        *a = (*a + noise * z).clamp(-1.0, 1.0);
-                    }
-                }
+                add_noise(&mut pose_action, noise, &mut rng);
                 if gripper.len() != env.gripper_dim(arm) {
                     return Err(fatal(EnvError::Fatal {
                         reason: format!(
