@@ -24,9 +24,8 @@ use crate::transit::{ArmSpace, Planning, robot_geoms};
 
 /// robosuite's Panda gripper: the command moves by this much per physics step towards -1 / +1.
 const GRIPPER_SPEED: f64 = 0.01;
-/// robosuite's Panda gripper finger positions at reset.
 /// robosuite's default initialisation noise on the arm joints (Gaussian std, rad).
-const ARM_INIT_NOISE: f64 = 0.02;
+pub(crate) const ARM_INIT_NOISE: f64 = 0.02;
 
 /// One observation stream: per-step shape, then every step's values row-major.
 pub type Observation = (Vec<usize>, Vec<f64>);
@@ -210,27 +209,9 @@ impl SimEnv {
     /// (`robot0_eef_pos`, `robot0_eef_quat` in `xyzw`, `object`, ...).
     #[must_use]
     pub fn observation(&self) -> BTreeMap<String, Vec<f64>> {
-        let robot = &self.state.scene.robot;
-        let (qpos, qvel) = (self.state.data.qpos(), self.state.data.qvel());
-        let joint_pos: Vec<f64> = robot.arm_qpos.iter().map(|&i| qpos[i]).collect();
-        let site = robot.eef_site;
-        let (jacp, jacr) = self.state.data.jac_site(true, true, site);
-        let nv = qvel.len();
-        let twist = |jac: &[f64]| -> Vec<f64> { (0..3).map(|r| (0..nv).map(|c| jac[r * nv + c] * qvel[c]).sum()).collect() };
-        let hand = self.state.data.xquat()[robot.hand_body];
-        BTreeMap::from([
-            ("object".to_owned(), self.task.object_obs(&self.state)),
-            ("robot0_eef_pos".to_owned(), self.state.data.site_xpos()[site].to_vec()),
-            ("robot0_eef_quat".to_owned(), vec![hand[1], hand[2], hand[3], hand[0]]),
-            ("robot0_eef_vel_ang".to_owned(), twist(&jacr)),
-            ("robot0_eef_vel_lin".to_owned(), twist(&jacp)),
-            ("robot0_gripper_qpos".to_owned(), robot.finger_qpos.iter().map(|&i| qpos[i]).collect()),
-            ("robot0_gripper_qvel".to_owned(), robot.finger_dof.iter().map(|&i| qvel[i]).collect()),
-            ("robot0_joint_pos_cos".to_owned(), joint_pos.iter().map(|q| q.cos()).collect()),
-            ("robot0_joint_pos_sin".to_owned(), joint_pos.iter().map(|q| q.sin()).collect()),
-            ("robot0_joint_vel".to_owned(), robot.arm_dof.iter().map(|&i| qvel[i]).collect()),
-            ("robot0_joint_pos".to_owned(), joint_pos),
-        ])
+        let mut obs = arm_observation(&self.state, &self.state.scene.robot, "robot0_");
+        obs.insert("object".to_owned(), self.task.object_obs(&self.state));
+        obs
     }
 
     /// Observations for every recorded state, as `(per-step shape, values)` per key. Leaves the
@@ -294,56 +275,93 @@ impl SimEnv {
         Ok(())
     }
 
-    fn warning_count(&self) -> i64 {
-        self.state.data.warning().iter().map(|w| i64::from(w.number)).sum()
-    }
-
     fn physics_step(&mut self, gripper_action: f64) -> Result<(), EnvError> {
         // robosuite runs mj_forward, sets controls, then mj_step. With the Euler integrator,
         // mj_step1 + controls + mj_step2 computes the same thing without the second forward pass.
         self.state.data.step1();
-        let torques = self.osc.torques(&self.state.data, &self.state.scene.robot);
-        let robot = &self.state.scene.robot;
-        let sign = if gripper_action > 0.0 {
-            1.0
-        } else if gripper_action < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
-        for (command, direction) in self.gripper_command.iter_mut().zip(robot.model.close_direction) {
-            *command = (*command + direction * GRIPPER_SPEED * sign).clamp(-1.0, 1.0);
-        }
-        let ctrl = self.state.data.ctrl_mut();
-        for ((a, [lo, hi]), tau) in robot.arm_actuators.iter().zip(torques) {
-            ctrl[*a] = tau.clamp(*lo, *hi);
-        }
-        for ((a, [lo, hi]), command) in robot.finger_actuators.iter().zip(self.gripper_command) {
-            ctrl[*a] = 0.5 * (hi + lo) + 0.5 * (hi - lo) * command;
-        }
+        drive_arm(&mut self.state.data, &mut self.osc, &self.state.scene.robot, &mut self.gripper_command, gripper_action);
         if let Some(log) = self.control_log.as_mut() {
             log.extend_from_slice(self.state.data.ctrl());
         }
         self.state.data.step2();
-        let warnings = self.warning_count();
-        if warnings > self.warnings_seen {
-            self.warnings_seen = warnings;
-            let kinds: Vec<String> = self
-                .state
-                .data
-                .warning()
-                .iter()
-                .enumerate()
-                .filter(|(_, w)| w.number > 0)
-                .map(|(i, w)| format!("{} (x{})", WARNING_NAMES.get(i).unwrap_or(&"warning"), w.number))
-                .collect();
-            return Err(EnvError::Unstable { reason: format!("MuJoCo {} at t = {:.3} s", kinds.join(", "), self.state.data.time()) });
-        }
-        if self.state.data.qpos().iter().chain(self.state.data.qvel()).any(|v| !v.is_finite()) {
-            return Err(EnvError::Unstable { reason: format!("non-finite state at t = {:.3} s", self.state.data.time()) });
-        }
-        Ok(())
+        check_stable(&self.state.data, &mut self.warnings_seen)
     }
+}
+
+/// Sets `robot`'s controls for one physics step: the controller's torques for the present state
+/// (`data` after `mj_step1`) and the gripper's command moved one step towards `gripper_action`'s
+/// sign, as robosuite's Panda gripper moves it.
+pub(crate) fn drive_arm(
+    data: &mut MjData<Arc<MjModel>>,
+    osc: &mut Osc,
+    robot: &crate::scene::RobotIndices,
+    gripper_command: &mut [f64; 2],
+    gripper_action: f64,
+) {
+    let torques = osc.torques(data, robot);
+    let sign = if gripper_action > 0.0 {
+        1.0
+    } else if gripper_action < 0.0 {
+        -1.0
+    } else {
+        0.0
+    };
+    for (command, direction) in gripper_command.iter_mut().zip(robot.model.close_direction) {
+        *command = (*command + direction * GRIPPER_SPEED * sign).clamp(-1.0, 1.0);
+    }
+    let ctrl = data.ctrl_mut();
+    for ((a, [lo, hi]), tau) in robot.arm_actuators.iter().zip(torques) {
+        ctrl[*a] = tau.clamp(*lo, *hi);
+    }
+    for ((a, [lo, hi]), command) in robot.finger_actuators.iter().zip(gripper_command.iter()) {
+        ctrl[*a] = 0.5 * (hi + lo) + 0.5 * (hi - lo) * command;
+    }
+}
+
+/// [`EnvError::Unstable`] when MuJoCo warned since `warnings_seen` warnings (which it then
+/// counts) or the state is no longer finite.
+pub(crate) fn check_stable(data: &MjData<Arc<MjModel>>, warnings_seen: &mut i64) -> Result<(), EnvError> {
+    let warnings: i64 = data.warning().iter().map(|w| i64::from(w.number)).sum();
+    if warnings > *warnings_seen {
+        *warnings_seen = warnings;
+        let kinds: Vec<String> = data
+            .warning()
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| w.number > 0)
+            .map(|(i, w)| format!("{} (x{})", WARNING_NAMES.get(i).unwrap_or(&"warning"), w.number))
+            .collect();
+        return Err(EnvError::Unstable { reason: format!("MuJoCo {} at t = {:.3} s", kinds.join(", "), data.time()) });
+    }
+    if data.qpos().iter().chain(data.qvel()).any(|v| !v.is_finite()) {
+        return Err(EnvError::Unstable { reason: format!("non-finite state at t = {:.3} s", data.time()) });
+    }
+    Ok(())
+}
+
+/// robosuite's proprioceptive observations of `robot`, keyed with `prefix` (`robot0_eef_pos`,
+/// `robot0_eef_quat` in `xyzw`, ...).
+pub(crate) fn arm_observation(state: &SimState, robot: &crate::scene::RobotIndices, prefix: &str) -> BTreeMap<String, Vec<f64>> {
+    let (qpos, qvel) = (state.data.qpos(), state.data.qvel());
+    let joint_pos: Vec<f64> = robot.arm_qpos.iter().map(|&i| qpos[i]).collect();
+    let site = robot.eef_site;
+    let (jacp, jacr) = state.data.jac_site(true, true, site);
+    let nv = qvel.len();
+    let twist = |jac: &[f64]| -> Vec<f64> { (0..3).map(|r| (0..nv).map(|c| jac[r * nv + c] * qvel[c]).sum()).collect() };
+    let hand = state.data.xquat()[robot.hand_body];
+    let key = |name: &str| format!("{prefix}{name}");
+    BTreeMap::from([
+        (key("eef_pos"), state.data.site_xpos()[site].to_vec()),
+        (key("eef_quat"), vec![hand[1], hand[2], hand[3], hand[0]]),
+        (key("eef_vel_ang"), twist(&jacr)),
+        (key("eef_vel_lin"), twist(&jacp)),
+        (key("gripper_qpos"), robot.finger_qpos.iter().map(|&i| qpos[i]).collect()),
+        (key("gripper_qvel"), robot.finger_dof.iter().map(|&i| qvel[i]).collect()),
+        (key("joint_pos_cos"), joint_pos.iter().map(|q| q.cos()).collect()),
+        (key("joint_pos_sin"), joint_pos.iter().map(|q| q.sin()).collect()),
+        (key("joint_vel"), robot.arm_dof.iter().map(|&i| qvel[i]).collect()),
+        (key("joint_pos"), joint_pos),
+    ])
 }
 
 impl Environment for SimEnv {

@@ -3,6 +3,7 @@
 //! What it does: loads robosuite scenes (a dataset's `model_file`, with asset paths re-pointed at
 //! the local robosuite assets), drives the Panda with robosuite's OSC_POSE controller at 20 Hz over
 //! 2 ms physics steps, and implements [`mimicgen_engine::Environment`] for tasks ([`task`]).
+//! Two-arm tasks ([`two_arm`]) drive both arms of robosuite's own two-arm scenes.
 //! Camera observations are rendered offscreen with MuJoCo's renderer ([`camera`]).
 //! What it does not do: file formats (see `mimicgen-io`).
 //!
@@ -26,6 +27,7 @@ pub mod state;
 pub mod task;
 pub mod task_file;
 pub mod transit;
+pub mod two_arm;
 
 pub use data_task::DataTask;
 pub use env::SimEnv;

@@ -306,9 +306,3 @@ pub fn for_simulation(xml: &str, robot: &RobotModel) -> String {
 pub fn detect(has_joint: impl Fn(&str) -> bool) -> &'static RobotModel {
     ROBOTS.iter().find(|r| r.arm_joints.first().is_some_and(|&joint| has_joint(joint))).unwrap_or(&PANDA)
 }
-
-/// robosuite 1.4.1's Two Arm Lift scene without its pot: two Pandas facing each other across the
-/// table ("single-arm-opposed"), `robot0_`/`gripper0_` and `robot1_`/`gripper1_` as robosuite
-/// names them, with `{ASSETS}` and the object markers (`scripts/make_two_arm_scene.py` writes
-/// it). The base of the two-arm tasks.
-pub const TWO_ARM_LIFT_BASE_XML: &str = include_str!("../../../viewer_assets/scenes/two_arm_lift_table.xml");

@@ -61,8 +61,10 @@ pub struct RobotIndices {
 pub struct Scene {
     /// The compiled model, shared by every worker's data.
     pub model: Arc<MjModel>,
-    /// The robot's indices.
+    /// The robot's indices (a two-arm scene's first arm, `robot0_`).
     pub robot: RobotIndices,
+    /// A two-arm scene's second arm (`robot1_`/`gripper1_`, the same model as the first).
+    pub second_robot: Option<RobotIndices>,
     /// The task's objects, in the order the task lists them.
     pub objects: Vec<SceneObject>,
     /// Physics steps per control step (robosuite: 0.05 s / 0.002 s = 25).
@@ -81,7 +83,66 @@ fn id(model: &MjModel, kind: MjtObjBase, name: &str, origin: &str) -> Result<usi
     })
 }
 
+/// `name` (robosuite's, for the first arm: `robot0_joint1`, `gripper0_grip_site`) for arm `arm`.
+fn arm_name(name: &str, arm: usize) -> String {
+    if arm == 0 {
+        return name.to_owned();
+    }
+    name.replacen("robot0_", &format!("robot{arm}_"), 1).replacen("gripper0_", &format!("gripper{arm}_"), 1)
+}
+
+/// The indices of arm `arm` (robosuite's `robot<arm>_`, `gripper<arm>_` prefixes) of `robot_model`.
+fn resolve_robot(
+    model: &MjModel,
+    robot_model: &'static crate::robot::RobotModel,
+    arm: usize,
+    origin: &str,
+) -> Result<RobotIndices, SimError> {
+    let named = |kind: MjtObjBase, name: &str| id(model, kind, &arm_name(name, arm), origin);
+    let joint = |name: &str| named(MjtObjBase::mjOBJ_JOINT, name);
+    let actuator = |name: &str| -> Result<(usize, [f64; 2]), SimError> {
+        let a = named(MjtObjBase::mjOBJ_ACTUATOR, name)?;
+        Ok((a, model.actuator_ctrlrange()[a]))
+    };
+    let mut robot = RobotIndices {
+        model: robot_model,
+        arm_qpos: Vec::new(),
+        arm_dof: Vec::new(),
+        arm_actuators: Vec::new(),
+        finger_qpos: Vec::new(),
+        finger_dof: Vec::new(),
+        hand_body: named(MjtObjBase::mjOBJ_BODY, "robot0_right_hand")?,
+        finger_actuators: Vec::new(),
+        eef_site: named(MjtObjBase::mjOBJ_SITE, "gripper0_grip_site")?,
+        finger_pads: [
+            vec![named(MjtObjBase::mjOBJ_GEOM, robot_model.finger_pads[0])?],
+            vec![named(MjtObjBase::mjOBJ_GEOM, robot_model.finger_pads[1])?],
+        ],
+    };
+    for (name, actuator_name) in robot_model.arm_joints.iter().zip(robot_model.arm_actuators) {
+        let j = joint(name)?;
+        robot.arm_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
+        robot.arm_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
+        robot.arm_actuators.push(actuator(actuator_name)?);
+    }
+    for name in robot_model.finger_joints {
+        let j = joint(name)?;
+        robot.finger_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
+        robot.finger_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
+    }
+    for actuator_name in robot_model.finger_actuators {
+        robot.finger_actuators.push(actuator(actuator_name)?);
+    }
+    Ok(robot)
+}
+
 impl Scene {
+    /// The arms: the first, then a two-arm scene's second.
+    #[must_use]
+    pub fn robots(&self) -> Vec<&RobotIndices> {
+        std::iter::once(&self.robot).chain(self.second_robot.as_ref()).collect()
+    }
+
     /// Compiles `xml` (asset paths already local) and resolves the Panda and the named objects
     /// (`(task name, body name)` pairs, e.g. `("cubeA", "cubeA_main")`).
     ///
@@ -127,40 +188,12 @@ impl Scene {
             }
             return Self::compile(&edited, origin, objects, control_freq_hz);
         }
-        let joint = |name: &str| id(&model, MjtObjBase::mjOBJ_JOINT, name, origin);
-        let actuator = |name: &str| -> Result<(usize, [f64; 2]), SimError> {
-            let a = id(&model, MjtObjBase::mjOBJ_ACTUATOR, name, origin)?;
-            Ok((a, model.actuator_ctrlrange()[a]))
+        let robot = resolve_robot(&model, robot_model, 0, origin)?;
+        let second_robot = if model.name_to_id(MjtObjBase::mjOBJ_BODY, "robot1_base").is_some() {
+            Some(resolve_robot(&model, robot_model, 1, origin)?)
+        } else {
+            None
         };
-        let mut robot = RobotIndices {
-            model: robot_model,
-            arm_qpos: Vec::new(),
-            arm_dof: Vec::new(),
-            arm_actuators: Vec::new(),
-            finger_qpos: Vec::new(),
-            finger_dof: Vec::new(),
-            hand_body: id(&model, MjtObjBase::mjOBJ_BODY, "robot0_right_hand", origin)?,
-            finger_actuators: Vec::new(),
-            eef_site: id(&model, MjtObjBase::mjOBJ_SITE, "gripper0_grip_site", origin)?,
-            finger_pads: [
-                vec![id(&model, MjtObjBase::mjOBJ_GEOM, robot_model.finger_pads[0], origin)?],
-                vec![id(&model, MjtObjBase::mjOBJ_GEOM, robot_model.finger_pads[1], origin)?],
-            ],
-        };
-        for (name, actuator_name) in robot_model.arm_joints.iter().zip(robot_model.arm_actuators) {
-            let j = joint(name)?;
-            robot.arm_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
-            robot.arm_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
-            robot.arm_actuators.push(actuator(actuator_name)?);
-        }
-        for name in robot_model.finger_joints {
-            let j = joint(name)?;
-            robot.finger_qpos.push(usize::try_from(model.jnt_qposadr()[j]).unwrap_or_default());
-            robot.finger_dof.push(usize::try_from(model.jnt_dofadr()[j]).unwrap_or_default());
-        }
-        for actuator_name in robot_model.finger_actuators {
-            robot.finger_actuators.push(actuator(actuator_name)?);
-        }
         let mut scene_objects = Vec::with_capacity(objects.len());
         for (name, body_name) in objects {
             let body = id(&model, MjtObjBase::mjOBJ_BODY, body_name, origin)?;
@@ -201,7 +234,15 @@ impl Scene {
         let timestep = model.opt().timestep;
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let substeps = ((1.0 / control_freq_hz) / timestep).round().max(1.0) as usize;
-        Ok(Self { model: Arc::new(model), robot, objects: scene_objects, substeps, origin: origin.to_owned(), xml: xml.to_owned() })
+        Ok(Self {
+            model: Arc::new(model),
+            robot,
+            second_robot,
+            objects: scene_objects,
+            substeps,
+            origin: origin.to_owned(),
+            xml: xml.to_owned(),
+        })
     }
 
     /// Loads a dataset's scene (robosuite's `model_file` XML): re-points its asset paths at the

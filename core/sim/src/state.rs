@@ -91,8 +91,14 @@ impl SimState {
     /// robosuite's `_check_grasp`: both finger pads touch the object.
     #[must_use]
     pub fn is_grasping(&self, object: usize) -> bool {
-        let geoms = &self.scene.objects[object].geoms;
-        self.scene.robot.finger_pads.iter().all(|pad| self.in_contact(pad, geoms))
+        self.grasps(&self.scene.robot, &self.scene.objects[object].geoms)
+    }
+
+    /// robosuite's `_check_grasp` for `robot` (of a two-arm scene) and `geoms`: both its finger
+    /// pads touch one of them.
+    #[must_use]
+    pub fn grasps(&self, robot: &crate::scene::RobotIndices, geoms: &[usize]) -> bool {
+        robot.finger_pads.iter().all(|pad| self.in_contact(pad, geoms))
     }
 
     /// `world_from_object` of the scene's object `i`.
@@ -115,7 +121,13 @@ impl SimState {
     /// `world_from_eef`: the robot's end-effector site.
     #[must_use]
     pub fn eef_pose(&self) -> Pose {
-        let site = self.scene.robot.eef_site;
+        self.eef_pose_of(&self.scene.robot)
+    }
+
+    /// `world_from_eef` of `robot` (of a two-arm scene).
+    #[must_use]
+    pub fn eef_pose_of(&self, robot: &crate::scene::RobotIndices) -> Pose {
+        let site = robot.eef_site;
         pose_from_xpos_xmat(&self.data.site_xpos()[site], &self.data.site_xmat()[site])
     }
 }

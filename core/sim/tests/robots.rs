@@ -161,11 +161,11 @@ fn a_joint_at_its_limit_is_named_from_a_state() {
     assert_eq!(env.joints_at_limit(&wrist, 0.001), Vec::<String>::new(), "5 mrad from the limit is outside a 1 mrad margin");
 }
 
-/// The two-arm base scene compiles under our MuJoCo with both arms as robosuite builds them.
+/// The two-arm scene compiles under our MuJoCo with both arms as robosuite builds them.
 #[test]
-fn the_two_arm_base_scene_compiles_with_both_pandas() {
+fn the_two_arm_scene_compiles_with_both_pandas() {
     let assets = mimicgen_sim::assets::robosuite_assets_dir().unwrap();
-    let xml = robot::TWO_ARM_LIFT_BASE_XML.replace("{ASSETS}", &assets.display().to_string());
+    let xml = mimicgen_sim::two_arm::TWO_ARM_LIFT_XML.replace("{ASSETS}", &assets.display().to_string());
     let model = mimicgen_sim::scene::compile_mjcf(&xml).unwrap();
     let joint = |name: &str| model.name_to_id(MjtObjBase::mjOBJ_JOINT, name).is_some();
     for arm in 0..2 {
@@ -174,6 +174,6 @@ fn the_two_arm_base_scene_compiles_with_both_pandas() {
         }
         assert!(model.name_to_id(MjtObjBase::mjOBJ_BODY, &format!("gripper{arm}_eef")).is_some());
     }
-    // 7 arm joints and 2 finger joints per arm, nothing else (the pot is out).
-    assert_eq!(model.ffi().nq, 18);
+    // 7 arm joints and 2 finger joints per arm, and the pot's free joint.
+    assert_eq!(model.ffi().nq, 25);
 }

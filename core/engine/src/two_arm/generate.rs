@@ -14,7 +14,7 @@ use rand::{Rng, RngCore};
 use super::{ArmStep, ArmSubtask, TwoArmSpec};
 use crate::EngineError;
 use crate::action::POSE_ACTION_DIM;
-use crate::demo::{Rows, SourceDataset};
+use crate::demo::{Rows, SourceDataset, SourceDemo};
 use crate::env::EnvError;
 use crate::generate::{FailureReason, Generator, PlanInput, SubtaskPlan, add_noise, attempt_rng};
 use crate::pose::Pose;
@@ -130,6 +130,29 @@ pub struct TwoArmAttempt {
     pub subtask_term_signals: BTreeMap<String, Vec<i64>>,
     /// Per arm.
     pub arms: Vec<ArmTrack>,
+}
+
+impl TwoArmAttempt {
+    /// The attempt as a source demo named `name`, one view per arm (its poses, targets and
+    /// gripper; the objects and signals the same in each): what [`TwoArmGenerator::new`] takes,
+    /// and what a two-arm source file reads back as.
+    #[must_use]
+    pub fn arm_views(&self, name: &str) -> Vec<SourceDemo> {
+        self.arms
+            .iter()
+            .map(|track| SourceDemo {
+                name: name.to_owned(),
+                eef_poses: track.eef_poses.clone(),
+                target_poses: track.target_poses.clone(),
+                gripper_actions: track.gripper_actions.clone(),
+                object_poses: self.object_poses.clone(),
+                subtask_term_signals: self.subtask_term_signals.clone(),
+                manual_subtask_ends: None,
+                manual_subtask_starts: None,
+                sim: crate::demo::SimPayload { actions: self.actions.clone(), states: self.states.clone(), model_xml: None },
+            })
+            .collect()
+    }
 }
 
 /// A two-arm spec bound to its source demos, one view per arm (each arm's poses, targets and

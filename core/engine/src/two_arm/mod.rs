@@ -11,11 +11,14 @@
 //!
 //! [`Schedule`] decides, step by step, which subtasks start and which end; it knows nothing of
 //! poses, so the rules are tested on their own. [`TwoArmSpec`] is the task spec (`spec.rs`),
-//! [`TwoArmGenerator`] runs attempts with both arms (`generate.rs`).
+//! [`TwoArmGenerator`] runs attempts with both arms (`generate.rs`), [`TwoArmLiftScript`] records
+//! scripted source demos (`demonstrator.rs`).
 
+mod demonstrator;
 mod generate;
 mod spec;
 
+pub use demonstrator::*;
 pub use generate::*;
 pub use spec::*;
 

@@ -1,0 +1,501 @@
+//! Two-arm environments as robosuite 1.4.1 builds them: its own scene (both Pandas, each with
+//! robosuite's OSC_POSE controller at 20 Hz, and the task's objects), its resets, signals and
+//! success, and its observations (`robot0_*`, `robot1_*`, `object`), implementing the engine's
+//! [`TwoArmEnvironment`]. Actions are robosuite's two-arm layout: arm 0's pose and gripper (7),
+//! then arm 1's (7).
+//!
+//! Tasks: Two Arm Lift (robosuite's `TwoArmLift`: a pot lifted by its two handles).
+#![allow(
+    clippy::indexing_slicing,
+    reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays; states and actions are checked for length where they come in (set_state, step)"
+)]
+
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+use mimicgen_engine::action::DeltaPoseScale;
+use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts, quat_to_xyzw};
+use mimicgen_engine::two_arm::TwoArmEnvironment;
+use mimicgen_engine::{EnvError, Rows};
+use mujoco_rs::prelude::*;
+use rand::{Rng as _, RngCore};
+use rand_distr::{Distribution, Normal};
+
+use crate::SimError;
+use crate::env::{ARM_INIT_NOISE, Observation, arm_observation, check_stable, drive_arm};
+use crate::osc::{Osc, OscConfig};
+use crate::scene::{RobotIndices, Scene};
+use crate::state::SimState;
+
+/// robosuite 1.4.1's Two Arm Lift scene as its `TwoArmLift` compiles it: two Pandas facing each
+/// other across the table ("single-arm-opposed", `robot0_` at y = -0.56 m, `robot1_` at +0.56 m)
+/// and its pot with handles, with `{ASSETS}` for robosuite's assets directory
+/// (`scripts/make_two_arm_scene.py` writes it).
+pub const TWO_ARM_LIFT_XML: &str = include_str!("../../../viewer_assets/scenes/two_arm_lift.xml");
+
+/// A robosuite two-arm task.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TwoArmTask {
+    /// robosuite's `TwoArmLift`: lift the pot by its two handles, its bottom 10 cm over the table.
+    Lift,
+}
+
+/// The pot's half height (robosuite's `PotWithHandlesObject.top_offset`).
+const POT_HALF_HEIGHT_M: f64 = 0.07;
+/// How far over the table the pot's bottom must be (robosuite's `TwoArmLift._check_success`).
+const LIFT_M: f64 = 0.10;
+
+impl TwoArmTask {
+    /// Every two-arm task.
+    pub const ALL: [Self; 1] = [Self::Lift];
+
+    /// The name on the command line (`two_arm_lift`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Lift => "two_arm_lift",
+        }
+    }
+
+    /// The task named `name`.
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|t| t.name() == name)
+    }
+
+    /// robosuite's environment (`env_args.env_name`).
+    #[must_use]
+    pub fn env_name(self) -> &'static str {
+        match self {
+            Self::Lift => "TwoArmLift",
+        }
+    }
+
+    /// robosuite's `env_configuration` of the two arms.
+    #[must_use]
+    pub fn env_configuration(self) -> &'static str {
+        match self {
+            Self::Lift => "single-arm-opposed",
+        }
+    }
+
+    /// Its variants: D0 robosuite's reset, D1 wider.
+    #[must_use]
+    pub fn variants(self) -> &'static [&'static str] {
+        &["D0", "D1"]
+    }
+
+    /// One line on what it is.
+    #[must_use]
+    pub fn description(self) -> &'static str {
+        match self {
+            Self::Lift => {
+                "two Pandas lift the pot by its handles (robosuite's TwoArmLift); D0 robosuite's reset (0.06 m square, yaw 180 +- 60 deg), D1 0.20 m square"
+            }
+        }
+    }
+
+    /// The task's objects: `(name, body)`.
+    #[must_use]
+    pub fn objects(self) -> Vec<(String, String)> {
+        match self {
+            Self::Lift => vec![("pot".to_owned(), "pot_root".to_owned())],
+        }
+    }
+
+    /// Its subtask-end signals, both arms'.
+    #[must_use]
+    pub fn signal_names(self) -> &'static [&'static str] {
+        match self {
+            Self::Lift => &["grasp_handle0", "grasp_handle1"],
+        }
+    }
+
+    /// Its generation spec (`core/sim/tasks/<name>.two_arm.toml`): each arm's subtasks and the
+    /// ties between them.
+    #[must_use]
+    pub fn spec_toml(self) -> &'static str {
+        match self {
+            Self::Lift => include_str!("../tasks/two_arm_lift.two_arm.toml"),
+        }
+    }
+
+    /// Its generation spec, parsed.
+    ///
+    /// # Errors
+    /// [`mimicgen_engine::EngineError::Config`] if the bundled spec does not parse (a build
+    /// that changed it).
+    pub fn spec(self) -> Result<mimicgen_engine::two_arm::TwoArmSpec, mimicgen_engine::EngineError> {
+        mimicgen_engine::two_arm::TwoArmSpec::from_toml_str(self.spec_toml(), &format!("core/sim/tasks/{}.two_arm.toml", self.name()))
+    }
+
+    fn xml(self) -> &'static str {
+        match self {
+            Self::Lift => TWO_ARM_LIFT_XML,
+        }
+    }
+
+    /// robomimic's `env_args` for a dataset of this task: both Pandas, each with robosuite's
+    /// OSC_POSE, at 20 Hz.
+    #[must_use]
+    pub fn env_args(self) -> String {
+        let controller = serde_json::json!({
+            "type": "OSC_POSE", "input_max": 1, "input_min": -1,
+            "output_max": [0.05, 0.05, 0.05, 0.5, 0.5, 0.5], "output_min": [-0.05, -0.05, -0.05, -0.5, -0.5, -0.5],
+            "kp": 150, "damping": 1, "impedance_mode": "fixed", "kp_limits": [0, 300], "damping_limits": [0, 10],
+            "position_limits": null, "orientation_limits": null, "uncouple_pos_ori": true, "control_delta": true,
+            "interpolation": null, "ramp_ratio": 0.2
+        });
+        serde_json::json!({
+            "env_name": self.env_name(),
+            "type": 1,
+            "env_kwargs": {
+                "robots": ["Panda", "Panda"],
+                "env_configuration": self.env_configuration(),
+                "controller_configs": controller,
+                "control_freq": 20,
+                "has_renderer": false,
+                "has_offscreen_renderer": false,
+                "ignore_done": true,
+                "use_object_obs": true,
+                "use_camera_obs": false,
+                "camera_depths": false,
+                "reward_shaping": false
+            }
+        })
+        .to_string()
+    }
+
+    /// Compiles the task's scene (robosuite's, asset paths pointed at the local robosuite assets).
+    ///
+    /// # Errors
+    /// [`SimError::Assets`] without local assets, else as [`Scene::compile`]; a scene without a
+    /// second arm is [`SimError::MissingName`].
+    pub fn scene(self) -> Result<Scene, SimError> {
+        let assets = crate::assets::robosuite_assets_dir()?;
+        let origin = format!("robosuite's {} scene", self.env_name());
+        let xml = self.xml().replace("{ASSETS}", &assets.display().to_string());
+        let scene = Scene::compile(&xml, &origin, &self.objects(), 20.0)?;
+        if scene.second_robot.is_none() {
+            return Err(SimError::MissingName { file: origin, kind: "body".to_owned(), name: "robot1_base".to_owned() });
+        }
+        Ok(scene)
+    }
+
+    /// The pot's placement of `variant`: x and y around the table's centre (m), yaw (rad).
+    fn placement(self, variant: &str) -> ([f64; 2], [f64; 2], [f64; 2]) {
+        let yaw = [PI - PI / 3.0, PI + PI / 3.0];
+        match variant {
+            "D1" => ([-0.10, 0.10], [-0.10, 0.10], yaw),
+            _ => ([-0.03, 0.03], [-0.03, 0.03], yaw),
+        }
+    }
+}
+
+/// The sites and geoms a task reads, resolved once.
+#[derive(Debug, Clone)]
+struct TaskIndices {
+    /// Per handle (`handle0` by arm 0, `handle1` by arm 1): its collision geoms.
+    handle_geoms: [Vec<usize>; 2],
+    /// Per handle: its site.
+    handle_sites: [usize; 2],
+    /// The pot's centre site.
+    center_site: usize,
+    /// The table top's site.
+    table_top_site: usize,
+}
+
+impl TaskIndices {
+    fn resolve(scene: &Scene) -> Result<Self, SimError> {
+        let model = &scene.model;
+        let site = |name: &str| {
+            model.name_to_id(MjtObjBase::mjOBJ_SITE, name).ok_or_else(|| SimError::MissingName {
+                file: scene.origin.clone(),
+                kind: "site".to_owned(),
+                name: name.to_owned(),
+            })
+        };
+        let handle = |k: usize| -> Result<Vec<usize>, SimError> {
+            let geoms: Vec<usize> = ["c", "-", "+"]
+                .iter()
+                .filter_map(|part| model.name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("pot_handle{k}_{part}")))
+                .collect();
+            if geoms.is_empty() {
+                return Err(SimError::MissingName {
+                    file: scene.origin.clone(),
+                    kind: "geom".to_owned(),
+                    name: format!("pot_handle{k}_c"),
+                });
+            }
+            Ok(geoms)
+        };
+        Ok(Self {
+            handle_geoms: [handle(0)?, handle(1)?],
+            handle_sites: [site("pot_handle0")?, site("pot_handle1")?],
+            center_site: site("pot_center")?,
+            table_top_site: site("table_top")?,
+        })
+    }
+}
+
+/// A robosuite-like two-arm environment: the scene, its MuJoCo data, a controller per arm and the
+/// task.
+pub struct TwoArmSimEnv {
+    state: SimState,
+    task: TwoArmTask,
+    variant: String,
+    indices: TaskIndices,
+    robots: [RobotIndices; 2],
+    oscs: [Osc; 2],
+    gripper_commands: [[f64; 2]; 2],
+    warnings_seen: i64,
+}
+
+impl std::fmt::Debug for TwoArmSimEnv {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TwoArmSimEnv").field("task", &self.task).field("variant", &self.variant).finish_non_exhaustive()
+    }
+}
+
+impl TwoArmSimEnv {
+    /// An environment for `task`'s `variant` on `scene` (from [`TwoArmTask::scene`]; each
+    /// worker makes its own environment, the scene is shared).
+    ///
+    /// # Errors
+    /// [`SimError::MissingName`] when the scene lacks the second arm or a site or geom the task
+    /// reads.
+    pub fn new(scene: Arc<Scene>, task: TwoArmTask, variant: &str) -> Result<Self, SimError> {
+        let second = scene.second_robot.clone().ok_or_else(|| SimError::MissingName {
+            file: scene.origin.clone(),
+            kind: "body".to_owned(),
+            name: "robot1_base".to_owned(),
+        })?;
+        let indices = TaskIndices::resolve(&scene)?;
+        let robots = [scene.robot.clone(), second];
+        let nv = usize::try_from(scene.model.ffi().nv).unwrap_or_default();
+        let osc = |r: &RobotIndices| Osc::new(OscConfig::default(), r.model.init_qpos.to_vec(), nv);
+        let oscs = [osc(&robots[0]), osc(&robots[1])];
+        let data = MjData::new(Arc::clone(&scene.model));
+        Ok(Self {
+            state: SimState { scene, data, ever: Vec::new() },
+            task,
+            variant: variant.to_owned(),
+            indices,
+            robots,
+            oscs,
+            gripper_commands: [[0.0; 2]; 2],
+            warnings_seen: 0,
+        })
+    }
+
+    /// The task.
+    #[must_use]
+    pub fn task(&self) -> TwoArmTask {
+        self.task
+    }
+
+    /// The simulated physics.
+    #[must_use]
+    pub fn physics(&self) -> &SimState {
+        &self.state
+    }
+
+    /// The scene's MJCF (robosuite's, local asset paths): the `model_file` of its episodes.
+    #[must_use]
+    pub fn model_xml(&self) -> &str {
+        &self.state.scene.xml
+    }
+
+    /// The pot bottom's height over the table (m).
+    fn pot_lift_m(&self) -> f64 {
+        let data = &self.state.data;
+        data.site_xpos()[self.indices.center_site][2] - POT_HALF_HEIGHT_M - data.site_xpos()[self.indices.table_top_site][2]
+    }
+
+    /// robosuite's observations now: each arm's (`robot0_*`, `robot1_*`) and `object` (the pot's
+    /// position and `xyzw` quaternion, both handles' positions, each handle from its arm's
+    /// gripper), as `TwoArmLift`'s `object-state` orders them.
+    #[must_use]
+    pub fn observation(&self) -> BTreeMap<String, Vec<f64>> {
+        let mut obs = BTreeMap::new();
+        for (arm, robot) in self.robots.iter().enumerate() {
+            obs.extend(arm_observation(&self.state, robot, &format!("robot{arm}_")));
+        }
+        let data = &self.state.data;
+        let pot = self.state.object_pose(0);
+        let handle = |k: usize| data.site_xpos()[self.indices.handle_sites[k]];
+        let eef = |arm: usize| data.site_xpos()[self.robots[arm].eef_site];
+        let mut object: Vec<f64> = pot.translation.vector.iter().copied().collect();
+        object.extend(quat_to_xyzw(&pot.rotation));
+        object.extend(handle(0));
+        object.extend(handle(1));
+        for k in 0..2 {
+            object.extend((0..3).map(|i| handle(k)[i] - eef(k)[i]));
+        }
+        obs.insert("object".to_owned(), object);
+        obs
+    }
+
+    /// Observations for every recorded state, as `(per-step shape, values)` per key. Leaves the
+    /// environment in the last state.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] on a state of the wrong length.
+    pub fn observations_for_states(&mut self, states: &Rows) -> Result<BTreeMap<String, Observation>, EnvError> {
+        let mut out: BTreeMap<String, Observation> = BTreeMap::new();
+        for state in states.iter() {
+            self.set_state(state)?;
+            for (key, value) in self.observation() {
+                let entry = out.entry(key).or_insert_with(|| (vec![value.len()], Vec::with_capacity(value.len() * states.len())));
+                entry.1.extend(value);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Restores a flattened robosuite state (`[time, qpos, qvel]`).
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] on a state of the wrong length.
+    pub fn set_state(&mut self, state: &[f64]) -> Result<(), EnvError> {
+        if state.len() != self.state.scene.state_dim() {
+            return Err(EnvError::Fatal {
+                reason: format!(
+                    "state has {} values, the scene {} needs {}",
+                    state.len(),
+                    self.state.scene.origin,
+                    self.state.scene.state_dim()
+                ),
+            });
+        }
+        let nq = self.state.data.qpos().len();
+        self.state.data.set_time(state[0]);
+        self.state.data.qpos_mut().copy_from_slice(&state[1..=nq]);
+        self.state.data.qvel_mut().copy_from_slice(&state[1 + nq..]);
+        self.state.data.forward();
+        Ok(())
+    }
+
+    fn sample_scene(&self, rng: &mut dyn RngCore) -> Pose {
+        let ([x0, x1], [y0, y1], [yaw0, yaw1]) = self.task.placement(&self.variant);
+        let (x, y, yaw) = (rng.random_range(x0..=x1), rng.random_range(y0..=y1), rng.random_range(yaw0..=yaw1));
+        let table = self.state.data.site_xpos()[self.indices.table_top_site];
+        pose_from_parts(Vec3::new(table[0] + x, table[1] + y, table[2] + POT_HALF_HEIGHT_M), Rot::from_axis_angle(&Vec3::z_axis(), yaw))
+    }
+}
+
+impl TwoArmEnvironment for TwoArmSimEnv {
+    fn reset(&mut self, rng: &mut dyn RngCore) -> Result<(), EnvError> {
+        self.state.data.reset();
+        self.state.data.forward();
+        self.warnings_seen = 0;
+        let noise = Normal::new(0.0, ARM_INIT_NOISE).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
+        for (robot, osc) in self.robots.iter().zip(&mut self.oscs) {
+            let arm: Vec<f64> = robot.model.init_qpos.iter().map(|q| q + noise.sample(rng)).collect();
+            let qpos = self.state.data.qpos_mut();
+            for (adr, q) in robot.arm_qpos.iter().zip(&arm) {
+                qpos[*adr] = *q;
+            }
+            for (adr, q) in robot.finger_qpos.iter().zip(robot.model.finger_init_qpos.iter().copied()) {
+                qpos[*adr] = q;
+            }
+            osc.initial_joint = arm;
+        }
+        let world_from_pot = self.sample_scene(rng);
+        let object = &self.state.scene.objects[0];
+        if let (Some(q), Some(v)) = (object.qpos_adr, object.dof_adr) {
+            let t = world_from_pot.translation.vector;
+            let w = mimicgen_engine::pose::quat_to_wxyz(&world_from_pot.rotation);
+            let qpos = self.state.data.qpos_mut();
+            qpos[q..q + 3].copy_from_slice(t.as_slice());
+            qpos[q + 3..q + 7].copy_from_slice(&w);
+            self.state.data.qvel_mut()[v..v + 6].fill(0.0);
+        }
+        self.state.data.forward();
+        self.gripper_commands = [[0.0; 2]; 2];
+        Ok(())
+    }
+
+    fn eef_pose(&self, arm: usize) -> Pose {
+        self.robots.get(arm).map_or_else(Pose::identity, |r| self.state.eef_pose_of(r))
+    }
+
+    fn object_poses(&self) -> BTreeMap<String, Pose> {
+        (0..self.state.scene.objects.len()).map(|i| (self.state.scene.objects[i].name.clone(), self.state.object_pose(i))).collect()
+    }
+
+    fn subtask_term_signals(&self) -> BTreeMap<String, i64> {
+        match self.task {
+            TwoArmTask::Lift => (0..2)
+                .map(|k| (format!("grasp_handle{k}"), i64::from(self.state.grasps(&self.robots[k], &self.indices.handle_geoms[k]))))
+                .collect(),
+        }
+    }
+
+    fn is_success(&self) -> bool {
+        match self.task {
+            TwoArmTask::Lift => self.pot_lift_m() > LIFT_M,
+        }
+    }
+
+    fn unmet_success(&self) -> Option<String> {
+        match self.task {
+            TwoArmTask::Lift => {
+                let lift = self.pot_lift_m();
+                (lift <= LIFT_M).then(|| format!("the pot's bottom is {lift:.3} m over the table, not over {LIFT_M:.2} m"))
+            }
+        }
+    }
+
+    fn target_pose_to_action(&self, arm: usize, world_from_target: &Pose) -> [f64; 6] {
+        self.oscs[arm.min(1)].scale().action_from_target(&self.eef_pose(arm), world_from_target)
+    }
+
+    fn action_to_target_pose(&self, arm: usize, arm_action: &[f64]) -> Pose {
+        // Clipped as the controller clips it (see `SimEnv`'s).
+        let mut a = [0.0; 6];
+        for (dst, src) in a.iter_mut().zip(arm_action) {
+            *dst = src.clamp(-1.0, 1.0);
+        }
+        DeltaPoseScale::target_from_action(&self.oscs[arm.min(1)].scale(), &self.eef_pose(arm), &a)
+    }
+
+    fn gripper_dim(&self, _arm: usize) -> usize {
+        1
+    }
+
+    fn step(&mut self, action: &[f64]) -> Result<(), EnvError> {
+        if action.len() != 14 || action.iter().any(|a| !a.is_finite()) {
+            return Err(EnvError::Unstable { reason: format!("action {action:?} is not 14 finite numbers (7 per arm)") });
+        }
+        self.state.data.forward();
+        for (arm, (osc, robot)) in self.oscs.iter_mut().zip(&self.robots).enumerate() {
+            osc.set_goal(&self.state.data, robot, &action[7 * arm..7 * arm + 7]);
+        }
+        for _ in 0..self.state.scene.substeps {
+            self.state.data.step1();
+            for arm in 0..2 {
+                drive_arm(
+                    &mut self.state.data,
+                    &mut self.oscs[arm],
+                    &self.robots[arm],
+                    &mut self.gripper_commands[arm],
+                    action[7 * arm + 6],
+                );
+            }
+            self.state.data.step2();
+            check_stable(&self.state.data, &mut self.warnings_seen)?;
+        }
+        self.state.data.forward();
+        Ok(())
+    }
+
+    fn state(&self) -> Vec<f64> {
+        let mut s = Vec::with_capacity(self.state.scene.state_dim());
+        s.push(self.state.data.time());
+        s.extend_from_slice(self.state.data.qpos());
+        s.extend_from_slice(self.state.data.qvel());
+        s
+    }
+}
