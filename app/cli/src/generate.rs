@@ -303,6 +303,9 @@ impl GenerateArgs {
 /// # Errors
 /// Bad arguments, unreadable inputs, or a failure to write the outputs.
 pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
+    if let Some(task) = args.task.as_deref().and_then(mimicgen_sim::two_arm::TwoArmTask::from_name) {
+        return generate_two_arm(args, task);
+    }
     let pipeline = Pipeline::prepare(&args.run_config())?;
     let mut viz = args.rerun.logger("mimicgen", pipeline.scene())?;
     if let Some(v) = viz.as_mut() {
@@ -539,6 +542,12 @@ pub struct DemosArgs {
 /// Unknown task, simulator failure, or a failure to write.
 pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     crate::check_output(&args.out, None, args.overwrite)?;
+    if mimicgen_sim::two_arm::TwoArmTask::from_name(&args.task).is_some() {
+        if args.hasty || args.style != DemoStyle::Careful {
+            crate::exit::usage!("--style: the two-arm demonstrator has one style (careful) so far");
+        }
+        return crate::two_arm::demos(&args.task, &args.variant, args.num_demos, args.seed, &args.out);
+    }
     let task = match registry::task(&args.task, &args.variant) {
         Ok(task) => task,
         Err(e) => crate::exit::usage!("{e}"),
@@ -625,6 +634,38 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     let path = writer.finish()?;
     eprintln!("wrote {} demos ({} tries) to {}", args.num_demos, tries, path.display());
     Ok(())
+}
+
+/// `mimicgen generate` for a two-arm task: the flags the two-arm run takes, the others refused.
+fn generate_two_arm(args: &GenerateArgs, task: mimicgen_sim::two_arm::TwoArmTask) -> anyhow::Result<()> {
+    let unsupported = [
+        ("--robot", args.robot.is_some()),
+        ("--config", args.config.is_some()),
+        ("--keep-failed", args.keep_failed),
+        ("--guarantee", args.guarantee),
+        ("--max-attempts", args.max_attempts.is_some()),
+        ("--valid-fraction", args.valid_fraction.is_some()),
+        ("--early-abort", args.early_abort),
+        ("--resume", args.resume),
+        ("--shard", args.shard.is_some()),
+        ("--cameras", args.cameras.cameras.is_some()),
+        ("--rerun", args.rerun.is_set()),
+        ("spec fields (--action-noise, --selection, ...)", args.spec.overrides() != SpecOverrides::default()),
+    ];
+    if let Some((flag, _)) = unsupported.iter().find(|(_, set)| *set) {
+        crate::exit::usage!("{flag}: not available for two-arm tasks ({}) yet", task.name());
+    }
+    crate::check_output(&args.out, args.source.as_deref(), args.overwrite)?;
+    let run = mimicgen_pipeline::two_arm::TwoArmRun {
+        task: mimicgen_pipeline::two_arm::task(task.name(), args.variant.as_deref().unwrap_or("D0"))?,
+        variant: args.variant.clone().unwrap_or_else(|| "D0".to_owned()),
+        source: args.source.clone(),
+        out: args.out.clone(),
+        num_trials: args.num_demos.unwrap_or(100),
+        seed: args.seed.unwrap_or(1),
+        workers: args.workers,
+    };
+    crate::two_arm::generate(&run)
 }
 
 /// Where each subtask signal first held in a recorded try, in that order, and those that never

@@ -25,6 +25,7 @@ mod prepare;
 mod replay;
 mod serve;
 mod spec;
+mod two_arm;
 mod view;
 
 /// Turn a handful of robot demonstrations into large, diverse training datasets.

@@ -41,6 +41,11 @@ pub struct RerunArgs {
 }
 
 impl RerunArgs {
+    /// Whether a recording was asked for.
+    pub fn is_set(&self) -> bool {
+        self.sink().is_some()
+    }
+
     fn sink(&self) -> Option<Sink> {
         match (&self.rerun, &self.rerun_connect, self.rerun_spawn) {
             (Some(path), _, _) => Some(Sink::Save(path.clone())),

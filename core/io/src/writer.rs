@@ -131,6 +131,58 @@ impl DemoData {
         }
     }
 
+    /// A two-arm attempt (or a scripted two-arm demo) as a demo: both arms' actions in one row,
+    /// each arm's poses, targets and gripper under `datagen_info/<field>/<arm>` (`arms` names
+    /// them: `robot0`, `robot1`), reward and done 1 on the last step of a success.
+    /// `src_demo_inds` lists arm 0's subtasks' source demos, then arm 1's; `src_demo_labels`
+    /// are arm 0's.
+    #[must_use]
+    pub fn from_two_arm_attempt(
+        attempt: &mimicgen_engine::two_arm::TwoArmAttempt,
+        arms: &[&str],
+        obs: BTreeMap<String, Observation>,
+        model_xml: Option<String>,
+    ) -> Self {
+        let n = attempt.actions.len();
+        let last = |on: bool| (0..n).map(|i| i64::from(on && i + 1 == n)).collect::<Vec<i64>>();
+        let to_i64 = |v: &mut dyn Iterator<Item = usize>| v.map(|x| i64::try_from(x).unwrap_or(i64::MAX)).collect::<Vec<i64>>();
+        let arm_infos = attempt
+            .arms
+            .iter()
+            .zip(arms)
+            .map(|(track, name)| ArmInfo {
+                name: (*name).to_owned(),
+                eef_poses: track.eef_poses.clone(),
+                target_poses: track.target_poses.clone(),
+                gripper_actions: track.gripper_actions.clone(),
+            })
+            .collect();
+        Self {
+            actions: attempt.actions.clone(),
+            states: attempt.states.clone(),
+            #[allow(clippy::cast_precision_loss)]
+            rewards: Some(last(attempt.success).iter().map(|&x| x as f64).collect()),
+            dones: Some(last(attempt.success)),
+            obs,
+            images: BTreeMap::new(),
+            datagen_info: Some(DatagenInfo {
+                eef_poses: Vec::new(),
+                target_poses: Vec::new(),
+                gripper_actions: Rows::new(0),
+                object_poses: attempt.object_poses.clone(),
+                subtask_term_signals: attempt.subtask_term_signals.clone(),
+                arms: arm_infos,
+            }),
+            src_demo_inds: to_i64(&mut attempt.arms.iter().flat_map(|t| t.plans.iter().map(|p| p.src_demo))),
+            src_demo_labels: attempt.arms.first().map(|t| to_i64(&mut t.src_demo_labels.iter().copied())).unwrap_or_default(),
+            model_xml,
+            attempt_index: Some(attempt.index),
+            failure: attempt.failure.as_ref().map(ToString::to_string),
+            cause: None,
+            object_instance: None,
+        }
+    }
+
     /// The demo as a [`Group`] tree, checking that every per-step array has `actions.len()` rows.
     fn to_group(&self, file: &str, group: &str, compress_obs: bool) -> Result<Group> {
         let steps = self.actions.len();

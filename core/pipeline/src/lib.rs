@@ -43,6 +43,7 @@ pub mod preview;
 pub mod render;
 pub mod replay;
 mod run;
+pub mod two_arm;
 
 pub use error::PipelineError;
 pub use events::{AttemptEvent, Event};

@@ -1,0 +1,86 @@
+//! `mimicgen demos` and `mimicgen generate` for robosuite's two-arm tasks (`--task two_arm_lift`).
+
+use std::path::Path;
+
+use anyhow::Context as _;
+use indicatif::{ProgressBar, ProgressStyle};
+use mimicgen_pipeline::two_arm::{self, TwoArmRun};
+
+use crate::exit::outln;
+
+/// Records scripted two-arm source demos.
+///
+/// # Errors
+/// An unknown variant, a simulator failure, or a failure to write.
+pub fn demos(task: &str, variant: &str, num_demos: usize, seed: u64, out: &Path) -> anyhow::Result<()> {
+    let task = two_arm::task(task, variant)?;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let (path, tries) = two_arm::record_demos(task, variant, num_demos, seed, out, &mut |line| eprintln!("{line}"))?;
+    eprintln!("wrote {num_demos} demos ({tries} tries) to {}", path.display());
+    Ok(())
+}
+
+/// Runs a two-arm generation with a progress bar, prints its summary and writes it as
+/// `<out>.json`.
+///
+/// # Errors
+/// As [`two_arm::generate`], or a failure to write the report.
+pub fn generate(run: &TwoArmRun) -> anyhow::Result<()> {
+    if let Some(dir) = run.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    eprintln!(
+        "generating with {} attempts of {} {} (two arms) on {} worker(s), seed {}",
+        run.num_trials,
+        run.task.name(),
+        run.variant,
+        run.workers,
+        run.seed
+    );
+    let bar = ProgressBar::new(run.num_trials as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:30}] {pos}/{len} {msg} ETA {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let started = std::time::Instant::now();
+    let summary = two_arm::generate(run, &mut |attempts, successes| {
+        bar.set_position(attempts as u64);
+        bar.set_message(format!("{successes} successes"));
+    })?;
+    bar.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    #[allow(clippy::cast_precision_loss, reason = "counts far below 2^52")]
+    let rate = if summary.attempts == 0 { 0.0 } else { 100.0 * summary.successes as f64 / summary.attempts as f64 };
+    let report = serde_json::json!({
+        "task": run.task.name(),
+        "env_name": run.task.env_name(),
+        "variant": run.variant,
+        "seed": run.seed,
+        "source": summary.source.display().to_string(),
+        "num_sources": summary.num_sources,
+        "attempts": summary.attempts,
+        "successes": summary.successes,
+        "success_rate": rate,
+        "failures": summary.failures,
+        "seconds": seconds,
+    });
+    let report_path = mimicgen_pipeline::sibling(&run.out, "", "json");
+    std::fs::write(&report_path, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", report_path.display()))?;
+    outln!(
+        "{} {}: {} of {} attempts succeeded ({rate:.1} %) from {} source demos in {seconds:.0} s; wrote {} and {}",
+        run.task.name(),
+        run.variant,
+        summary.successes,
+        summary.attempts,
+        summary.num_sources,
+        summary.out.display(),
+        report_path.display()
+    );
+    for (failure, count) in &summary.failures {
+        outln!("  {count:>5}  {failure}");
+    }
+    Ok(())
+}

@@ -1,0 +1,246 @@
+//! Two-arm runs: scripted source demos and generation for robosuite's two-arm tasks
+//! ([`TwoArmTask`]), written as robomimic datasets robosuite's own two-arm environments load
+//! (`actions` (T, 14), `robot0_*` and `robot1_*` observations, `env_args` with both Pandas,
+//! `datagen_info/<field>/<arm>` per arm).
+//!
+//! What the one-arm [`crate::Pipeline`] adds and this does not yet: resume, shards, the attempt
+//! log, quality and doctor reports, failed-attempt files, cameras.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
+
+use mimicgen_engine::EngineError;
+use mimicgen_engine::demo::SourceDataset;
+use mimicgen_engine::generate::FailureReason;
+use mimicgen_engine::spec::SourceSelection;
+use mimicgen_engine::two_arm::{TwoArmAttempt, TwoArmEnvironment as _, TwoArmGenerator, TwoArmLiftScript};
+use mimicgen_io::{DatasetWriter, DemoData, RobomimicDataset, WriterOptions};
+use mimicgen_sim::two_arm::{TwoArmSimEnv, TwoArmTask};
+use rand::SeedableRng as _;
+
+use crate::PipelineError;
+
+/// The arms' names in files (robosuite's observation prefixes without the `_`).
+pub const ARMS: [&str; 2] = ["robot0", "robot1"];
+
+/// The two-arm task named `name`, with a usage error naming `field` otherwise.
+///
+/// # Errors
+/// [`PipelineError::Input`] for a name that is no two-arm task.
+pub fn task(name: &str, variant: &str) -> Result<TwoArmTask, PipelineError> {
+    let task = TwoArmTask::from_name(name).ok_or_else(|| {
+        let known: Vec<&str> = TwoArmTask::ALL.iter().map(|t| t.name()).collect();
+        PipelineError::input("", "--task", format!("{name:?} is no two-arm task (they are: {})", known.join(", ")))
+    })?;
+    if !task.variants().contains(&variant) {
+        return Err(PipelineError::input("", "--variant", format!("{name} has variants {}, not {variant:?}", task.variants().join(", "))));
+    }
+    Ok(task)
+}
+
+/// Records `num_demos` scripted source demos of `task` in `variant` (seeded by `seed`) into
+/// `out`, keeping those that succeed and that the task's spec splits into both arms' subtasks;
+/// `log` gets a line per try. Returns the file and the number of tries.
+///
+/// # Errors
+/// Simulator and write failures; [`PipelineError::Input`] (field `--num-demos`) when fewer than
+/// one try in ten succeeds.
+pub fn record_demos(
+    task: TwoArmTask,
+    variant: &str,
+    num_demos: usize,
+    seed: u64,
+    out: &Path,
+    log: &mut dyn FnMut(&str),
+) -> Result<(PathBuf, usize), PipelineError> {
+    let scene = Arc::new(task.scene()?);
+    let mut env = TwoArmSimEnv::new(Arc::clone(&scene), task, variant)?;
+    let spec = task.spec().map_err(|e| PipelineError::engine("bundled spec", e))?;
+    let xml = mimicgen_sim::assets::portable_asset_paths(env.model_xml());
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let options = WriterOptions { env_args: Some(task.env_args()), compress_obs: false, valid_fraction: None, split_seed: 0 };
+    let mut writer = DatasetWriter::create(out, options)?;
+    let mut tries = 0;
+    while writer.len() < num_demos {
+        tries += 1;
+        if tries > 10 * num_demos.max(1) {
+            return Err(PipelineError::input(
+                "",
+                "--num-demos",
+                format!("the scripted demonstrator made only {} usable demos in {} tries", writer.len(), tries - 1),
+            ));
+        }
+        env.reset(&mut rng).map_err(|e| PipelineError::engine("", EngineError::Env { attempt: 0, source: e }))?;
+        let demo = TwoArmLiftScript::pot().record(&mut env, &mut rng).map_err(|e| PipelineError::engine("", EngineError::Env { attempt: 0, source: e }))?;
+        if !demo.success {
+            log(&format!("try {tries}: failed ({}); discarded", env.unmet_success().unwrap_or_default()));
+            continue;
+        }
+        let sources = demo.arm_views("demo").into_iter().map(|d| SourceDataset { demos: vec![d], env_args: None }).collect();
+        if let Err(e) = TwoArmGenerator::new(spec.clone(), sources) {
+            log(&format!("try {tries}: succeeded but is no usable source demo ({e}); discarded"));
+            continue;
+        }
+        let mut data = DemoData::from_two_arm_attempt(&demo, &ARMS, BTreeMap::new(), Some(xml.clone()));
+        (data.attempt_index, data.src_demo_labels) = (None, Vec::new());
+        let name = writer.append(&data)?;
+        log(&format!("{name}: {} steps", demo.actions.len()));
+    }
+    Ok((writer.finish()?, tries))
+}
+
+/// A two-arm generation run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwoArmRun {
+    /// The task.
+    pub task: TwoArmTask,
+    /// The variant new scenes are drawn from.
+    pub variant: String,
+    /// Two-arm source demos (`datagen_info/<field>/robot0` and `robot1`); `None`: the bundled.
+    pub source: Option<PathBuf>,
+    /// The dataset to write.
+    pub out: PathBuf,
+    /// Attempts to run.
+    pub num_trials: usize,
+    /// The run's seed (attempt `i` draws from its own stream of it).
+    pub seed: u64,
+    /// Worker threads, each with its own simulator.
+    pub workers: usize,
+}
+
+/// What a two-arm run did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwoArmSummary {
+    /// Attempts run.
+    pub attempts: usize,
+    /// Successes written.
+    pub successes: usize,
+    /// Failed attempts by where and why (`arm 0: subtask 0: signal "grasp_handle0" never
+    /// turned on`, `task not achieved`).
+    pub failures: BTreeMap<String, usize>,
+    /// The dataset written.
+    pub out: PathBuf,
+    /// The source demos used.
+    pub source: PathBuf,
+    /// How many source demos.
+    pub num_sources: usize,
+}
+
+/// One finished attempt, with what the writer needs of it.
+type Finished = (u64, Result<(TwoArmAttempt, Option<DemoData>), PipelineError>);
+
+/// Runs `run`: attempts in order of index spread over the workers, successes written in that
+/// order (the same dataset for the same seed whatever the number of workers); `progress` gets
+/// `(attempts, successes)` after each.
+///
+/// # Errors
+/// Unreadable sources, a spec they do not fit, simulator or write failures.
+pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(usize, usize)) -> Result<TwoArmSummary, PipelineError> {
+    let source = match &run.source {
+        Some(path) => path.clone(),
+        None => crate::bundled::source_demos(run.task.name())?,
+    };
+    let file = source.display().to_string();
+    let dataset = RobomimicDataset::open(&source)?;
+    let views = dataset.to_arm_source_datasets(&SourceSelection::default(), &ARMS)?;
+    let num_sources = views.first().map_or(0, |v| v.demos.len());
+    let mut spec = run.task.spec().map_err(|e| PipelineError::engine("bundled spec", e))?;
+    spec.generation.seed = run.seed;
+    spec.generation.num_trials = run.num_trials;
+    let generator = TwoArmGenerator::new(spec, views).map_err(|e| PipelineError::engine(file.clone(), e))?;
+    let scene = Arc::new(run.task.scene()?);
+    let xml = mimicgen_sim::assets::portable_asset_paths(&scene.xml);
+    let options = WriterOptions { env_args: Some(run.task.env_args()), compress_obs: true, valid_fraction: Some(0.1), split_seed: run.seed };
+    let mut writer = DatasetWriter::create(&run.out, options)?;
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let (tx, rx) = mpsc::channel::<Finished>();
+    let mut summary =
+        TwoArmSummary { attempts: 0, successes: 0, failures: BTreeMap::new(), out: run.out.clone(), source, num_sources };
+    let written: Result<(), PipelineError> = std::thread::scope(|scope| {
+        for _ in 0..run.workers.max(1) {
+            let (tx, scene, generator, next, stop) = (tx.clone(), Arc::clone(&scene), &generator, &next, &stop);
+            let (task, variant, xml) = (run.task, run.variant.as_str(), xml.as_str());
+            scope.spawn(move || {
+                let mut env = match TwoArmSimEnv::new(scene, task, variant) {
+                    Ok(env) => env,
+                    Err(e) => {
+                        let _ = tx.send((0, Err(e.into())));
+                        return;
+                    }
+                };
+                loop {
+                    let index = next.fetch_add(1, Ordering::Relaxed);
+                    if index >= run.num_trials || stop.load(Ordering::Relaxed) {
+                        return;
+                    }
+                    let index = u64::try_from(index).unwrap_or(u64::MAX);
+                    let result = attempt(&generator, &mut env, index, xml);
+                    if tx.send((index, result)).is_err() {
+                        return;
+                    }
+                }
+            });
+        }
+        drop(tx);
+        // Attempts come back in any order; they are written in index order.
+        let mut pending: BTreeMap<u64, Result<(TwoArmAttempt, Option<DemoData>), PipelineError>> = BTreeMap::new();
+        let mut expected = 0_u64;
+        for (index, result) in rx {
+            pending.insert(index, result);
+            while let Some(result) = pending.remove(&expected) {
+                expected += 1;
+                let (attempt, data) = match result {
+                    Ok(done) => done,
+                    Err(e) => {
+                        stop.store(true, Ordering::Relaxed);
+                        return Err(e);
+                    }
+                };
+                summary.attempts += 1;
+                match (&attempt.failure, data) {
+                    (None, Some(data)) => {
+                        writer.append(&data)?;
+                        summary.successes += 1;
+                    }
+                    (Some(failure), _) => {
+                        let key = match &failure.reason {
+                            FailureReason::TaskNotAchieved { .. } => "task not achieved".to_owned(),
+                            FailureReason::Unstable { .. } => failure.arm.map_or_else(
+                                || "simulation unstable".to_owned(),
+                                |arm| format!("arm {arm}: subtask {}: simulation unstable", failure.subtask),
+                            ),
+                            _ => failure.to_string(),
+                        };
+                        *summary.failures.entry(key).or_default() += 1;
+                    }
+                    (None, None) => {}
+                }
+                progress(summary.attempts, summary.successes);
+            }
+        }
+        Ok(())
+    });
+    written?;
+    writer.finish()?;
+    Ok(summary)
+}
+
+/// Runs attempt `index` and, for a success, its demo with robosuite's observations.
+fn attempt(
+    generator: &TwoArmGenerator,
+    env: &mut TwoArmSimEnv,
+    index: u64,
+    xml: &str,
+) -> Result<(TwoArmAttempt, Option<DemoData>), PipelineError> {
+    let attempt = generator.attempt(env, index).map_err(|e| PipelineError::engine("", e))?;
+    if !attempt.success {
+        return Ok((attempt, None));
+    }
+    let obs = env.observations_for_states(&attempt.states).map_err(|e| PipelineError::engine("", EngineError::Env { attempt: index, source: e }))?;
+    let data = DemoData::from_two_arm_attempt(&attempt, &ARMS, obs, Some(xml.to_owned()));
+    Ok((attempt, Some(data)))
+}
