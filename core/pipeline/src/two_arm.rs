@@ -74,7 +74,9 @@ pub fn record_demos(
             ));
         }
         env.reset(&mut rng).map_err(|e| PipelineError::engine("", EngineError::Env { attempt: 0, source: e }))?;
-        let demo = TwoArmLiftScript::pot().record(&mut env, &mut rng).map_err(|e| PipelineError::engine("", EngineError::Env { attempt: 0, source: e }))?;
+        let demo = TwoArmLiftScript::pot()
+            .record(&mut env, &mut rng)
+            .map_err(|e| PipelineError::engine("", EngineError::Env { attempt: 0, source: e }))?;
         if !demo.success {
             log(&format!("try {tries}: failed ({}); discarded", env.unmet_success().unwrap_or_default()));
             continue;
@@ -153,13 +155,13 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(usize, usize)) -> Resu
     let generator = TwoArmGenerator::new(spec, views).map_err(|e| PipelineError::engine(file.clone(), e))?;
     let scene = Arc::new(run.task.scene()?);
     let xml = mimicgen_sim::assets::portable_asset_paths(&scene.xml);
-    let options = WriterOptions { env_args: Some(run.task.env_args()), compress_obs: true, valid_fraction: Some(0.1), split_seed: run.seed };
+    let options =
+        WriterOptions { env_args: Some(run.task.env_args()), compress_obs: true, valid_fraction: Some(0.1), split_seed: run.seed };
     let mut writer = DatasetWriter::create(&run.out, options)?;
     let next = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
     let (tx, rx) = mpsc::channel::<Finished>();
-    let mut summary =
-        TwoArmSummary { attempts: 0, successes: 0, failures: BTreeMap::new(), out: run.out.clone(), source, num_sources };
+    let mut summary = TwoArmSummary { attempts: 0, successes: 0, failures: BTreeMap::new(), out: run.out.clone(), source, num_sources };
     let written: Result<(), PipelineError> = std::thread::scope(|scope| {
         for _ in 0..run.workers.max(1) {
             let (tx, scene, generator, next, stop) = (tx.clone(), Arc::clone(&scene), &generator, &next, &stop);
@@ -178,7 +180,7 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(usize, usize)) -> Resu
                         return;
                     }
                     let index = u64::try_from(index).unwrap_or(u64::MAX);
-                    let result = attempt(&generator, &mut env, index, xml);
+                    let result = attempt(generator, &mut env, index, xml);
                     if tx.send((index, result)).is_err() {
                         return;
                     }
@@ -240,7 +242,9 @@ fn attempt(
     if !attempt.success {
         return Ok((attempt, None));
     }
-    let obs = env.observations_for_states(&attempt.states).map_err(|e| PipelineError::engine("", EngineError::Env { attempt: index, source: e }))?;
+    let obs = env
+        .observations_for_states(&attempt.states)
+        .map_err(|e| PipelineError::engine("", EngineError::Env { attempt: index, source: e }))?;
     let data = DemoData::from_two_arm_attempt(&attempt, &ARMS, obs, Some(xml.to_owned()));
     Ok((attempt, Some(data)))
 }

@@ -1,5 +1,6 @@
 //! robosuite's Two Arm Lift in MuJoCo: both arms under their own controllers, the scripted lift
 //! demonstrator, and generation with a coordinated lift.
+#![allow(clippy::unwrap_used, clippy::indexing_slicing)] // tests fail loudly by design
 
 use std::sync::Arc;
 
