@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Write the scene of a robosuite 1.4.1 two-arm task (viewer_assets/scenes/<task>.xml).
 
-Usage: make_two_arm_scene.py [TASK ...]   (TwoArmLift; run with scripts/setup_robosuite.sh's python)
+Usage: make_two_arm_scene.py [TASK ...]   (TwoArmLift, TwoArmHandover; run with scripts/setup_robosuite.sh's python)
 
 robosuite builds the task's environment with two Pandas in the configuration the environment
 defines by default (TwoArmLift: "single-arm-opposed", the arms facing each other across the
@@ -9,7 +9,8 @@ table), OSC_POSE for each; the compiled scene's XML (what robosuite writes as `m
 written with robosuite's assets directory replaced by `{ASSETS}`: the arms as robosuite names
 them (robot0_/gripper0_/mount0_, robot1_/gripper1_/mount1_) and the task's objects as robosuite
 builds them (TwoArmLift's pot with handles: body `pot_root`, joint `pot_joint0`, sites
-`pot_handle0`, `pot_handle1`, `pot_center`), so that robosuite's own environment reads the states
+`pot_handle0`, `pot_handle1`, `pot_center`; TwoArmHandover's hammer: body `hammer_root`, geoms
+`hammer_handle`, `hammer_head`, ...), so that robosuite's own environment reads the states
 of what `mimicgen-sim` simulates in it.
 """
 
@@ -22,6 +23,7 @@ os.environ["MUJOCO_GL"] = "disable"
 # Per task: names its scene must hold.
 TASKS = {
     "TwoArmLift": ["pot_root", "pot_joint0", "pot_handle0", "pot_handle1", "pot_center", "robot1_base"],
+    "TwoArmHandover": ["hammer_root", "hammer_joint0", "hammer_handle", "hammer_head", "table_top", "robot1_base"],
 }
 
 

@@ -42,11 +42,15 @@ trap 'rc=$?; rm -rf "$replay_dir"; step "end (exit $rc)"' EXIT
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --task square --num-demos 20 --guarantee --seed 1 --workers 2 --out "$replay_dir/square_d0.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/square_d0.hdf5" --num 20 --min-success 17
 # Two Arm Lift in robosuite's own TwoArmLift (two Pandas, "single-arm-opposed", 14-wide actions):
-# 20 generated D0 demos and 10 D1 ones, each arm's half of the actions driving its robosuite arm.
+# 20 generated D0 demos and 10 D1 ones, each arm's half of the actions driving its robosuite arm;
+# then 10 Two Arm Handover D0 demos in robosuite's TwoArmHandover (16 of 20 replay there: the
+# hammer between two grippers is where the two simulators part; BENCHMARKS.md).
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --task two_arm_lift --num-demos 24 --seed 1 --workers 2 --out "$replay_dir/two_arm_lift_d0.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/two_arm_lift_d0.hdf5" --num 20 --min-success 17
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --task two_arm_lift --variant D1 --num-demos 14 --seed 1 --workers 2 --out "$replay_dir/two_arm_lift_d1.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/two_arm_lift_d1.hdf5" --num 10 --min-success 9
+"$CARGO_TARGET_DIR/debug/mimicgen" generate --task two_arm_handover --num-demos 16 --seed 1 --workers 2 --out "$replay_dir/two_arm_handover_d0.hdf5" >/dev/null
+"$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/two_arm_handover_d0.hdf5" --num 10 --min-success 7
 # Our simulator against robosuite's, step by step: three of the reference's generated Stack D0
 # demos, stored actions open loop from the same first state in both. They part by 1.3 mm (end
 # effector) and 0.8 mm (cubes) at most; without the MuJoCo 2.3 box-box contact depth that our

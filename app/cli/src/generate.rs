@@ -34,6 +34,7 @@ Examples:
   mimicgen generate --num-demos 1000 --out out/big.hdf5 --resume      # continue a killed run exactly
   mimicgen generate --action-noise 0.02 --selection 1:random --offset-range 0:0,10   # spec fields for this run
   mimicgen generate --task square --robot sawyer --out out/square_sawyer.hdf5   # Panda demos, Sawyer data
+  mimicgen generate --task two_arm_lift --variant D1 --num-demos 1000 --out out/two_arm_lift_d1.hdf5   # two arms
 
 The task and variant come from --task/--variant, else from the config's experiment.task.name
 (MimicGen's `Stack_D1`), else from the source file's env_args, else stack / D0; inputs that name
@@ -48,7 +49,9 @@ replayed from their first state) as <out>_quality.json and in the report; a JSON
 as the demo attribute mimicgen_failure_cause. An existing output is never replaced without --overwrite. While running, the dataset
 is <out>.partial; after a crash or kill, the same command with --resume continues it, and the
 finished dataset equals an uninterrupted run's (a run killed after its dataset was finished but
-before its report was written gets the report from --resume). On a terminal, progress is a bar; in a log (a
+before its report was written gets the report from --resume). Two-arm tasks (two_arm_lift,
+two_arm_handover: robosuite's own two-arm environments) take --task, --variant, --num-demos,
+--seed, --workers, --source, --out and --overwrite so far, and write the dataset and <out>.json. On a terminal, progress is a bar; in a log (a
 batch job, stderr redirected) it is a `progress N/TOTAL: ...` line per percent of the run.")]
 pub struct GenerateArgs {
     /// Task to generate (see `mimicgen tasks`). Default: what the inputs name, else stack.
@@ -498,6 +501,7 @@ impl From<DemoStyle> for Style {
 Examples:
   mimicgen demos --task stack --variant D0 --num-demos 10 --out my_sources.hdf5
   mimicgen demos --task square --style human --num-demos 10 --seed 1 --out square_human.hdf5
+  mimicgen demos --task two_arm_handover --num-demos 10 --out handover_sources.hdf5   # two arms
 
 Records source demos with the scripted demonstrator (teleoperator-like variation in grasps, speeds
 and pauses; it hovers until the arm has caught up before grasping or placing, and aims the place

@@ -304,6 +304,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             for t in mimicgen_sim::registry::tasks() {
                 outln!("{:<21} variants {:<10} {}", t.name, t.variants.join(", "), t.description);
             }
+            for t in mimicgen_sim::two_arm::TwoArmTask::ALL {
+                outln!("{:<21} variants {:<10} two arms: {}", t.name(), t.variants().join(", "), t.description());
+            }
             for b in mimicgen_sim::registry::broken() {
                 outln!("{:<21} BROKEN: {}", b.name, b.error);
             }

@@ -4,7 +4,8 @@
 //! [`TwoArmEnvironment`]. Actions are robosuite's two-arm layout: arm 0's pose and gripper (7),
 //! then arm 1's (7).
 //!
-//! Tasks: Two Arm Lift (robosuite's `TwoArmLift`: a pot lifted by its two handles).
+//! Tasks: Two Arm Lift (robosuite's `TwoArmLift`: a pot lifted by its two handles) and Two Arm
+//! Handover (robosuite's `TwoArmHandover`: a hammer handed from one arm to the other).
 #![allow(
     clippy::indexing_slicing,
     reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays; states and actions are checked for length where they come in (set_state, step)"
@@ -34,11 +35,20 @@ use crate::state::SimState;
 /// (`scripts/make_two_arm_scene.py` writes it).
 pub const TWO_ARM_LIFT_XML: &str = include_str!("../../../viewer_assets/scenes/two_arm_lift.xml");
 
+/// robosuite 1.4.1's Two Arm Handover scene as its `TwoArmHandover` compiles it: the narrow table
+/// (0.8 x 0.3 m, centred at y = -0.45 m), the Pandas at y = -0.81 and +0.81 m facing each other,
+/// and its hammer (`hammer_root`; the handle along its z axis, the head at its end), of the size
+/// robosuite drew when the scene was written (`scripts/make_two_arm_scene.py`).
+pub const TWO_ARM_HANDOVER_XML: &str = include_str!("../../../viewer_assets/scenes/two_arm_handover.xml");
+
 /// A robosuite two-arm task.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TwoArmTask {
     /// robosuite's `TwoArmLift`: lift the pot by its two handles, its bottom 10 cm over the table.
     Lift,
+    /// robosuite's `TwoArmHandover`: arm 0 picks the hammer up and hands it to arm 1, which holds
+    /// it by the handle 10 cm over the table with arm 0 let go.
+    Handover,
 }
 
 /// The pot's half height (robosuite's `PotWithHandlesObject.top_offset`).
@@ -48,13 +58,14 @@ const LIFT_M: f64 = 0.10;
 
 impl TwoArmTask {
     /// Every two-arm task.
-    pub const ALL: [Self; 1] = [Self::Lift];
+    pub const ALL: [Self; 2] = [Self::Lift, Self::Handover];
 
     /// The name on the command line (`two_arm_lift`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
             Self::Lift => "two_arm_lift",
+            Self::Handover => "two_arm_handover",
         }
     }
 
@@ -69,6 +80,7 @@ impl TwoArmTask {
     pub fn env_name(self) -> &'static str {
         match self {
             Self::Lift => "TwoArmLift",
+            Self::Handover => "TwoArmHandover",
         }
     }
 
@@ -76,7 +88,7 @@ impl TwoArmTask {
     #[must_use]
     pub fn env_configuration(self) -> &'static str {
         match self {
-            Self::Lift => "single-arm-opposed",
+            Self::Lift | Self::Handover => "single-arm-opposed",
         }
     }
 
@@ -93,6 +105,9 @@ impl TwoArmTask {
             Self::Lift => {
                 "two Pandas lift the pot by its handles (robosuite's TwoArmLift); D0 robosuite's reset (0.06 m square, yaw 180 +- 60 deg), D1 0.20 m square"
             }
+            Self::Handover => {
+                "arm 0 hands the hammer to arm 1 (robosuite's TwoArmHandover); D0 robosuite's reset (0.2 x 0.1 m, any yaw, either face up), D1 0.4 x 0.16 m"
+            }
         }
     }
 
@@ -101,6 +116,7 @@ impl TwoArmTask {
     pub fn objects(self) -> Vec<(String, String)> {
         match self {
             Self::Lift => vec![("pot".to_owned(), "pot_root".to_owned())],
+            Self::Handover => vec![("hammer".to_owned(), "hammer_root".to_owned())],
         }
     }
 
@@ -109,6 +125,7 @@ impl TwoArmTask {
     pub fn signal_names(self) -> &'static [&'static str] {
         match self {
             Self::Lift => &["grasp_handle0", "grasp_handle1"],
+            Self::Handover => &["lift", "at_handover", "handle_grasp"],
         }
     }
 
@@ -118,6 +135,7 @@ impl TwoArmTask {
     pub fn spec_toml(self) -> &'static str {
         match self {
             Self::Lift => include_str!("../tasks/two_arm_lift.two_arm.toml"),
+            Self::Handover => include_str!("../tasks/two_arm_handover.two_arm.toml"),
         }
     }
 
@@ -133,6 +151,7 @@ impl TwoArmTask {
     fn xml(self) -> &'static str {
         match self {
             Self::Lift => TWO_ARM_LIFT_XML,
+            Self::Handover => TWO_ARM_HANDOVER_XML,
         }
     }
 
@@ -183,60 +202,101 @@ impl TwoArmTask {
         Ok(scene)
     }
 
-    /// The pot's placement of `variant`: x and y around the table's centre (m), yaw (rad).
-    fn placement(self, variant: &str) -> ([f64; 2], [f64; 2], [f64; 2]) {
-        let yaw = [PI - PI / 3.0, PI + PI / 3.0];
-        match variant {
-            "D1" => ([-0.10, 0.10], [-0.10, 0.10], yaw),
-            _ => ([-0.03, 0.03], [-0.03, 0.03], yaw),
+    /// Where `variant` places the task's object: x and y around the table's centre (m).
+    fn placement(self, variant: &str) -> ([f64; 2], [f64; 2]) {
+        match (self, variant) {
+            (Self::Lift, "D1") => ([-0.10, 0.10], [-0.10, 0.10]),
+            (Self::Lift, _) => ([-0.03, 0.03], [-0.03, 0.03]),
+            (Self::Handover, "D1") => ([-0.20, 0.20], [-0.08, 0.08]),
+            (Self::Handover, _) => ([-0.10, 0.10], [-0.05, 0.05]),
         }
     }
 }
 
+/// Where the handover is: the hammer's centre within this of [`HANDOVER_XY_M`], this high over
+/// the table (the scripted demonstrator holds it there).
+const HANDOVER_TOLERANCE_M: f64 = 0.04;
+/// The hammer's centre at the handover (x, y; m): halfway between the arms, 5 cm from arm 0's hand.
+const HANDOVER_XY_M: [f64; 2] = [0.0, 0.0];
+/// How high over the table the hammer is held at the handover (m).
+const HANDOVER_HEIGHT_M: f64 = 0.15;
+/// How high over the table the hammer must be held at the end (robosuite's `height_threshold`).
+const HANDOVER_SUCCESS_M: f64 = 0.10;
+
 /// The sites and geoms a task reads, resolved once.
 #[derive(Debug, Clone)]
-struct TaskIndices {
-    /// Per handle (`handle0` by arm 0, `handle1` by arm 1): its collision geoms.
-    handle_geoms: [Vec<usize>; 2],
-    /// Per handle: its site.
-    handle_sites: [usize; 2],
-    /// The pot's centre site.
-    center_site: usize,
-    /// The table top's site.
-    table_top_site: usize,
+enum TaskIndices {
+    Lift {
+        /// Per handle (`handle0` by arm 0, `handle1` by arm 1): its collision geoms.
+        handle_geoms: [Vec<usize>; 2],
+        /// Per handle: its site.
+        handle_sites: [usize; 2],
+        /// The pot's centre site.
+        center_site: usize,
+    },
+    Handover {
+        /// The handle's geom.
+        handle: usize,
+        /// The handle's half length and radius, the head's half size (m): robosuite's
+        /// `handle_length / 2`, `top_offset`, `head_halfsize`.
+        handle_half_length_m: f64,
+        handle_radius_m: f64,
+        head_half_size_m: f64,
+    },
 }
 
 impl TaskIndices {
-    fn resolve(scene: &Scene) -> Result<Self, SimError> {
+    fn resolve(task: TwoArmTask, scene: &Scene) -> Result<Self, SimError> {
         let model = &scene.model;
-        let site = |name: &str| {
-            model.name_to_id(MjtObjBase::mjOBJ_SITE, name).ok_or_else(|| SimError::MissingName {
-                file: scene.origin.clone(),
-                kind: "site".to_owned(),
-                name: name.to_owned(),
-            })
-        };
-        let handle = |k: usize| -> Result<Vec<usize>, SimError> {
-            let geoms: Vec<usize> = ["c", "-", "+"]
-                .iter()
-                .filter_map(|part| model.name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("pot_handle{k}_{part}")))
-                .collect();
-            if geoms.is_empty() {
-                return Err(SimError::MissingName {
-                    file: scene.origin.clone(),
-                    kind: "geom".to_owned(),
-                    name: format!("pot_handle{k}_c"),
-                });
+        let missing =
+            |kind: &str, name: &str| SimError::MissingName { file: scene.origin.clone(), kind: kind.to_owned(), name: name.to_owned() };
+        let site = |name: &str| model.name_to_id(MjtObjBase::mjOBJ_SITE, name).ok_or_else(|| missing("site", name));
+        let geom = |name: &str| model.name_to_id(MjtObjBase::mjOBJ_GEOM, name).ok_or_else(|| missing("geom", name));
+        match task {
+            TwoArmTask::Lift => {
+                let handle = |k: usize| -> Result<Vec<usize>, SimError> {
+                    let geoms: Vec<usize> = ["c", "-", "+"]
+                        .iter()
+                        .filter_map(|part| model.name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("pot_handle{k}_{part}")))
+                        .collect();
+                    if geoms.is_empty() {
+                        return Err(missing("geom", &format!("pot_handle{k}_c")));
+                    }
+                    Ok(geoms)
+                };
+                Ok(Self::Lift {
+                    handle_geoms: [handle(0)?, handle(1)?],
+                    handle_sites: [site("pot_handle0")?, site("pot_handle1")?],
+                    center_site: site("pot_center")?,
+                })
             }
-            Ok(geoms)
-        };
-        Ok(Self {
-            handle_geoms: [handle(0)?, handle(1)?],
-            handle_sites: [site("pot_handle0")?, site("pot_handle1")?],
-            center_site: site("pot_center")?,
-            table_top_site: site("table_top")?,
-        })
+            TwoArmTask::Handover => {
+                let (handle, head) = (geom("hammer_handle")?, geom("hammer_head")?);
+                let [radius, _, half_length] = model.geom_size()[handle];
+                Ok(Self::Handover {
+                    handle,
+                    handle_half_length_m: half_length,
+                    handle_radius_m: radius,
+                    head_half_size_m: model.geom_size()[head][1],
+                })
+            }
+        }
     }
+}
+
+/// robosuite's orientation of a placed hammer: its placement sampler's turn about y (`w, x, y, z`)
+/// multiplied, as if both were `x, y, z, w`, by the hammer's `init_quat` (one of two flips), and
+/// the product written to the joint as `w, x, y, z`. The hammer lies on its side, the handle
+/// level at a random yaw, either face up.
+fn robosuite_hammer_quat(angle: f64, flip: bool) -> Rot {
+    let (c, s) = ((angle / 2.0).cos(), (angle / 2.0).sin());
+    // The sampler's quaternion read as x, y, z, w.
+    let a = nalgebra::Quaternion::new(0.0, c, 0.0, s);
+    let init = if flip { [-0.5, -0.5, -0.5, -0.5] } else { [0.5, -0.5, 0.5, -0.5] };
+    let b = nalgebra::Quaternion::new(init[3], init[0], init[1], init[2]);
+    let product = a * b; // (x, y, z, w) = product.i, j, k, w
+    // The joint reads x, y, z, w as w, x, y, z.
+    Rot::from_quaternion(nalgebra::Quaternion::new(product.i, product.j, product.k, product.w))
 }
 
 /// A robosuite-like two-arm environment: the scene, its MuJoCo data, a controller per arm and the
@@ -246,6 +306,7 @@ pub struct TwoArmSimEnv {
     task: TwoArmTask,
     variant: String,
     indices: TaskIndices,
+    table_top_site: usize,
     robots: [RobotIndices; 2],
     oscs: [Osc; 2],
     gripper_commands: [[f64; 2]; 2],
@@ -271,7 +332,12 @@ impl TwoArmSimEnv {
             kind: "body".to_owned(),
             name: "robot1_base".to_owned(),
         })?;
-        let indices = TaskIndices::resolve(&scene)?;
+        let indices = TaskIndices::resolve(task, &scene)?;
+        let table_top_site = scene.model.name_to_id(MjtObjBase::mjOBJ_SITE, "table_top").ok_or_else(|| SimError::MissingName {
+            file: scene.origin.clone(),
+            kind: "site".to_owned(),
+            name: "table_top".to_owned(),
+        })?;
         let robots = [scene.robot.clone(), second];
         let nv = usize::try_from(scene.model.ffi().nv).unwrap_or_default();
         let osc = |r: &RobotIndices| Osc::new(OscConfig::default(), r.model.init_qpos.to_vec(), nv);
@@ -282,6 +348,7 @@ impl TwoArmSimEnv {
             task,
             variant: variant.to_owned(),
             indices,
+            table_top_site,
             robots,
             oscs,
             gripper_commands: [[0.0; 2]; 2],
@@ -307,15 +374,36 @@ impl TwoArmSimEnv {
         &self.state.scene.xml
     }
 
-    /// The pot bottom's height over the table (m).
-    fn pot_lift_m(&self) -> f64 {
-        let data = &self.state.data;
-        data.site_xpos()[self.indices.center_site][2] - POT_HALF_HEIGHT_M - data.site_xpos()[self.indices.table_top_site][2]
+    /// The table top's height (m).
+    fn table_z(&self) -> f64 {
+        self.state.data.site_xpos()[self.table_top_site][2]
     }
 
-    /// robosuite's observations now: each arm's (`robot0_*`, `robot1_*`) and `object` (the pot's
-    /// position and `xyzw` quaternion, both handles' positions, each handle from its arm's
-    /// gripper), as `TwoArmLift`'s `object-state` orders them.
+    /// How high over the table the task's object is, as its success reads it (m): the pot's
+    /// bottom; the hammer's handle, lowered by its tilt (robosuite's `_get_task_info`).
+    fn object_height_m(&self) -> f64 {
+        let data = &self.state.data;
+        match &self.indices {
+            TaskIndices::Lift { center_site, .. } => data.site_xpos()[*center_site][2] - POT_HALF_HEIGHT_M - self.table_z(),
+            TaskIndices::Handover { handle, handle_half_length_m, handle_radius_m, head_half_size_m } => {
+                let axis = self.state.object_pose(0).rotation * Vec3::z();
+                let angle = std::f64::consts::FRAC_PI_2 - axis.z.clamp(-1.0, 1.0).acos();
+                let tilt = (handle_half_length_m + 2.0 * head_half_size_m) * angle.sin();
+                data.geom_xpos()[*handle][2] - handle_radius_m - tilt - self.table_z()
+            }
+        }
+    }
+
+    /// Whether arm 0 grasps any part of the hammer and arm 1 its handle (robosuite's checks).
+    fn handover_grasps(&self) -> (bool, bool) {
+        let TaskIndices::Handover { handle, .. } = &self.indices else { return (false, false) };
+        (self.state.grasps(&self.robots[0], &self.state.scene.objects[0].geoms), self.state.grasps(&self.robots[1], &[*handle]))
+    }
+
+    /// robosuite's observations now: each arm's (`robot0_*`, `robot1_*`) and `object` as the
+    /// task's `object-state` orders it: Two Arm Lift the pot's position and `xyzw` quaternion,
+    /// both handles' positions, each handle from its arm's gripper; Two Arm Handover the hammer's
+    /// position and quaternion, its handle's position, the handle from each gripper.
     #[must_use]
     pub fn observation(&self) -> BTreeMap<String, Vec<f64>> {
         let mut obs = BTreeMap::new();
@@ -323,15 +411,27 @@ impl TwoArmSimEnv {
             obs.extend(arm_observation(&self.state, robot, &format!("robot{arm}_")));
         }
         let data = &self.state.data;
-        let pot = self.state.object_pose(0);
-        let handle = |k: usize| data.site_xpos()[self.indices.handle_sites[k]];
+        let pose = self.state.object_pose(0);
         let eef = |arm: usize| data.site_xpos()[self.robots[arm].eef_site];
-        let mut object: Vec<f64> = pot.translation.vector.iter().copied().collect();
-        object.extend(quat_to_xyzw(&pot.rotation));
-        object.extend(handle(0));
-        object.extend(handle(1));
-        for k in 0..2 {
-            object.extend((0..3).map(|i| handle(k)[i] - eef(k)[i]));
+        let mut object: Vec<f64> = pose.translation.vector.iter().copied().collect();
+        object.extend(quat_to_xyzw(&pose.rotation));
+        let from_eef = |point: [f64; 3], arm: usize| (0..3).map(move |i| point[i] - eef(arm)[i]);
+        match &self.indices {
+            TaskIndices::Lift { handle_sites, .. } => {
+                let handle = |k: usize| data.site_xpos()[handle_sites[k]];
+                object.extend(handle(0));
+                object.extend(handle(1));
+                for k in 0..2 {
+                    object.extend(from_eef(handle(k), k));
+                }
+            }
+            TaskIndices::Handover { handle, .. } => {
+                let handle = data.geom_xpos()[*handle];
+                object.extend(handle);
+                for arm in 0..2 {
+                    object.extend(from_eef(handle, arm));
+                }
+            }
         }
         obs.insert("object".to_owned(), object);
         obs
@@ -377,11 +477,21 @@ impl TwoArmSimEnv {
         Ok(())
     }
 
+    /// The task object's placement, drawn as robosuite's reset draws it (in `variant`'s range).
     fn sample_scene(&self, rng: &mut dyn RngCore) -> Pose {
-        let ([x0, x1], [y0, y1], [yaw0, yaw1]) = self.task.placement(&self.variant);
-        let (x, y, yaw) = (rng.random_range(x0..=x1), rng.random_range(y0..=y1), rng.random_range(yaw0..=yaw1));
-        let table = self.state.data.site_xpos()[self.indices.table_top_site];
-        pose_from_parts(Vec3::new(table[0] + x, table[1] + y, table[2] + POT_HALF_HEIGHT_M), Rot::from_axis_angle(&Vec3::z_axis(), yaw))
+        let ([x0, x1], [y0, y1]) = self.task.placement(&self.variant);
+        let (x, y) = (rng.random_range(x0..=x1), rng.random_range(y0..=y1));
+        let table = self.state.data.site_xpos()[self.table_top_site];
+        let (rotation, z) = match &self.indices {
+            TaskIndices::Lift { .. } => {
+                (Rot::from_axis_angle(&Vec3::z_axis(), rng.random_range(PI - PI / 3.0..=PI + PI / 3.0)), POT_HALF_HEIGHT_M)
+            }
+            TaskIndices::Handover { handle_radius_m, .. } => {
+                let angle = rng.random_range(0.0..2.0 * PI);
+                (robosuite_hammer_quat(angle, rng.random_bool(0.5)), *handle_radius_m)
+            }
+        };
+        pose_from_parts(Vec3::new(table[0] + x, table[1] + y, table[2] + z), rotation)
     }
 }
 
@@ -402,11 +512,11 @@ impl TwoArmEnvironment for TwoArmSimEnv {
             }
             osc.initial_joint = arm;
         }
-        let world_from_pot = self.sample_scene(rng);
+        let world_from_object = self.sample_scene(rng);
         let object = &self.state.scene.objects[0];
         if let (Some(q), Some(v)) = (object.qpos_adr, object.dof_adr) {
-            let t = world_from_pot.translation.vector;
-            let w = mimicgen_engine::pose::quat_to_wxyz(&world_from_pot.rotation);
+            let t = world_from_object.translation.vector;
+            let w = mimicgen_engine::pose::quat_to_wxyz(&world_from_object.rotation);
             let qpos = self.state.data.qpos_mut();
             qpos[q..q + 3].copy_from_slice(t.as_slice());
             qpos[q + 3..q + 7].copy_from_slice(&w);
@@ -426,26 +536,55 @@ impl TwoArmEnvironment for TwoArmSimEnv {
     }
 
     fn subtask_term_signals(&self) -> BTreeMap<String, i64> {
-        match self.task {
-            TwoArmTask::Lift => (0..2)
-                .map(|k| (format!("grasp_handle{k}"), i64::from(self.state.grasps(&self.robots[k], &self.indices.handle_geoms[k]))))
-                .collect(),
+        match &self.indices {
+            TaskIndices::Lift { handle_geoms, .. } => {
+                (0..2).map(|k| (format!("grasp_handle{k}"), i64::from(self.state.grasps(&self.robots[k], &handle_geoms[k])))).collect()
+            }
+            TaskIndices::Handover { .. } => {
+                let (arm0_holds, arm1_holds_handle) = self.handover_grasps();
+                let at = self.state.object_pose(0).translation.vector;
+                let height = at.z - self.table_z();
+                let near = (at.x - HANDOVER_XY_M[0]).hypot(at.y - HANDOVER_XY_M[1]) < HANDOVER_TOLERANCE_M;
+                BTreeMap::from([
+                    ("lift".to_owned(), i64::from(arm0_holds && height > 0.08)),
+                    ("at_handover".to_owned(), i64::from(near && height > HANDOVER_HEIGHT_M)),
+                    ("handle_grasp".to_owned(), i64::from(arm1_holds_handle)),
+                ])
+            }
         }
     }
 
     fn is_success(&self) -> bool {
         match self.task {
-            TwoArmTask::Lift => self.pot_lift_m() > LIFT_M,
+            TwoArmTask::Lift => self.object_height_m() > LIFT_M,
+            TwoArmTask::Handover => {
+                let (arm0_holds, arm1_holds_handle) = self.handover_grasps();
+                arm1_holds_handle && !arm0_holds && self.object_height_m() > HANDOVER_SUCCESS_M
+            }
         }
     }
 
     fn unmet_success(&self) -> Option<String> {
-        match self.task {
-            TwoArmTask::Lift => {
-                let lift = self.pot_lift_m();
-                (lift <= LIFT_M).then(|| format!("the pot's bottom is {lift:.3} m over the table, not over {LIFT_M:.2} m"))
+        let height = self.object_height_m();
+        let unmet: Vec<String> = match self.task {
+            TwoArmTask::Lift => (height <= LIFT_M)
+                .then(|| format!("the pot's bottom is {height:.3} m over the table, not over {LIFT_M:.2} m"))
+                .into_iter()
+                .collect(),
+            TwoArmTask::Handover => {
+                let (arm0_holds, arm1_holds_handle) = self.handover_grasps();
+                [
+                    (!arm1_holds_handle).then(|| "arm 1 does not hold the handle".to_owned()),
+                    arm0_holds.then(|| "arm 0 still holds the hammer".to_owned()),
+                    (height <= HANDOVER_SUCCESS_M)
+                        .then(|| format!("the hammer is {height:.3} m over the table, not over {HANDOVER_SUCCESS_M:.2} m")),
+                ]
+                .into_iter()
+                .flatten()
+                .collect()
             }
-        }
+        };
+        (!unmet.is_empty()).then(|| unmet.join("; "))
     }
 
     fn target_pose_to_action(&self, arm: usize, world_from_target: &Pose) -> [f64; 6] {

@@ -75,3 +75,81 @@ fn two_arm_lift_generates_with_a_coordinated_lift() {
     }
     assert!(successes >= 3, "{successes} of 6 attempts lifted the pot");
 }
+
+/// The scripted handover: arm 1 starts for the handle only once arm 0 holds the hammer at the
+/// handover point, arm 0 lets go only once arm 1 has closed, and robosuite's success holds.
+#[test]
+fn the_scripted_handover_gives_the_hammer_from_arm_0_to_arm_1() {
+    use mimicgen_engine::two_arm::TwoArmHandoverScript;
+    let scene = Arc::new(TwoArmTask::Handover.scene().unwrap());
+    let mut env = TwoArmSimEnv::new(scene, TwoArmTask::Handover, "D0").unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut successes = 0;
+    for _ in 0..4 {
+        env.reset(&mut rng).unwrap();
+        let demo = TwoArmHandoverScript::hammer().record(&mut env, &mut rng).unwrap();
+        let first_on = |signal: &str| demo.subtask_term_signals[signal].iter().position(|&v| v != 0);
+        let (Some(lift), Some(at), Some(grasp)) = (first_on("lift"), first_on("at_handover"), first_on("handle_grasp")) else {
+            eprintln!("a signal never turned on: {:?}", demo.subtask_term_signals.keys());
+            continue;
+        };
+        if !demo.success {
+            eprintln!("failed: {:?}", env.unmet_success());
+            continue;
+        }
+        successes += 1;
+        assert!(lift < at && at < grasp, "lift {lift}, at handover {at}, handle grasp {grasp}");
+        // Arm 1 stood still until the hammer was at the handover.
+        let arm1 = &demo.arms[1].eef_poses;
+        assert!((arm1[at].translation.vector - arm1[0].translation.vector).norm() < 0.02);
+        assert_eq!(obs_len(&env), 16);
+    }
+    assert!(successes >= 3, "{successes} of 4 scripted handovers succeeded with every signal");
+}
+
+fn obs_len(env: &TwoArmSimEnv) -> usize {
+    env.observation()["object"].len()
+}
+
+/// Handover generation on the simulator: arm 0's release never starts before arm 1's grasp of the
+/// handle has ended, the coordinated pairs start on one step, and handovers succeed.
+#[test]
+fn handover_generation_keeps_its_order_and_hands_over() {
+    use mimicgen_engine::demo::SourceDataset;
+    use mimicgen_engine::two_arm::{TwoArmGenerator, TwoArmHandoverScript};
+
+    let scene = Arc::new(TwoArmTask::Handover.scene().unwrap());
+    let mut env = TwoArmSimEnv::new(scene, TwoArmTask::Handover, "D0").unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let spec = TwoArmTask::Handover.spec().unwrap();
+    let mut views: Vec<Vec<_>> = vec![Vec::new(), Vec::new()];
+    while views[0].len() < 3 {
+        env.reset(&mut rng).unwrap();
+        let demo = TwoArmHandoverScript::hammer().record(&mut env, &mut rng).unwrap();
+        let arm_views = demo.arm_views(&format!("demo_{}", views[0].len()));
+        let one = arm_views.iter().map(|d| SourceDataset { demos: vec![d.clone()], env_args: None }).collect();
+        if demo.success && TwoArmGenerator::new(spec.clone(), one).is_ok() {
+            for (arm, view) in arm_views.into_iter().enumerate() {
+                views[arm].push(view);
+            }
+        }
+    }
+    let sources = views.into_iter().map(|demos| SourceDataset { demos, env_args: None }).collect();
+    let generator = TwoArmGenerator::new(spec, sources).unwrap();
+    let mut successes = 0;
+    for index in 0..4 {
+        let attempt = generator.attempt(&mut env, index).unwrap();
+        successes += usize::from(attempt.success);
+        let plan = |arm: usize, k: usize| attempt.arms[arm].plans.get(k);
+        if let (Some(grasp), Some(release)) = (plan(1, 1), plan(0, 3)) {
+            assert!(release.first_step >= grasp.first_step + grasp.waypoints.len(), "attempt {index}: released before the grasp ended");
+        }
+        for (a, b) in [((0, 1), (1, 0)), ((0, 2), (1, 1)), ((0, 3), (1, 2))] {
+            if let (Some(x), Some(y)) = (plan(a.0, a.1), plan(b.0, b.1)) {
+                assert_eq!(x.first_step, y.first_step, "attempt {index}: {a:?} and {b:?}");
+                assert_eq!(x.src_demo, y.src_demo, "attempt {index}: {a:?} and {b:?}");
+            }
+        }
+    }
+    assert!(successes >= 2, "{successes} of 4 handovers succeeded");
+}

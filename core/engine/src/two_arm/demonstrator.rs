@@ -1,6 +1,6 @@
-//! A scripted two-arm demonstrator: each arm follows its own legs (a goal pose, a speed, the
-//! gripper, a hold), at its own pace, and a leg marked `together` waits until the other arm has
-//! reached one too, so that both close on the same step and lift as one. It records what a
+//! A scripted two-arm demonstrator: each arm follows its own legs (a goal, a speed, the gripper,
+//! a hold), at its own pace, and a leg may wait for the other arm to finish some of its legs: both
+//! close on the same step and lift as one, or one receives only once the other has given. It records what a
 //! teleoperated two-arm demo holds (both arms' actions in one row, each arm's poses, targets and
 //! grippers, the objects and signals), as a [`TwoArmAttempt`] without plans.
 
@@ -15,11 +15,33 @@ use crate::demo::Rows;
 use crate::env::EnvError;
 use crate::pose::{Pose, Rot, Vec3, pose_from_parts, yaw_of};
 
+/// Where a leg goes.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Goal {
+    /// A pose in the world.
+    Fixed(Pose),
+    /// A point of an object, seen when the leg starts: `point_m` in the object's frame, `height_m`
+    /// above it, the hand turned about the vertical to the object's yaw plus `yaw_offset_rad`
+    /// (modulo a half turn, the one nearest the hand's yaw).
+    OnObject {
+        /// The object.
+        object: String,
+        /// The point, in the object's frame (m).
+        point_m: [f64; 3],
+        /// Height above the point (m).
+        height_m: f64,
+        /// The hand's yaw relative to the object's (rad).
+        yaw_offset_rad: f64,
+    },
+    /// Where the hand is commanded when the leg starts, moved by this much (m, world frame).
+    Moved([f64; 3]),
+}
+
 /// One move of one arm.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ArmLeg {
     /// Where the end effector goes.
-    pub goal: Pose,
+    pub goal: Goal,
     /// How far the commanded pose moves per step (m); turns go at 0.05 rad per step and at least
     /// as many steps as the move.
     pub speed_m: f64,
@@ -27,9 +49,16 @@ pub struct ArmLeg {
     pub gripper: f64,
     /// Steps to hold the goal once the arm is there (within 1 cm).
     pub hold: usize,
-    /// The leg starts only when the other arm has come as far (legs are counted alike for both
-    /// arms): both close on the same step, both lift on the same step.
-    pub together: bool,
+    /// The leg starts only once the other arm has finished this many of its legs: with its own
+    /// index, both arms start it on the same step (close together, lift as one); with another,
+    /// one waits for the other (receive once the give is done).
+    pub after: Option<usize>,
+}
+
+impl ArmLeg {
+    fn fixed(goal: Pose, speed_m: f64, gripper: f64, hold: usize, after: Option<usize>) -> Self {
+        Self { goal: Goal::Fixed(goal), speed_m, gripper, hold, after }
+    }
 }
 
 /// A scripted two-arm lift of one object by two handles, one per arm.
@@ -88,16 +117,17 @@ impl TwoArmLiftScript {
             let up = |h: f64| pose_from_parts(grasp.translation.vector + Vec3::new(0.0, 0.0, h), rotation);
             let (fast, slow) = (rng.random_range(0.012..0.022), rng.random_range(0.004..0.008));
             arm_legs.extend([
-                ArmLeg {
-                    goal: up(rng.random_range(self.approach_height_m.0..self.approach_height_m.1)),
-                    speed_m: fast,
-                    gripper: -1.0,
-                    hold: rng.random_range(0..4),
-                    together: false,
-                },
-                ArmLeg { goal: grasp, speed_m: slow, gripper: -1.0, hold: rng.random_range(2..5), together: false },
-                ArmLeg { goal: grasp, speed_m: slow, gripper: 1.0, hold: self.close_steps.0.max(1), together: true },
-                ArmLeg { goal: up(lift), speed_m: lift_speed, gripper: 1.0, hold: 6, together: true },
+                ArmLeg::fixed(
+                    up(rng.random_range(self.approach_height_m.0..self.approach_height_m.1)),
+                    fast,
+                    -1.0,
+                    rng.random_range(0..4),
+                    None,
+                ),
+                ArmLeg::fixed(grasp, slow, -1.0, rng.random_range(2..5), None),
+                // Both close on the same step, and lift on the same step.
+                ArmLeg::fixed(grasp, slow, 1.0, self.close_steps.0.max(1), Some(2)),
+                ArmLeg::fixed(up(lift), lift_speed, 1.0, 6, Some(3)),
             ]);
         }
         let close = rng.random_range(self.close_steps.0..=self.close_steps.1);
@@ -110,12 +140,126 @@ impl TwoArmLiftScript {
     }
 }
 
+/// A scripted two-arm handover of a hammer lying on the table: arm 0 grasps its handle by the
+/// head, lifts it, carries it to a point over the middle of the table with the handle
+/// turned towards arm 1 and holds it there; only then arm 1 comes to the handle and grasps it;
+/// only once arm 1 has closed does arm 0 open and back off, and arm 1 lifts the hammer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwoArmHandoverScript {
+    /// The object handed over (`hammer`).
+    pub object: String,
+    /// Where arm 0 grips it, in its frame (m): the handle by the head.
+    pub give_point_m: [f64; 3],
+    /// Where arm 1 grips it, in its frame (m): the handle, away from the head.
+    pub receive_point_m: [f64; 3],
+    /// The object's axis (in its frame) that points from arm 0's grip towards arm 1's.
+    pub towards_receiver: [f64; 3],
+    /// Where arm 0 holds it for the handover (its end effector, world frame, m).
+    pub handover_m: [f64; 3],
+    /// The world direction the object's `towards_receiver` axis is turned to at the handover.
+    pub receiver_direction: [f64; 3],
+}
+
+impl TwoArmHandoverScript {
+    /// robosuite's Two Arm Handover: its hammer (`hammer_root`: the handle along its z axis, 17 cm
+    /// long, the head at its +z end), given by the handle 5 cm towards the head and received by it
+    /// 5 cm the other way, held across (the hand's x along the hammer's x), halfway between the
+    /// arms.
+    #[must_use]
+    pub fn hammer() -> Self {
+        Self {
+            object: "hammer".to_owned(),
+            give_point_m: [0.0, 0.0, 0.05],
+            receive_point_m: [0.0, 0.0, -0.05],
+            towards_receiver: [0.0, 0.0, -1.0],
+            handover_m: [0.0, -0.05, 1.05],
+            receiver_direction: [0.0, 1.0, 0.0],
+        }
+    }
+
+    /// Records one demo from the environment's present state (call `reset` first).
+    ///
+    /// # Errors
+    /// The environment's error if a step fails, [`EnvError::Fatal`] if the object is missing.
+    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
+        let world_from_object = *env
+            .object_poses()
+            .get(&self.object)
+            .ok_or_else(|| EnvError::Fatal { reason: format!("the scene has no object {:?}", self.object) })?;
+        let start = env.eef_pose(0);
+        // Arm 0's fingers close across the handle, with the hand one way round or the other: the
+        // one that ends the handover turn nearer the hand's start (the wrist turns least).
+        let axis = world_from_object.rotation * Vec3::from(self.towards_receiver);
+        let want = Vec3::from(self.receiver_direction);
+        let turn = want.y.atan2(want.x) - axis.y.atan2(axis.x);
+        let turn = turn - (turn / std::f64::consts::TAU).round() * std::f64::consts::TAU;
+        let grip = turned_to(&start, yaw_of(&world_from_object) + rng.random_range(-0.08..0.08));
+        let wrapped = |a: f64| (a - (a / std::f64::consts::TAU).round() * std::f64::consts::TAU).abs();
+        let rotation = [grip, Rot::from_axis_angle(&Vec3::z_axis(), std::f64::consts::PI) * grip]
+            .into_iter()
+            .min_by(|a, b| {
+                let end = |r: &Rot| {
+                    wrapped(yaw_of(&pose_from_parts(Vec3::zeros(), Rot::from_axis_angle(&Vec3::z_axis(), turn) * r)) - yaw_of(&start))
+                };
+                end(a).total_cmp(&end(b))
+            })
+            .unwrap_or(grip);
+        let offset = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003));
+        let grasp = pose_from_parts((world_from_object * nalgebra::Point3::from(Vec3::from(self.give_point_m))).coords + offset, rotation);
+        let up = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
+        // At the handover the handle points at the receiver: the hand turns by the angle between.
+        let handover = pose_from_parts(
+            Vec3::from(self.handover_m)
+                + Vec3::new(rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01)),
+            Rot::from_axis_angle(&Vec3::z_axis(), turn) * rotation,
+        );
+        let (fast, slow) = (rng.random_range(0.012..0.02), rng.random_range(0.004..0.007));
+        let lifted = up(&grasp, rng.random_range(0.12..0.16));
+        let give = vec![
+            ArmLeg::fixed(up(&grasp, rng.random_range(0.06..0.09)), fast, -1.0, rng.random_range(0..3), None),
+            ArmLeg::fixed(grasp, slow, -1.0, rng.random_range(2..4), None),
+            ArmLeg::fixed(grasp, slow, 1.0, rng.random_range(10..14), None),
+            ArmLeg::fixed(lifted, slow, 1.0, 0, None),
+            ArmLeg::fixed(handover, fast, 1.0, rng.random_range(4..7), None),
+            // Let go once arm 1 has closed on the handle (its third leg), then back off.
+            ArmLeg { goal: Goal::Moved([0.0, 0.0, 0.0]), speed_m: slow, gripper: -1.0, hold: rng.random_range(8..11), after: Some(3) },
+            ArmLeg { goal: Goal::Moved([0.0, 0.0, 0.08]), speed_m: slow, gripper: -1.0, hold: 2, after: None },
+        ];
+        let on_handle = |height_m: f64| Goal::OnObject {
+            object: self.object.clone(),
+            point_m: self.receive_point_m,
+            height_m,
+            // Across the handle: the hand's x along the object's.
+            yaw_offset_rad: 0.0,
+        };
+        let receive = vec![
+            // Only once the hammer is held still at the handover (arm 0's fifth leg done).
+            ArmLeg {
+                goal: on_handle(rng.random_range(0.07..0.1)),
+                speed_m: fast,
+                gripper: -1.0,
+                hold: rng.random_range(0..3),
+                after: Some(5),
+            },
+            ArmLeg { goal: on_handle(0.0), speed_m: slow, gripper: -1.0, hold: rng.random_range(2..4), after: None },
+            ArmLeg { goal: Goal::Moved([0.0, 0.0, 0.0]), speed_m: slow, gripper: 1.0, hold: rng.random_range(10..14), after: None },
+            // Lift once arm 0 has let go and backed off.
+            ArmLeg { goal: Goal::Moved([0.0, 0.05, 0.05]), speed_m: slow, gripper: 1.0, hold: 6, after: Some(7) },
+        ];
+        follow(env, &[give, receive])
+    }
+}
+
 /// One arm as it follows its legs.
 struct Follower<'a> {
     legs: &'a [ArmLeg],
     leg: usize,
+    /// Where the present leg goes, once it has started.
+    goal: Option<Pose>,
     commanded: Pose,
     held: usize,
+    /// Steps since the commanded pose reached the goal.
+    waited: usize,
     gripper: f64,
 }
 
@@ -142,7 +286,7 @@ pub fn follow<E: TwoArmEnvironment + ?Sized>(env: &mut E, legs: &[Vec<ArmLeg>; 2
     let mut followers: Vec<Follower<'_>> = legs
         .iter()
         .enumerate()
-        .map(|(arm, legs)| Follower { legs, leg: 0, commanded: env.eef_pose(arm), held: 0, gripper: -1.0 })
+        .map(|(arm, legs)| Follower { legs, leg: 0, goal: None, commanded: env.eef_pose(arm), held: 0, waited: 0, gripper: -1.0 })
         .collect();
     // A bound on the recording: no demo of a scripted table-top task is this long.
     for _ in 0..2000 {
@@ -153,19 +297,27 @@ pub fn follow<E: TwoArmEnvironment + ?Sized>(env: &mut E, legs: &[Vec<ArmLeg>; 2
         let progress: Vec<usize> = followers.iter().map(|f| if f.leg < f.legs.len() { f.leg } else { usize::MAX }).collect();
         let mut action = Vec::with_capacity(action_dim);
         for (arm, f) in followers.iter_mut().enumerate() {
-            let other_ready = progress.get(1 - arm).is_none_or(|&other| other >= f.leg);
             if let Some(leg) = f.legs.get(f.leg)
-                && (!leg.together || other_ready)
+                && leg.after.is_none_or(|n| progress.get(1 - arm).is_none_or(|&other| other >= n))
             {
+                let goal = match f.goal {
+                    Some(goal) => goal,
+                    None => *f.goal.insert(resolve(&leg.goal, &f.commanded, &*env)?),
+                };
                 f.gripper = leg.gripper;
-                f.commanded = step_towards(&f.commanded, &leg.goal, leg.speed_m);
-                let arrived = f.commanded == leg.goal && (env.eef_pose(arm).translation.vector - leg.goal.translation.vector).norm() < 0.01;
-                if arrived || (f.commanded == leg.goal && f.held > 0) {
+                f.commanded = step_towards(&f.commanded, &goal, leg.speed_m);
+                if f.commanded == goal {
+                    f.waited += 1;
+                }
+                // There within 1 cm; an arm that cannot get closer (a joint at its limit) goes on
+                // after a second and a half, as an operator would.
+                let arrived = f.commanded == goal
+                    && ((env.eef_pose(arm).translation.vector - goal.translation.vector).norm() < 0.01 || f.waited > 30);
+                if arrived || (f.commanded == goal && f.held > 0) {
                     f.held += 1;
                 }
                 if f.held > leg.hold {
-                    f.leg += 1;
-                    f.held = 0;
+                    (f.leg, f.held, f.waited, f.goal) = (f.leg + 1, 0, 0, None);
                 }
             }
             let pose_action = env.target_pose_to_action(arm, &f.commanded);
@@ -191,6 +343,28 @@ pub fn follow<E: TwoArmEnvironment + ?Sized>(env: &mut E, legs: &[Vec<ArmLeg>; 2
         attempt.success |= env.is_success();
     }
     Err(EnvError::Fatal { reason: "the script did not end within 2000 steps".to_owned() })
+}
+
+/// The pose `goal` names now, for a hand commanded at `commanded`.
+fn resolve<E: TwoArmEnvironment + ?Sized>(goal: &Goal, commanded: &Pose, env: &E) -> Result<Pose, EnvError> {
+    Ok(match goal {
+        Goal::Fixed(pose) => *pose,
+        Goal::Moved(by) => pose_from_parts(commanded.translation.vector + Vec3::from(*by), commanded.rotation),
+        Goal::OnObject { object, point_m, height_m, yaw_offset_rad } => {
+            let world_from_object =
+                *env.object_poses().get(object).ok_or_else(|| EnvError::Fatal { reason: format!("the scene has no object {object:?}") })?;
+            let point = (world_from_object * nalgebra::Point3::from(Vec3::from(*point_m))).coords + Vec3::new(0.0, 0.0, *height_m);
+            let rotation = turned_to(commanded, yaw_of(&world_from_object) + yaw_offset_rad);
+            pose_from_parts(point, rotation)
+        }
+    })
+}
+
+/// `hand`'s rotation turned about the vertical to `yaw` modulo a half turn, the nearest to its own.
+fn turned_to(hand: &Pose, yaw: f64) -> Rot {
+    let own = yaw_of(hand);
+    let target = yaw + ((own - yaw) / std::f64::consts::PI).round() * std::f64::consts::PI;
+    Rot::from_axis_angle(&Vec3::z_axis(), target - own) * hand.rotation
 }
 
 /// `from` moved towards `to` by at most `speed_m` (and 0.05 rad), along the straight line and the
