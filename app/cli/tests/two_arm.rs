@@ -86,3 +86,24 @@ fn a_flag_two_arm_runs_lack_is_refused_by_name() {
     assert!(err.contains("--guarantee") && err.contains("two_arm_lift"), "{err}");
     assert!(!out.exists());
 }
+
+/// `mimicgen spec check` reads a two-arm spec: its arms and ties; a tie it can never meet is
+/// refused naming the field.
+#[test]
+fn spec_check_reads_a_two_arm_spec_and_names_a_bad_tie() {
+    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/tasks/two_arm_handover.two_arm.toml");
+    let run = mimicgen().args(["spec", "check"]).arg(&spec).output().unwrap();
+    let out = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(out.contains("coordination: arm 0 subtask 2 with arm 1 subtask 1"), "{out}");
+    assert!(out.contains("sequential: arm 0 subtask 3 after arm 1 subtask 1"), "{out}");
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    // Arm 1's grasp tied to arm 0's carry (world frame): two frames in one coordination.
+    let text = std::fs::read_to_string(&spec).unwrap().replacen("subtasks = [[0, 1], [1, 0]]", "subtasks = [[0, 1], [1, 1]]", 1);
+    std::fs::write(&bad, text).unwrap();
+    let run = mimicgen().args(["spec", "check"]).arg(&bad).output().unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{err}");
+    assert!(err.contains("bad.toml") && err.contains("coordination[0].subtasks"), "{err}");
+}
