@@ -90,6 +90,16 @@ pub fn source_demo_of_arm(file: &str, name: &str, demo: &Group, arm: Option<&str
     // One arm's field: the dataset itself, or with `arm` the arm's dataset in its group.
     let arm_field = |field: &str| -> Result<(&Group, String, String)> {
         match arm {
+            // A two-arm file read as one arm's: say so rather than that the field is missing.
+            None if info.group(field).is_some() => Err(invalid(
+                file,
+                &dg_group,
+                field,
+                &format!(
+                    "holds one end effector per arm ({}): a two-arm demo; `mimicgen generate --task two_arm_lift` (or two_arm_handover) reads it, the one-arm commands and the app do not yet",
+                    info.group(field).map(|g| g.members.keys().cloned().collect::<Vec<_>>().join(", ")).unwrap_or_default()
+                ),
+            )),
             None => Ok((info, dg_group.clone(), field.to_owned())),
             Some(arm) => {
                 let g = info.group(field).ok_or_else(|| missing(file, &dg_group, field))?;

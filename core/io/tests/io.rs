@@ -559,4 +559,7 @@ fn a_two_arm_demo_reads_back_as_one_view_per_arm() {
     }
     let err = file.to_arm_source_datasets(&SourceSelection::default(), &["robot0", "robot2"]).unwrap_err().to_string();
     assert!(err.contains("two.hdf5") && err.contains("datagen_info/eef_pose") && err.contains("robot2"), "{err}");
+    // Read as a one-arm source, the file says it is a two-arm one.
+    let err = file.to_source_dataset(&SourceSelection::default()).unwrap_err().to_string();
+    assert!(err.contains("two.hdf5") && err.contains("two-arm demo") && err.contains("robot0, robot1"), "{err}");
 }
