@@ -653,7 +653,6 @@ fn generate_two_arm(args: &GenerateArgs, task: mimicgen_sim::two_arm::TwoArmTask
         ("--resume", args.resume),
         ("--shard", args.shard.is_some()),
         ("--cameras", args.cameras.cameras.is_some()),
-        ("--rerun", args.rerun.is_set()),
         ("spec fields (--action-noise, --selection, ...)", args.spec.overrides() != SpecOverrides::default()),
     ];
     if let Some((flag, _)) = unsupported.iter().find(|(_, set)| *set) {
@@ -669,7 +668,7 @@ fn generate_two_arm(args: &GenerateArgs, task: mimicgen_sim::two_arm::TwoArmTask
         seed: args.seed.unwrap_or(1),
         workers: args.workers,
     };
-    crate::two_arm::generate(&run)
+    crate::two_arm::generate(&run, &args.rerun)
 }
 
 /// Where each subtask signal first held in a recorded try, in that order, and those that never

@@ -4,7 +4,7 @@ use std::path::Path;
 
 use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressStyle};
-use mimicgen_pipeline::two_arm::{self, TwoArmRun};
+use mimicgen_pipeline::two_arm::{self, TwoArmEvent, TwoArmRun};
 
 use crate::exit::outln;
 
@@ -27,7 +27,7 @@ pub fn demos(task: &str, variant: &str, num_demos: usize, seed: u64, out: &Path)
 ///
 /// # Errors
 /// As [`two_arm::generate`], or a failure to write the report.
-pub fn generate(run: &TwoArmRun) -> anyhow::Result<()> {
+pub fn generate(run: &TwoArmRun, rerun: &crate::view::RerunArgs) -> anyhow::Result<()> {
     if let Some(dir) = run.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -46,11 +46,38 @@ pub fn generate(run: &TwoArmRun) -> anyhow::Result<()> {
             .progress_chars("=> "),
     );
     let started = std::time::Instant::now();
-    let summary = two_arm::generate(run, &mut |attempts, successes| {
-        bar.set_position(attempts as u64);
-        bar.set_message(format!("{successes} successes"));
+    let scene = if rerun.is_set() { Some(run.task.scene()?) } else { None };
+    let mut viz = match scene.as_ref() {
+        Some(scene) => rerun.logger("mimicgen", scene)?,
+        None => None,
+    };
+    let mut viz_error: Option<anyhow::Error> = None;
+    let mut spec = None;
+    let summary = two_arm::generate(run, &mut |event| match event {
+        TwoArmEvent::Started { spec: s, source_names } => {
+            spec = Some(s.clone());
+            if let Some(v) = viz.as_mut() {
+                v.set_source_names(source_names.to_vec());
+            }
+        }
+        TwoArmEvent::Attempt { attempt, attempts, successes } => {
+            bar.set_position(attempts as u64);
+            bar.set_message(format!("{successes} successes"));
+            if let (Some(v), Some(spec)) = (viz.as_mut(), spec.as_ref())
+                && let Err(e) = v.log_two_arm_attempt(attempt, spec, (attempts, successes))
+            {
+                viz_error.get_or_insert_with(|| anyhow::anyhow!("logging attempt {} to Rerun: {e}", attempt.index));
+                viz = None;
+            }
+        }
     })?;
     bar.finish_and_clear();
+    if let Some(v) = viz {
+        v.finish().context("flushing the Rerun recording")?;
+    }
+    if let Some(e) = viz_error {
+        return Err(e);
+    }
     let seconds = started.elapsed().as_secs_f64();
     #[allow(clippy::cast_precision_loss, reason = "counts far below 2^52")]
     let rate = if summary.attempts == 0 { 0.0 } else { 100.0 * summary.successes as f64 / summary.attempts as f64 };

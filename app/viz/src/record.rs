@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use mimicgen_engine::pose::Pose;
 use mimicgen_engine::transform::WaypointKind;
+use mimicgen_engine::two_arm::{ArmSubtask, Constraint, TwoArmAttempt, TwoArmSpec};
 use mimicgen_engine::{Attempt, RunStats, SourceDemo};
 use rerun::{RecordingStream, TimeColumn};
 
@@ -203,6 +204,13 @@ fn log_plans(
     source_names: &[String],
     frame_offset: usize,
 ) -> Result<(), VizError> {
+    begin_attempt(rec, index, objects, frame_offset)?;
+    log_subtask_plans(rec, "world/attempt", plans, source_names)
+}
+
+/// Starts attempt `index` on the timelines: clears the last attempt's entities and logs the
+/// scene's object frames.
+fn begin_attempt(rec: &RecordingStream, index: u64, objects: &BTreeMap<String, Pose>, frame_offset: usize) -> Result<(), VizError> {
     let root = "world/attempt";
     let err = |what: &str, e: &dyn std::fmt::Display| VizError::rerun(&format!("{root}/{what}"), e);
     rec.set_time_sequence(timelines::ATTEMPT, i64::try_from(index).unwrap_or(i64::MAX));
@@ -210,7 +218,18 @@ fn log_plans(
     rec.set_time_sequence(timelines::FRAME, as_i64(frame_offset));
     rec.log(root, &rerun::Clear::recursive()).map_err(|e| err("clear", &e))?;
     rec.log(format!("{root}/objects"), &frame_arrows(objects.iter().map(|(name, pose)| (name.clone(), pose))))
-        .map_err(|e| err("objects", &e))?;
+        .map_err(|e| err("objects", &e))
+}
+
+/// Each subtask's source, transformed, interpolation and transit segments and object frames under
+/// `root/subtask_<k>`.
+fn log_subtask_plans(
+    rec: &RecordingStream,
+    root: &str,
+    plans: &[mimicgen_engine::SubtaskPlan],
+    source_names: &[String],
+) -> Result<(), VizError> {
+    let err = |what: &str, e: &dyn std::fmt::Display| VizError::rerun(&format!("{root}/{what}"), e);
     let name_of = |d: usize| source_names.get(d).cloned().unwrap_or_else(|| format!("demo {d}"));
     for (s, plan) in plans.iter().enumerate() {
         let sub = format!("{root}/subtask_{s}");
@@ -366,5 +385,151 @@ pub fn log_stats(rec: &RecordingStream, stats: &RunStats, source_names: &[String
         rec.log(format!("{path}/attempts"), &rerun::Scalars::single(used.attempts as f64)).map_err(|e| err(&path, &e))?;
         rec.log(format!("{path}/successes"), &rerun::Scalars::single(used.successes as f64)).map_err(|e| err(&path, &e))?;
     }
+    Ok(())
+}
+
+/// Logs a two-arm attempt ([`TwoArmAttempt`]) under `world/attempt/<arm>` per arm (`arms` names
+/// them: each arm's subtask segments as [`log_attempt`] draws one arm's, its executed path and end
+/// effector per step) and its ties: a coordinated pair as a band, `plots/ties/coordination_<i>`, 1
+/// on the steps the two run together, and a line between the two hands where they start; a
+/// sequential tie as a text line at the step the later subtask starts and an arrow from where the
+/// first one's arm ended it to where the later one's arm starts. Per arm, `plots/<arm>/gripper`,
+/// `plots/<arm>/subtask` and `plots/<arm>/holding` (1 while it holds, waiting or done).
+///
+/// # Errors
+/// [`VizError::Rerun`] from the stream.
+#[allow(clippy::too_many_lines)] // one attempt: per arm, then the ties, then the outcome
+pub fn log_two_arm_attempt(
+    rec: &RecordingStream,
+    attempt: &TwoArmAttempt,
+    spec: &TwoArmSpec,
+    source_names: &[String],
+    frame_offset: usize,
+) -> Result<(), VizError> {
+    let err = |what: &str, e: &dyn std::fmt::Display| VizError::rerun(what, e);
+    begin_attempt(rec, attempt.index, &attempt.initial_object_poses, frame_offset)?;
+    let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
+    let n = attempt.actions.len();
+    let index = || {
+        [
+            step_column(timelines::STEP, n, as_i64),
+            step_column(timelines::ATTEMPT, n, |_| k),
+            step_column(timelines::FRAME, n, |t| as_i64(frame_offset + t)),
+        ]
+    };
+    let outcome_color = rgb(if attempt.success { SUCCESS_COLOR } else { FAILURE_COLOR });
+    let arm_name = |a: usize| spec.arms.get(a).map_or_else(|| format!("arm{a}"), |arm| arm.name.clone());
+    for (a, track) in attempt.arms.iter().enumerate() {
+        let name = arm_name(a);
+        let root = format!("world/attempt/{name}");
+        log_subtask_plans(rec, &root, &track.plans, source_names)?;
+        let executed: Vec<[f32; 3]> = track.eef_poses.iter().map(point).collect();
+        rec.log(
+            format!("{root}/executed_path"),
+            &rerun::LineStrips3D::new([executed.clone()])
+                .with_colors([outcome_color])
+                .with_labels([format!("{name} executed")])
+                .with_show_labels(false),
+        )
+        .map_err(|e| err(&format!("{root}/executed_path"), &e))?;
+        if n == 0 || executed.len() != n {
+            continue;
+        }
+        let cols = rerun::Points3D::update_fields()
+            .with_positions(executed)
+            .with_colors(track.subtask_labels.iter().map(|&s| subtask_color(s)))
+            .with_radii(std::iter::repeat_n(0.012_f32, n))
+            .columns_of_unit_batches()
+            .map_err(|e| err(&root, &e))?;
+        rec.send_columns(format!("{root}/eef"), index(), cols).map_err(|e| err(&format!("{root}/eef"), &e))?;
+        #[allow(clippy::cast_precision_loss)]
+        let series: [(&str, Vec<f64>); 3] = [
+            ("gripper", track.gripper_actions.iter().map(|row| row.first().copied().unwrap_or_default()).collect()),
+            ("subtask", track.subtask_labels.iter().map(|&s| s as f64).collect()),
+            ("holding", track.holding.iter().map(|&h| f64::from(u8::from(h))).collect()),
+        ];
+        for (what, values) in series {
+            let path = format!("plots/{name}/{what}");
+            let cols = rerun::Scalars::update_fields().with_scalars(values).columns_of_unit_batches().map_err(|e| err(&path, &e))?;
+            rec.send_columns(path.clone(), index(), cols).map_err(|e| err(&path, &e))?;
+        }
+    }
+    for (signal, values) in &attempt.subtask_term_signals {
+        let path = format!("plots/signals/{signal}");
+        #[allow(clippy::cast_precision_loss)]
+        let cols = rerun::Scalars::update_fields()
+            .with_scalars(values.iter().map(|&v| v as f64))
+            .columns_of_unit_batches()
+            .map_err(|e| err(&path, &e))?;
+        rec.send_columns(path.clone(), index(), cols).map_err(|e| err(&path, &e))?;
+    }
+    // The ties, where both of their subtasks ran.
+    let plan = |(a, s): ArmSubtask| attempt.arms.get(a).and_then(|t| t.plans.get(s));
+    let eef_at = |a: usize, step: usize| attempt.arms.get(a).and_then(|t| t.eef_poses.get(step.min(n.saturating_sub(1)))).map(point);
+    let mut coordination = 0;
+    for constraint in spec.constraints() {
+        match constraint {
+            Constraint::Coordination(x, y) => {
+                let i = coordination;
+                coordination += 1;
+                let (Some(px), Some(py)) = (plan(x), plan(y)) else { continue };
+                let (start, end) = (px.first_step, px.first_step + px.waypoints.len());
+                let path = format!("plots/ties/coordination_{i}");
+                let band = (0..n).map(|t| f64::from(u8::from((start..end).contains(&t))));
+                let cols = rerun::Scalars::update_fields().with_scalars(band).columns_of_unit_batches().map_err(|e| err(&path, &e))?;
+                rec.send_columns(path.clone(), index(), cols).map_err(|e| err(&path, &e))?;
+                if let (Some(hx), Some(hy)) = (eef_at(x.0, start), eef_at(y.0, py.first_step)) {
+                    let label = format!(
+                        "coordination: {} subtask {} with {} subtask {} (steps {start}..{end})",
+                        arm_name(x.0),
+                        x.1,
+                        arm_name(y.0),
+                        y.1
+                    );
+                    rec.log(
+                        format!("world/attempt/ties/coordination_{i}"),
+                        &rerun::LineStrips3D::new([[hx, hy]])
+                            .with_colors([subtask_color(x.1)])
+                            .with_labels([label])
+                            .with_show_labels(false),
+                    )
+                    .map_err(|e| err("world/attempt/ties", &e))?;
+                }
+            }
+            Constraint::Sequential { first, later } => {
+                let (Some(pf), Some(pl)) = (plan(first), plan(later)) else { continue };
+                let ended = pf.first_step + pf.waypoints.len();
+                let label = format!(
+                    "sequential: {} subtask {} starts at step {} after {} subtask {} ended at step {ended}",
+                    arm_name(later.0),
+                    later.1,
+                    pl.first_step,
+                    arm_name(first.0),
+                    first.1
+                );
+                rec.set_time_sequence(timelines::STEP, as_i64(pl.first_step));
+                rec.set_time_sequence(timelines::FRAME, as_i64(frame_offset + pl.first_step));
+                rec.log("ties", &rerun::TextLog::new(label.clone()).with_level(rerun::TextLogLevel::INFO)).map_err(|e| err("ties", &e))?;
+                if let (Some(from), Some(to)) = (eef_at(first.0, ended.saturating_sub(1)), eef_at(later.0, pl.first_step)) {
+                    let vector = [to[0] - from[0], to[1] - from[1], to[2] - from[2]];
+                    rec.log(
+                        format!("world/attempt/ties/sequential_{}_{}_{}_{}", first.0, first.1, later.0, later.1),
+                        &rerun::Arrows3D::from_vectors([vector]).with_origins([from]).with_labels([label]).with_show_labels(false),
+                    )
+                    .map_err(|e| err("world/attempt/ties", &e))?;
+                }
+                rec.set_time_sequence(timelines::STEP, 0);
+                rec.set_time_sequence(timelines::FRAME, as_i64(frame_offset));
+            }
+        }
+    }
+    let outcome = match &attempt.failure {
+        None if attempt.success => format!("attempt {}: success", attempt.index),
+        None => format!("attempt {}: failed", attempt.index),
+        Some(f) => format!("attempt {}: FAILED: {f}", attempt.index),
+    };
+    let level = if attempt.success { rerun::TextLogLevel::INFO } else { rerun::TextLogLevel::WARN };
+    rec.log("outcome", &rerun::TextLog::new(outcome).with_level(level)).map_err(|e| err("outcome", &e))?;
+    rec.log("plots/attempt/success", &rerun::Scalars::single(f64::from(u8::from(attempt.success)))).map_err(|e| err("success", &e))?;
     Ok(())
 }

@@ -159,6 +159,50 @@ impl RunLogger {
         Ok(())
     }
 
+    /// Names the source demos attempts are labelled with (what [`RunLogger::log_demos`] does for a
+    /// one-arm run's).
+    pub fn set_source_names(&mut self, names: Vec<String>) {
+        self.source_names = names;
+    }
+
+    /// Logs one two-arm attempt (see [`record::log_two_arm_attempt`]), with the scene per step as
+    /// configured, and the run's counts after it (`stats/attempts`, `stats/successes`).
+    ///
+    /// # Errors
+    /// [`VizError::Rerun`] from the stream, [`VizError::Sim`] for states that do not fit the scene.
+    pub fn log_two_arm_attempt(
+        &mut self,
+        attempt: &mimicgen_engine::two_arm::TwoArmAttempt,
+        spec: &mimicgen_engine::two_arm::TwoArmSpec,
+        counts: (usize, usize),
+    ) -> Result<(), VizError> {
+        record::log_two_arm_attempt(&self.rec, attempt, spec, &self.source_names, self.frame)?;
+        #[allow(clippy::cast_precision_loss)] // counts far below 2^52
+        for (what, value) in [("stats/attempts", counts.0 as f64), ("stats/successes", counts.1 as f64)] {
+            self.rec.log(what, &rerun::Scalars::single(value)).map_err(|e| VizError::rerun(what, &e))?;
+        }
+        let states = &attempt.states;
+        let n = states.len();
+        let wanted = match self.config.scene {
+            SceneLevel::All => true,
+            SceneLevel::Successes => attempt.success,
+            SceneLevel::None => false,
+        };
+        if wanted && n > 0 {
+            let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
+            let steps: Vec<i64> = (0..n).map(|t| i64::try_from(t).unwrap_or(i64::MAX)).collect();
+            let frames: Vec<i64> = steps.iter().map(|t| t + i64::try_from(self.frame).unwrap_or(i64::MAX)).collect();
+            self.scene.log_states(
+                &self.rec,
+                states,
+                self.config.scene_stride,
+                &[(timelines::STEP, steps), (timelines::ATTEMPT, vec![k; n]), (timelines::FRAME, frames)],
+            )?;
+        }
+        self.frame += n;
+        Ok(())
+    }
+
     /// Logs a planned, not executed, attempt: its segments, and the scene at `plan.initial_state`
     /// (when it fits the scene) at step 0.
     ///

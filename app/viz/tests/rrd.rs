@@ -159,3 +159,67 @@ fn camera_images_go_on_the_demo_timeline() {
         assert_eq!(rows, n, "{camera}: {rows} images for {n} steps");
     }
 }
+
+/// A two-arm run in Rerun: each arm's segments, path and hand under `world/attempt/<arm>`, its
+/// gripper, subtask and holding plots, and the ties: coordinated pairs as bands and lines between
+/// the hands, the sequential release as an arrow and a text line.
+#[test]
+fn two_arm_attempts_show_each_arm_and_the_ties() {
+    use mimicgen_engine::demo::SourceDataset;
+    use mimicgen_engine::two_arm::{TwoArmEnvironment as _, TwoArmGenerator, TwoArmHandoverScript};
+    use mimicgen_sim::two_arm::{TwoArmSimEnv, TwoArmTask};
+    use rand::SeedableRng as _;
+
+    let task = TwoArmTask::Handover;
+    let scene = Arc::new(task.scene().expect("scene"));
+    let mut env = TwoArmSimEnv::new(Arc::clone(&scene), task, "D0").expect("env");
+    let spec = task.spec().expect("spec");
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut views: Vec<Vec<_>> = vec![Vec::new(), Vec::new()];
+    while views[0].len() < 2 {
+        env.reset(&mut rng).expect("reset");
+        let demo = TwoArmHandoverScript::hammer().record(&mut env, &mut rng).expect("record");
+        let arm_views = demo.arm_views(&format!("demo_{}", views[0].len()));
+        let one = arm_views.iter().map(|d| SourceDataset { demos: vec![d.clone()], env_args: None }).collect();
+        if demo.success && TwoArmGenerator::new(spec.clone(), one).is_ok() {
+            for (arm, view) in arm_views.into_iter().enumerate() {
+                views[arm].push(view);
+            }
+        }
+    }
+    let generator = TwoArmGenerator::new(spec.clone(), views.into_iter().map(|demos| SourceDataset { demos, env_args: None }).collect())
+        .expect("generator");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rrd = dir.path().join("two_arm.rrd");
+    let rec = Sink::Save(rrd.clone()).open("mimicgen").expect("open recording");
+    let mut logger = RunLogger::new(rec, &scene, LogConfig { scene: SceneLevel::All, scene_stride: 4 }).expect("logger");
+    logger.set_source_names(vec!["demo_0".to_owned(), "demo_1".to_owned()]);
+    let (mut successes, mut released) = (0, false);
+    for index in 0..2 {
+        let attempt = generator.attempt(&mut env, index).expect("attempt");
+        successes += usize::from(attempt.success);
+        released |= attempt.arms[0].plans.len() == 4;
+        logger.log_two_arm_attempt(&attempt, &spec, (usize::try_from(index).expect("index") + 1, successes)).expect("log");
+    }
+    logger.finish().expect("flush");
+    assert!(released, "no attempt got to arm 0's release: the sequential tie is not drawn");
+    let print = rerun_cli(&["rrd", "print", "-vv", rrd.to_str().expect("utf-8 path")]);
+    for entity in [
+        "/world/scene/",
+        "/world/attempt/robot0/subtask_0/transformed_segment",
+        "/world/attempt/robot1/subtask_1/transformed_segment",
+        "/world/attempt/robot0/executed_path",
+        "/world/attempt/robot1/eef",
+        "/plots/robot0/gripper",
+        "/plots/robot1/holding",
+        "/plots/ties/coordination_0",
+        "/world/attempt/ties/coordination_1",
+        "/world/attempt/ties/sequential_1_1_0_3",
+        "/ties",
+        "/plots/signals/handle_grasp",
+        "/outcome",
+        "/stats/successes",
+    ] {
+        assert!(print.contains(entity), "entity {entity} missing from `rerun rrd print`:\n{}", &print[..print.len().min(4000)]);
+    }
+}

@@ -133,16 +133,37 @@ pub struct TwoArmSummary {
     pub num_sources: usize,
 }
 
+/// What a two-arm run reports as it goes.
+#[derive(Debug)]
+pub enum TwoArmEvent<'a> {
+    /// The run is about to start: its spec and its source demos' names.
+    Started {
+        /// The spec (the run's seed and trials in it).
+        spec: &'a mimicgen_engine::two_arm::TwoArmSpec,
+        /// The source demos, in file order.
+        source_names: &'a [String],
+    },
+    /// An attempt was decided (in index order).
+    Attempt {
+        /// The attempt.
+        attempt: &'a TwoArmAttempt,
+        /// Attempts decided so far.
+        attempts: usize,
+        /// Successes among them.
+        successes: usize,
+    },
+}
+
 /// One finished attempt, with what the writer needs of it.
 type Finished = (u64, Result<(TwoArmAttempt, Option<DemoData>), PipelineError>);
 
 /// Runs `run`: attempts in order of index spread over the workers, successes written in that
-/// order (the same dataset for the same seed whatever the number of workers); `progress` gets
-/// `(attempts, successes)` after each.
+/// order (the same dataset for the same seed whatever the number of workers); `progress` hears
+/// of the start and of each attempt, in index order.
 ///
 /// # Errors
 /// Unreadable sources, a spec they do not fit, simulator or write failures.
-pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(usize, usize)) -> Result<TwoArmSummary, PipelineError> {
+pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> Result<TwoArmSummary, PipelineError> {
     let source = match &run.source {
         Some(path) => path.clone(),
         None => crate::bundled::source_demos(run.task.name())?,
@@ -151,10 +172,12 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(usize, usize)) -> Resu
     let dataset = RobomimicDataset::open(&source)?;
     let views = dataset.to_arm_source_datasets(&SourceSelection::default(), &ARMS)?;
     let num_sources = views.first().map_or(0, |v| v.demos.len());
+    let source_names: Vec<String> = views.first().map(|v| v.demos.iter().map(|d| d.name.clone()).collect()).unwrap_or_default();
     let mut spec = run.task.spec().map_err(|e| PipelineError::engine("bundled spec", e))?;
     spec.generation.seed = run.seed;
     spec.generation.num_trials = run.num_trials;
     let generator = TwoArmGenerator::new(spec, views).map_err(|e| PipelineError::engine(file.clone(), e))?;
+    progress(TwoArmEvent::Started { spec: generator.spec(), source_names: &source_names });
     let scene = Arc::new(run.task.scene()?);
     let xml = mimicgen_sim::assets::portable_asset_paths(&scene.xml);
     let options =
@@ -223,7 +246,7 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(usize, usize)) -> Resu
                     }
                     (None, None) => {}
                 }
-                progress(summary.attempts, summary.successes);
+                progress(TwoArmEvent::Attempt { attempt: &attempt, attempts: summary.attempts, successes: summary.successes });
             }
         }
         Ok(())
