@@ -51,7 +51,8 @@ is <out>.partial; after a crash or kill, the same command with --resume continue
 finished dataset equals an uninterrupted run's (a run killed after its dataset was finished but
 before its report was written gets the report from --resume). Two-arm tasks (two_arm_lift,
 two_arm_handover: robosuite's own two-arm environments) take --task, --variant, --num-demos,
---seed, --workers, --source, --out and --overwrite so far, and write the dataset and <out>.json. On a terminal, progress is a bar; in a log (a
+--guarantee, --max-attempts, --valid-fraction, --seed, --workers, --source, --out, --overwrite and
+the --rerun flags so far, and write the dataset and <out>.json. On a terminal, progress is a bar; in a log (a
 batch job, stderr redirected) it is a `progress N/TOTAL: ...` line per percent of the run.")]
 pub struct GenerateArgs {
     /// Task to generate (see `mimicgen tasks`). Default: what the inputs name, else stack.
@@ -646,9 +647,6 @@ fn generate_two_arm(args: &GenerateArgs, task: mimicgen_sim::two_arm::TwoArmTask
         ("--robot", args.robot.is_some()),
         ("--config", args.config.is_some()),
         ("--keep-failed", args.keep_failed),
-        ("--guarantee", args.guarantee),
-        ("--max-attempts", args.max_attempts.is_some()),
-        ("--valid-fraction", args.valid_fraction.is_some()),
         ("--early-abort", args.early_abort),
         ("--resume", args.resume),
         ("--shard", args.shard.is_some()),
@@ -665,6 +663,9 @@ fn generate_two_arm(args: &GenerateArgs, task: mimicgen_sim::two_arm::TwoArmTask
         source: args.source.clone(),
         out: args.out.clone(),
         num_trials: args.num_demos.unwrap_or(100),
+        guarantee: args.guarantee,
+        max_attempts: args.max_attempts,
+        valid_fraction: args.valid_fraction,
         seed: args.seed.unwrap_or(1),
         workers: args.workers,
     };

@@ -80,10 +80,10 @@ fn recorded_two_arm_demos_are_a_source() {
 fn a_flag_two_arm_runs_lack_is_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.hdf5");
-    let run = mimicgen().args(["generate", "--task", "two_arm_lift", "--guarantee", "--out"]).arg(&out).output().unwrap();
+    let run = mimicgen().args(["generate", "--task", "two_arm_lift", "--resume", "--out"]).arg(&out).output().unwrap();
     let err = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{err}");
-    assert!(err.contains("--guarantee") && err.contains("two_arm_lift"), "{err}");
+    assert!(err.contains("--resume") && err.contains("two_arm_lift"), "{err}");
     assert!(!out.exists());
 }
 
@@ -106,4 +106,32 @@ fn spec_check_reads_a_two_arm_spec_and_names_a_bad_tie() {
     let err = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{err}");
     assert!(err.contains("bad.toml") && err.contains("coordination[0].subtasks"), "{err}");
+}
+
+/// `--guarantee` keeps attempting until the successes asked for: they are the first ones in
+/// attempt order, the same on 1 and 2 workers; `--valid-fraction` writes robomimic's masks.
+#[test]
+fn guarantee_gives_the_first_successes_whatever_the_workers() {
+    let dir = tempfile::tempdir().unwrap();
+    let (one, two) = (dir.path().join("one.hdf5"), dir.path().join("two.hdf5"));
+    for (out, workers) in [(&one, "1"), (&two, "2")] {
+        let run = mimicgen()
+            .args(["generate", "--task", "two_arm_handover", "--num-demos", "2", "--guarantee", "--seed", "1", "--valid-fraction", "0.5"])
+            .args(["--workers", workers, "--out"])
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    }
+    let (a, b) = (RobomimicDataset::open(&one).unwrap(), RobomimicDataset::open(&two).unwrap());
+    assert_eq!(a.demo_names().len(), 2);
+    let attempts = |d: &RobomimicDataset| -> Vec<String> {
+        d.demo_names().iter().map(|n| format!("{:?}", d.demo(n).unwrap().attrs.get("mimicgen_attempt"))).collect()
+    };
+    assert_eq!(attempts(&a), attempts(&b));
+    assert!(attempts(&a).iter().all(|x| x.starts_with("Some")), "{:?}", attempts(&a));
+    assert_eq!(a.masks().unwrap().get("valid").map(Vec::len), Some(1));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("one.json")).unwrap()).unwrap();
+    assert_eq!(report["successes"], 2);
+    assert!(report["attempts"].as_u64().unwrap() >= 2);
 }

@@ -107,8 +107,15 @@ pub struct TwoArmRun {
     pub source: Option<PathBuf>,
     /// The dataset to write.
     pub out: PathBuf,
-    /// Attempts to run.
+    /// Attempts to run; with `guarantee`, successes to reach.
     pub num_trials: usize,
+    /// Keep attempting until `num_trials` successes (at most `max_attempts` attempts).
+    pub guarantee: bool,
+    /// The cap on attempts with `guarantee` (`None`: 100 x `num_trials`).
+    pub max_attempts: Option<usize>,
+    /// Put this fraction of the demos, drawn with the seed, in `mask/valid` (the rest in
+    /// `mask/train`); `None` writes no masks.
+    pub valid_fraction: Option<f64>,
     /// The run's seed (attempt `i` draws from its own stream of it).
     pub seed: u64,
     /// Worker threads, each with its own simulator.
@@ -158,8 +165,9 @@ pub enum TwoArmEvent<'a> {
 type Finished = (u64, Result<(TwoArmAttempt, Option<DemoData>), PipelineError>);
 
 /// Runs `run`: attempts in order of index spread over the workers, successes written in that
-/// order (the same dataset for the same seed whatever the number of workers); `progress` hears
-/// of the start and of each attempt, in index order.
+/// order (the same dataset for the same seed whatever the number of workers); with `guarantee`,
+/// until `num_trials` successes; `progress` hears of the start and of each attempt, in index
+/// order.
 ///
 /// # Errors
 /// Unreadable sources, a spec they do not fit, simulator or write failures.
@@ -176,12 +184,16 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> R
     let mut spec = run.task.spec().map_err(|e| PipelineError::engine("bundled spec", e))?;
     spec.generation.seed = run.seed;
     spec.generation.num_trials = run.num_trials;
+    spec.generation.guarantee = run.guarantee;
+    spec.generation.max_attempts = run.max_attempts.unwrap_or(0);
+    let cap = spec.generation.attempt_cap();
+    let target = if run.guarantee { run.num_trials } else { usize::MAX };
     let generator = TwoArmGenerator::new(spec, views).map_err(|e| PipelineError::engine(file.clone(), e))?;
     progress(TwoArmEvent::Started { spec: generator.spec(), source_names: &source_names });
     let scene = Arc::new(run.task.scene()?);
     let xml = mimicgen_sim::assets::portable_asset_paths(&scene.xml);
     let options =
-        WriterOptions { env_args: Some(run.task.env_args()), compress_obs: true, valid_fraction: Some(0.1), split_seed: run.seed };
+        WriterOptions { env_args: Some(run.task.env_args()), compress_obs: true, valid_fraction: run.valid_fraction, split_seed: run.seed };
     let mut writer = DatasetWriter::create(&run.out, options)?;
     let next = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
@@ -201,7 +213,7 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> R
                 };
                 loop {
                     let index = next.fetch_add(1, Ordering::Relaxed);
-                    if index >= run.num_trials || stop.load(Ordering::Relaxed) {
+                    if index >= cap || stop.load(Ordering::Relaxed) {
                         return;
                     }
                     let index = u64::try_from(index).unwrap_or(u64::MAX);
@@ -247,6 +259,12 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> R
                     (None, None) => {}
                 }
                 progress(TwoArmEvent::Attempt { attempt: &attempt, attempts: summary.attempts, successes: summary.successes });
+                // With `guarantee`, the first `num_trials` successes in index order, whatever
+                // the workers ran ahead.
+                if summary.successes >= target {
+                    stop.store(true, Ordering::Relaxed);
+                    return Ok(());
+                }
             }
         }
         Ok(())
