@@ -11,6 +11,7 @@ use mimicgen_engine::Environment as _;
 use mimicgen_engine::demo::Rows;
 use mimicgen_io::tree::Group;
 use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, RobomimicDataset, WriterOptions};
+use mimicgen_sim::two_arm::{TwoArmSimEnv, TwoArmTask};
 use mimicgen_sim::{Scene, SimEnv, registry};
 
 use crate::PipelineError;
@@ -48,6 +49,13 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
     let file = input.display().to_string();
     let dataset = RobomimicDataset::open(input)?;
     let env_args = dataset.env_args().map(str::to_owned);
+    let two_arm = match task {
+        Some(name) => TwoArmTask::from_name(name),
+        None => env_args.as_deref().and_then(TwoArmTask::from_env_args),
+    };
+    if let Some(two_arm) = two_arm {
+        return prepare_two_arm(&dataset, two_arm, out, env_args, &mut on_demo);
+    }
     let task = task_of(task, env_args.as_deref(), &file)?;
     let mut writer = DatasetWriter::create(out, WriterOptions { env_args, compress_obs: true, valid_fraction: None, split_seed: 0 })?;
     let mut scenes: BTreeMap<String, Arc<Scene>> = BTreeMap::new();
@@ -107,6 +115,85 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
             cause: None,
             object_instance: None,
         };
+        writer.append(&data)?;
+        on_demo(done + 1, names.len(), name);
+    }
+    writer.finish()?;
+    Ok(names.len())
+}
+
+/// [`prepare`] for a two-arm dataset: per step each arm's end effector, target and gripper
+/// (`datagen_info/<field>/robot0`, `robot1`), the objects and the task's signals.
+fn prepare_two_arm(
+    dataset: &RobomimicDataset,
+    task: TwoArmTask,
+    out: &Path,
+    env_args: Option<String>,
+    on_demo: &mut dyn FnMut(usize, usize, &str),
+) -> Result<usize, PipelineError> {
+    use mimicgen_engine::two_arm::TwoArmEnvironment as _;
+    let file = dataset.file.clone();
+    let mut writer = DatasetWriter::create(out, WriterOptions { env_args, compress_obs: true, valid_fraction: None, split_seed: 0 })?;
+    let mut scenes: BTreeMap<String, Arc<Scene>> = BTreeMap::new();
+    let names = dataset.demo_names().to_vec();
+    for (done, name) in names.iter().enumerate() {
+        let demo = dataset.demo(name).ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "vanished"))?;
+        let xml = demo
+            .attrs
+            .get("model_file")
+            .and_then(|a| a.as_str())
+            .ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "has no model_file attribute"))?;
+        let scene = match scenes.get(xml) {
+            Some(s) => Arc::clone(s),
+            None => {
+                let s = Arc::new(task.scene_from_model_file(xml, &format!("{file}: data/{name}/model_file"))?);
+                scenes.insert(xml.to_owned(), Arc::clone(&s));
+                s
+            }
+        };
+        let mut env = TwoArmSimEnv::new(scene, task, "D0")?;
+        let states = rows(demo, "states", &file, name)?;
+        let actions = rows(demo, "actions", &file, name)?;
+        if states.len() != actions.len() || actions.width() != 14 {
+            return Err(PipelineError::input(
+                file.clone(),
+                format!("data/{name}"),
+                format!("{} states and {} actions of {} values (two arms: 14 per step)", states.len(), actions.len(), actions.width()),
+            ));
+        }
+        let mut attempt = mimicgen_engine::two_arm::TwoArmAttempt {
+            index: 0,
+            success: false,
+            failure: None,
+            initial_object_poses: BTreeMap::new(),
+            initial_state: Vec::new(),
+            states: states.clone(),
+            actions: actions.clone(),
+            object_poses: BTreeMap::new(),
+            subtask_term_signals: BTreeMap::new(),
+            arms: (0..2).map(|_| mimicgen_engine::two_arm::ArmTrack { gripper_actions: Rows::new(1), ..Default::default() }).collect(),
+        };
+        for (t, (state, action)) in states.iter().zip(actions.iter()).enumerate() {
+            env.set_state(state).map_err(|e| PipelineError::input(file.clone(), format!("data/{name}/states[{t}]"), e.to_string()))?;
+            for (arm, track) in attempt.arms.iter_mut().enumerate() {
+                let arm_action = action.get(7 * arm..7 * arm + 7).unwrap_or_default();
+                track.eef_poses.push(env.eef_pose(arm));
+                track.target_poses.push(env.action_to_target_pose(arm, arm_action));
+                track.gripper_actions.push(arm_action.get(6..).unwrap_or_default()).map_err(|e| PipelineError::engine(file.clone(), e))?;
+            }
+            for (object, pose) in env.object_poses() {
+                attempt.object_poses.entry(object).or_default().push(pose);
+            }
+            for (signal, value) in env.subtask_term_signals() {
+                attempt.subtask_term_signals.entry(signal).or_default().push(value);
+            }
+        }
+        let (obs, images) = demo.group("obs").map(mimicgen_io::observations_from_group).unwrap_or_default();
+        let mut data = DemoData::from_two_arm_attempt(&attempt, &crate::two_arm::ARMS, obs, Some(xml.to_owned()));
+        data.images = images;
+        data.rewards = demo.dataset("rewards").and_then(|d| d.array.values.to_f64());
+        data.dones = demo.dataset("dones").and_then(|d| d.array.values.to_i64());
+        (data.attempt_index, data.src_demo_labels, data.failure) = (None, Vec::new(), None);
         writer.append(&data)?;
         on_demo(done + 1, names.len(), name);
     }

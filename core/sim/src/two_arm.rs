@@ -202,6 +202,28 @@ impl TwoArmTask {
         Ok(scene)
     }
 
+    /// The two-arm task whose robosuite environment `env_args` (robomimic's JSON) names.
+    #[must_use]
+    pub fn from_env_args(env_args: &str) -> Option<Self> {
+        let value: serde_json::Value = serde_json::from_str(env_args).ok()?;
+        let name = value.get("env_name")?.as_str()?;
+        Self::ALL.into_iter().find(|t| t.env_name() == name)
+    }
+
+    /// Compiles a dataset's scene (its `model_file`: robosuite's XML, asset paths re-pointed at
+    /// the local robosuite assets) for this task.
+    ///
+    /// # Errors
+    /// As [`TwoArmTask::scene`].
+    pub fn scene_from_model_file(self, xml: &str, origin: &str) -> Result<Scene, SimError> {
+        let assets = crate::assets::robosuite_assets_dir()?;
+        let scene = Scene::compile(&crate::assets::remap_asset_paths(xml, &assets), origin, &self.objects(), 20.0)?;
+        if scene.second_robot.is_none() {
+            return Err(SimError::MissingName { file: origin.to_owned(), kind: "body".to_owned(), name: "robot1_base".to_owned() });
+        }
+        Ok(scene)
+    }
+
     /// Where `variant` places the task's object: x and y around the table's centre (m).
     fn placement(self, variant: &str) -> ([f64; 2], [f64; 2]) {
         match (self, variant) {
