@@ -357,7 +357,7 @@ fn request_paths(request: &mimicgen_ui::protocol::Request) -> Vec<std::path::Pat
         | Request::Doctor { run: path, .. } => {
             vec![path.clone()]
         }
-        Request::Save { source, out, .. } => vec![source.clone(), out.clone()],
+        Request::Save { source, out, .. } | Request::SaveArms { source, out, .. } => vec![source.clone(), out.clone()],
         Request::Preview(r) => vec![r.source.clone()],
         Request::SideBySide(pair) => pair.iter().map(|r| r.source.clone()).collect(),
         Request::Run(config) => [Some(config.out.clone()), config.source.clone(), config.config.clone()].into_iter().flatten().collect(),

@@ -66,6 +66,7 @@ pub(crate) fn stream(path: &Path, prepared_from: Option<&Path>, send: &dyn Fn(Re
                 planned: spec.subtasks.iter().map(|s| s.transit == Transit::Plan).collect(),
                 total_demos: total,
                 demos: Vec::new(),
+                arms: Vec::new(),
             };
             *header.borrow_mut() = Some((file, 0));
             *found.borrow_mut() = Some(Annotations {
@@ -114,6 +115,9 @@ pub(crate) fn stream(path: &Path, prepared_from: Option<&Path>, send: &dyn Fn(Re
 /// # Errors
 /// The pipeline's error, whole (it names the file and field).
 pub fn open(path: &Path, send: &dyn Fn(Reply)) -> Result<(Reply, Annotations), PipelineError> {
+    if let Some(task) = two_arm_task(path) {
+        return open_two_arm(path, task);
+    }
     match stream(path, None, send) {
         Err(PipelineError::Io(IoError::NotMimicGen { .. })) => {
             let prepared = prepare::cached_prepared_path(path);
@@ -129,6 +133,56 @@ pub fn open(path: &Path, send: &dyn Fn(Reply)) -> Result<(Reply, Annotations), P
         }
         other => other,
     }
+}
+
+/// The two-arm task a file's `env_args` names, when its demos hold one view per arm.
+pub(crate) fn two_arm_task(path: &Path) -> Option<mimicgen_sim::two_arm::TwoArmTask> {
+    let reader = DemoReader::open_with(path, ReadOptions::default()).ok()?;
+    let task = mimicgen_sim::two_arm::TwoArmTask::from_env_args(reader.env_args_json()?)?;
+    let first = reader.demo_names().first()?.clone();
+    let demo = reader.load_demo(&first).ok()?;
+    demo.group("datagen_info")?.group("eef_pose").is_some().then_some(task)
+}
+
+/// Opens a two-arm source file: each arm's view of every demo with its proposals, the first
+/// arm's in the file's main fields (and in the returned annotations, which preview and runs,
+/// one-arm only, do not use for a two-arm file).
+///
+/// # Errors
+/// As [`annotate::propose_two_arm`].
+fn open_two_arm(path: &Path, task: mimicgen_sim::two_arm::TwoArmTask) -> Result<(Reply, Annotations), PipelineError> {
+    let (arms, scene) = annotate::propose_two_arm(path, task)?;
+    let arm_files: Vec<mimicgen_ui::protocol::ArmFile> = arms
+        .iter()
+        .map(|arm| {
+            let last = arm.spec.subtasks.len().saturating_sub(1);
+            mimicgen_ui::protocol::ArmFile {
+                name: arm.name.clone(),
+                signal_names: arm.spec.subtasks.iter().take(last).map(|s| s.term_signal.clone().unwrap_or_default()).collect(),
+                subtask_objects: arm.spec.subtasks.iter().map(|s| s.object_ref.clone()).collect(),
+                demos: arm.demos.iter().map(|(d, a)| demo_view(d, a)).collect(),
+            }
+        })
+        .collect();
+    let no_arms = || PipelineError::Input { file: path.display().to_string(), field: "arm".to_owned(), reason: "no arms".to_owned() };
+    let first = arms.into_iter().next().ok_or_else(no_arms)?;
+    let file0 = arm_files.first().cloned().ok_or_else(no_arms)?;
+    let file = LoadedFile {
+        path: path.to_path_buf(),
+        prepared_from: None,
+        task: task.name().to_owned(),
+        variants: task.variants().iter().map(|v| (*v).to_owned()).collect(),
+        signal_names: file0.signal_names,
+        subtask_objects: file0.subtask_objects,
+        approach_m: first.spec.subtasks.iter().map(|s| s.approach_m).collect(),
+        planned: vec![false; first.spec.subtasks.len()],
+        total_demos: file0.demos.len(),
+        demos: file0.demos,
+        arms: arm_files,
+    };
+    let (sources, demos): (Vec<SourceDemo>, Vec<DemoAnnotation>) = first.demos.into_iter().unzip();
+    let found = Annotations { spec: first.spec, demos, sources: SourceDataset { demos: sources, env_args: None }, scene };
+    Ok((Reply::Opened(Box::new(file)), found))
 }
 
 /// Demo `demo`'s RGB camera streams in `path` (none when it has no camera observations or

@@ -97,6 +97,8 @@ pub struct Worker {
     loaded: Option<Annotations>,
     /// The open file (for a plain robomimic file, its prepared copy).
     loaded_path: Option<PathBuf>,
+    /// The open file is a two-arm one (annotated per arm; no preview, run or 3D view yet).
+    two_arm: bool,
     previewer: Option<(RunConfig, Previewer)>,
     viewer: Option<(ViewerSink, RunLogger)>,
     embedded: Option<StreamFactory>,
@@ -130,6 +132,7 @@ impl Worker {
         Self {
             loaded: None,
             loaded_path: None,
+            two_arm: false,
             previewer: None,
             viewer: None,
             embedded,
@@ -389,6 +392,19 @@ impl Worker {
 
     /// Answers one request.
     pub fn handle(&mut self, request: Request) -> Reply {
+        if self.two_arm
+            && let Some(what) = match &request {
+                Request::Preview(_) | Request::SideBySide(_) => Some("previewing an attempt"),
+                Request::Run(_) => Some("starting a run"),
+                Request::Open3d { .. } | Request::ShowDemo { in_3d: true, .. } => Some("the 3D view"),
+                _ => None,
+            }
+        {
+            return Reply::Failed {
+                what: what.to_owned(),
+                error: "the open file is a two-arm one: the app annotates its arms; preview, runs and the 3D view are one-arm only so far (`mimicgen generate --task two_arm_lift --rerun run.rrd` runs and shows two arms)".to_owned(),
+            };
+        }
         match request {
             Request::Run(config) => self.start_run(*config),
             Request::ListDir { path } => match list_dir(&path) {
@@ -419,6 +435,7 @@ impl Worker {
             Request::Open { path } => match open(&path, &*Arc::clone(&self.notify)) {
                 Ok((reply, found)) => {
                     self.loaded = Some(found);
+                    self.two_arm = matches!(&reply, Reply::Opened(file) if !file.arms.is_empty());
                     // The stream's static scene is the old file's: a new file needs a new stream.
                     self.viewer = None;
                     if let Reply::Opened(file) = &reply {
@@ -430,18 +447,20 @@ impl Worker {
                 }
                 Err(e) => Reply::Failed { what: format!("opening {}", path.display()), error: e.to_string() },
             },
-            Request::Save { source, out, marks, signal_names, overwrite } => {
-                if out.canonicalize().is_ok_and(|o| source.canonicalize().is_ok_and(|s| s == o)) {
-                    return Reply::Failed {
-                        what: format!("saving {}", out.display()),
-                        error: format!("{} is the open file: saving over it is not allowed; choose a new file", out.display()),
-                    };
+            Request::SaveArms { source, out, arms, overwrite } => {
+                if let Some(refused) = refuse_output(&source, &out, overwrite) {
+                    return refused;
                 }
-                if out.exists() && !overwrite {
-                    return Reply::Failed {
-                        what: format!("saving {}", out.display()),
-                        error: format!("{} exists: choose a new file, or tick \"replace\" to save over it", out.display()),
-                    };
+                let arms: Vec<(Vec<String>, std::collections::BTreeMap<String, Vec<usize>>)> =
+                    arms.into_iter().map(|a| (a.signal_names, a.ends)).collect();
+                match annotate::write_arm_signals(&source, &out, &arms) {
+                    Ok(()) => Reply::Saved { out, demos: arms.first().map_or(0, |(_, ends)| ends.len()) },
+                    Err(e) => Reply::Failed { what: format!("saving {}", out.display()), error: e.to_string() },
+                }
+            }
+            Request::Save { source, out, marks, signal_names, overwrite } => {
+                if let Some(refused) = refuse_output(&source, &out, overwrite) {
+                    return refused;
                 }
                 match annotate::write_signals(&source, &out, &signal_names, &marks.ends, &marks.starts) {
                     Ok(()) => Reply::Saved { out, demos: marks.ends.len() },
@@ -596,4 +615,19 @@ mod tests {
         };
         assert!(report.cancelled && report.attempts < 1000, "{report:?}");
     }
+}
+
+/// The reply refusing to save `out`: over the open file, or over an existing file without
+/// `overwrite`.
+fn refuse_output(source: &std::path::Path, out: &std::path::Path, overwrite: bool) -> Option<Reply> {
+    if out.canonicalize().is_ok_and(|o| source.canonicalize().is_ok_and(|s| s == o)) {
+        return Some(Reply::Failed {
+            what: format!("saving {}", out.display()),
+            error: format!("{} is the open file: saving over it is not allowed; choose a new file", out.display()),
+        });
+    }
+    (out.exists() && !overwrite).then(|| Reply::Failed {
+        what: format!("saving {}", out.display()),
+        error: format!("{} exists: choose a new file, or tick \"replace\" to save over it", out.display()),
+    })
 }

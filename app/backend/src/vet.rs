@@ -128,7 +128,7 @@ fn signal_name(status: &std::process::ExitStatus) -> String {
 pub fn files_read(request: &Request) -> Vec<&Path> {
     match request {
         Request::Open { path } | Request::OpenCompare { path } | Request::OpenRun { path } => vec![path],
-        Request::Save { source, .. } => vec![source],
+        Request::Save { source, .. } | Request::SaveArms { source, .. } => vec![source],
         Request::Preview(r) => vec![&r.source],
         Request::SideBySide(pair) => pair.iter().map(|r| r.source.as_path()).collect(),
         Request::Run(config) => config.source.iter().map(PathBuf::as_path).collect(),

@@ -957,3 +957,55 @@ fn an_object_transfer_run_is_split_by_mug() {
     h.get_by_label(label.as_str());
     h.get_all_by_label(&format!("{ok} of {tried}")).next().unwrap();
 }
+
+/// A two-arm source file: a row per arm; clicking an arm annotates it (its signals, its ends, the
+/// keys move its end), the other arm keeps its own, and saving writes both arms' signals where the
+/// two-arm generator reads them. Preview is refused by name (one-arm only so far).
+#[test]
+fn a_two_arm_file_is_annotated_arm_by_arm_and_saved() {
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/two_arm_lift_D0_source.hdf5");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("two_arm_annotated.hdf5");
+    let mut h = harness(Some(source));
+    settle(&mut h);
+    let file = h.state().model.file.as_ref().unwrap();
+    assert_eq!(file.arms.len(), 2, "{:?}", h.state().model.error);
+    assert_eq!(file.signal_names, ["grasp_handle0"]);
+    let arm0_before = h.state().model.demo_ends();
+    h.get_by_label_contains("arm 1 (robot1)").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.arm, 1);
+    assert_eq!(h.state().model.file.as_ref().unwrap().signal_names, ["grasp_handle1"]);
+    h.get_by_label_contains("grasp_handle1) ends at step");
+    for _ in 0..30 {
+        h.key_press(egui::Key::ArrowRight);
+        h.step();
+    }
+    h.key_press(egui::Key::E);
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_ends(), vec![31], "E puts arm 1's end at the cursor");
+    h.get_by_label_contains("arm 0 (robot0)").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model.demo_ends(), arm0_before, "arm 0 keeps its own ends");
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Save to:").click();
+    h.run_steps(2);
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Save to:").type_text(&out.display().to_string());
+    h.run_steps(2);
+    h.get_by_label("Save as").click();
+    h.step();
+    settle(&mut h);
+    assert!(h.state().model.error.is_none(), "{:?}", h.state().model.error);
+    h.state_mut().command(Command::Show(mimicgen_gui::Screen::Preview));
+    settle(&mut h);
+    let error = h.state().model.error.clone().unwrap_or_default();
+    assert!(error.contains("two-arm"), "{error}");
+    // The saved file: arm 1's signal turns on at its subtask's last step where it was put, arm 0's
+    // where it was.
+    let views = mimicgen_io::RobomimicDataset::open(&out)
+        .unwrap()
+        .to_arm_source_datasets(&mimicgen_engine::spec::SourceSelection::default(), &["robot0", "robot1"])
+        .unwrap();
+    let first_on = |signal: &[i64]| signal.iter().position(|&v| v != 0).unwrap();
+    assert_eq!(first_on(&views[1].demos[0].subtask_term_signals["grasp_handle1"]), 30);
+    assert_eq!(first_on(&views[0].demos[0].subtask_term_signals["grasp_handle0"]), arm0_before[0] - 1);
+}

@@ -172,6 +172,9 @@ impl Root {
             Request::Save { source, out, marks, signal_names, overwrite } => {
                 Request::Save { source: self.resolve_input(&source)?, out: self.resolve(&out)?, marks, signal_names, overwrite }
             }
+            Request::SaveArms { source, out, arms, overwrite } => {
+                Request::SaveArms { source: self.resolve_input(&source)?, out: self.resolve(&out)?, arms, overwrite }
+            }
             Request::Preview(r) => Request::Preview(Box::new(preview(*r)?)),
             Request::SideBySide(pair) => {
                 let [a, b] = *pair;

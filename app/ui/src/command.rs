@@ -31,6 +31,8 @@ pub enum Command {
     StepCursor(i64),
     /// Choose which subtask end the keyboard and "set at cursor" move.
     SelectBoundary(usize),
+    /// In a two-arm file, annotate arm `k` (its timeline, plots and ends).
+    SelectArm(usize),
     /// Set the end of `subtask` (its last step is `end - 1`) in the shown demo.
     SetEnd {
         /// The subtask.

@@ -97,6 +97,11 @@ pub struct AppModel {
     pub save_overwrite: bool,
     /// The run doctor.
     pub doctor: DoctorState,
+    /// In a two-arm file, the arm annotated: its views are the file's `demos`, its annotation
+    /// `annotation`.
+    pub arm: usize,
+    /// In a two-arm file, every arm's annotation but the one annotated (whose slot is empty).
+    pub arm_annotations: Vec<Annotation>,
 }
 
 impl AppModel {
@@ -104,6 +109,17 @@ impl AppModel {
     #[must_use]
     pub fn demo(&self) -> Option<&crate::protocol::DemoView> {
         self.file.as_ref().and_then(|f| f.demos.get(self.selected))
+    }
+
+    /// Arm `arm`'s ends of the shown demo (a two-arm file's; the annotated arm's are
+    /// [`AppModel::demo_ends`]).
+    #[must_use]
+    pub fn arm_ends(&self, arm: usize) -> Vec<usize> {
+        let Some(demo) = self.demo() else { return Vec::new() };
+        if arm == self.arm {
+            return self.annotation.ends(&demo.name);
+        }
+        self.arm_annotations.get(arm).map(|a| a.ends(&demo.name)).unwrap_or_default()
     }
 
     /// The ends of the shown demo.
@@ -228,6 +244,24 @@ impl AppModel {
                     self.boundary = b;
                 }
             }
+            Command::SelectArm(k) => {
+                let file = self.file.as_mut()?;
+                let arm = file.arms.get(k)?.clone();
+                if k != self.arm && k < self.arm_annotations.len() {
+                    // The annotated arm's annotation goes back to its slot; arm k's comes out.
+                    let mut current = std::mem::take(&mut self.annotation);
+                    if let Some(slot) = self.arm_annotations.get_mut(self.arm) {
+                        std::mem::swap(slot, &mut current);
+                    }
+                    if let Some(slot) = self.arm_annotations.get_mut(k) {
+                        self.annotation = std::mem::take(slot);
+                    }
+                    (file.demos, file.signal_names, file.subtask_objects) = (arm.demos, arm.signal_names, arm.subtask_objects);
+                    self.arm = k;
+                    self.boundary = 0;
+                    self.status = format!("annotating arm {k} ({})", arm.name);
+                }
+            }
             Command::SetEnd { subtask, end } => {
                 let demo = self.file.as_ref()?.demos.get(self.selected)?;
                 self.annotation.set_end(demo, subtask, end);
@@ -267,6 +301,19 @@ impl AppModel {
                     return None;
                 }
                 self.busy = Some(format!("saving {}", out.display()));
+                if !file.arms.is_empty() {
+                    let arms = file
+                        .arms
+                        .iter()
+                        .enumerate()
+                        .map(|(k, arm)| {
+                            let annotation =
+                                if k == self.arm { &self.annotation } else { self.arm_annotations.get(k).unwrap_or(&self.annotation) };
+                            crate::protocol::ArmMarks { signal_names: arm.signal_names.clone(), ends: annotation.marks.ends.clone() }
+                        })
+                        .collect();
+                    return Some(Request::SaveArms { source, out, arms, overwrite: self.save_overwrite });
+                }
                 let marks = self.annotation.marks.clone();
                 return Some(Request::Save { source, out, marks, signal_names, overwrite: self.save_overwrite });
             }
@@ -508,6 +555,11 @@ impl AppModel {
             }
             Reply::Opened(file) => {
                 self.annotation = Annotation::opened(&file.demos);
+                self.arm = 0;
+                self.arm_annotations = file.arms.iter().map(|arm| Annotation::opened(&arm.demos)).collect();
+                if let Some(first) = self.arm_annotations.first_mut() {
+                    *first = Annotation::default();
+                }
                 self.status = match &file.prepared_from {
                     Some(plain) => format!(
                         "opened {} ({} demos of {}), prepared by replay into {}",
@@ -543,6 +595,9 @@ impl AppModel {
             Reply::Saved { out, demos } => {
                 self.status = format!("saved the subtask ends of {demos} demos to {}", out.display());
                 self.annotation.dirty = false;
+                for annotation in &mut self.arm_annotations {
+                    annotation.dirty = false;
+                }
                 self.error = None;
             }
             Reply::Previewed(view) => {
@@ -661,6 +716,7 @@ mod tests {
             approach_m: vec![0.1, 0.1],
             planned: vec![false, true],
             demos: vec![demo],
+            arms: Vec::new(),
         })));
         m
     }
@@ -790,5 +846,56 @@ mod tests {
             m.apply(Command::Tick);
         }
         assert_eq!((m.cursor, m.playing), (4, false));
+    }
+
+    /// A two-arm file: each arm has its own ends; switching arms keeps each arm's edits, and
+    /// saving sends both arms' ends with their own signal names.
+    #[test]
+    fn two_arms_keep_their_own_ends_and_save_together() {
+        use crate::protocol::{ArmFile, DemoView};
+        let view = |len: usize, end: usize| DemoView {
+            name: "demo_0".into(),
+            len,
+            gripper: vec![0.0; len],
+            finger_width_m: None,
+            eef_speed: vec![0.0; len],
+            distances: BTreeMap::new(),
+            signals: BTreeMap::new(),
+            stored_ends: Some(vec![end]),
+            stored_starts: None,
+            proposals: Vec::new(),
+        };
+        let arm = |name: &str, signal: &str, end: usize| ArmFile {
+            name: name.into(),
+            signal_names: vec![signal.into()],
+            subtask_objects: vec![Some("pot".into()), Some("pot".into())],
+            demos: vec![view(50, end)],
+        };
+        let arms = vec![arm("robot0", "grasp_handle0", 20), arm("robot1", "grasp_handle1", 30)];
+        let mut m = AppModel::default();
+        m.on_reply(Reply::Opened(Box::new(LoadedFile {
+            variants: vec!["D0".into()],
+            path: "two.hdf5".into(),
+            prepared_from: None,
+            total_demos: 1,
+            task: "two_arm_lift".into(),
+            signal_names: arms[0].signal_names.clone(),
+            subtask_objects: arms[0].subtask_objects.clone(),
+            approach_m: vec![0.1, 0.1],
+            planned: vec![false, false],
+            demos: arms[0].demos.clone(),
+            arms,
+        })));
+        assert_eq!((m.demo_ends(), m.arm_ends(1)), (vec![20], vec![30]));
+        m.apply(Command::SelectArm(1));
+        assert_eq!((m.arm, m.demo_ends(), m.arm_ends(0)), (1, vec![30], vec![20]));
+        assert_eq!(m.file.as_ref().unwrap().signal_names, ["grasp_handle1"]);
+        m.apply(Command::SetEnd { subtask: 0, end: 33 });
+        m.apply(Command::SelectArm(0));
+        assert_eq!((m.demo_ends(), m.arm_ends(1)), (vec![20], vec![33]), "arm 1's edit kept");
+        let Some(Request::SaveArms { arms, .. }) = m.apply(Command::Save("out.hdf5".into())) else { panic!("no two-arm save") };
+        assert_eq!(arms[0].signal_names, ["grasp_handle0"]);
+        assert_eq!(arms[1].ends["demo_0"], [33]);
+        assert_eq!(arms[0].ends["demo_0"], [20]);
     }
 }

@@ -34,6 +34,17 @@ pub enum Request {
         /// Replace `out` if it exists (else an existing `out` is refused).
         overwrite: bool,
     },
+    /// Write a two-arm `source` to `out` with each arm's subtask ends as its signals.
+    SaveArms {
+        /// The file the demos came from.
+        source: PathBuf,
+        /// Where to write.
+        out: PathBuf,
+        /// Per arm, in the file's order: its signal names and its ends per demo.
+        arms: Vec<ArmMarks>,
+        /// Replace `out` if it exists (else an existing `out` is refused).
+        overwrite: bool,
+    },
     /// Plan attempt `index` of a run seeded `seed` over `source` with these ends, and with
     /// `execute` also run it in simulation ("try it").
     Preview(Box<PreviewRequest>),
@@ -313,6 +324,33 @@ pub struct LoadedFile {
     pub total_demos: usize,
     /// The demos read so far, in file order.
     pub demos: Vec<DemoView>,
+    /// A two-arm file's arms (empty for one arm): each arm's subtasks and its view of every demo.
+    /// `signal_names`, `subtask_objects` and `demos` above are the first arm's.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub arms: Vec<ArmFile>,
+}
+
+/// One arm of a two-arm file: its subtasks and its view of the demos (its gripper, its end
+/// effector, its proposals and stored ends).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ArmFile {
+    /// The arm (`robot0`).
+    pub name: String,
+    /// The signal each of its subtasks but the last ends with.
+    pub signal_names: Vec<String>,
+    /// The object each of its subtasks is relative to.
+    pub subtask_objects: Vec<Option<String>>,
+    /// Its view of every demo, in file order.
+    pub demos: Vec<DemoView>,
+}
+
+/// One arm's annotation to save: its signal names and its ends per demo.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct ArmMarks {
+    /// The signal each subtask but the last ends with.
+    pub signal_names: Vec<String>,
+    /// Ends (exclusive) per demo.
+    pub ends: BTreeMap<String, Vec<usize>>,
 }
 
 /// One camera's images of a demo, every step (`obs/<name>_image`).

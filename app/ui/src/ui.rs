@@ -208,6 +208,9 @@ pub fn timeline(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
             commands.push(Command::AcceptProposals);
         }
     });
+    if let Some(file) = file.filter(|f| !f.arms.is_empty()) {
+        arms_overview(ui, model, file, demo.len, commands);
+    }
     let starts = model.demo_starts();
     let mut shown_starts = Vec::new();
     for k in 0..=ends.len() {
@@ -247,6 +250,35 @@ pub fn timeline(ui: &mut egui::Ui, model: &AppModel, state: &mut UiState, comman
     }
     cameras(ui, model, state);
     plots(ui, demo, &ends, &shown_starts, model.cursor, state, commands);
+}
+
+/// A two-arm file's arms, a row each: its name (click to annotate that arm: the ends and plots
+/// below are its own) and a bar of the shown demo with its subtasks' spans, the cursor across both.
+fn arms_overview(ui: &mut egui::Ui, model: &AppModel, file: &crate::protocol::LoadedFile, len: usize, commands: &mut Vec<Command>) {
+    for (k, arm) in file.arms.iter().enumerate() {
+        ui.horizontal(|ui| {
+            let label = RichText::new(format!("arm {k} ({})", arm.name)).strong();
+            if ui.selectable_label(model.arm == k, label).on_hover_text("Annotate this arm: its ends and plots below").clicked() {
+                commands.push(Command::SelectArm(k));
+            }
+            let (rect, response) = ui.allocate_exact_size(egui::vec2(ui.available_width().max(40.0), 14.0), egui::Sense::hover());
+            let painter = ui.painter_at(rect);
+            #[allow(clippy::cast_precision_loss)] // step indices are small
+            let x = |t: usize| rect.left() + rect.width() * (t as f32 / len.max(1) as f32);
+            let ends = model.arm_ends(k);
+            let mut start = 0;
+            let mut spans = Vec::new();
+            for (j, &end) in ends.iter().chain(std::iter::once(&len)).enumerate() {
+                let span = egui::Rect::from_min_max(egui::pos2(x(start), rect.top()), egui::pos2(x(end), rect.bottom()));
+                painter.rect_filled(span, 0.0, subtask_color(j).gamma_multiply(if model.arm == k { 0.9 } else { 0.5 }));
+                let signal = arm.signal_names.get(j).map_or_else(|| "the demo's end".to_owned(), Clone::clone);
+                spans.push(format!("subtask {j}: steps {start}..{} (ends on {signal})", end.saturating_sub(1)));
+                start = end;
+            }
+            painter.vline(x(model.cursor), rect.y_range(), egui::Stroke::new(1.5, Color32::WHITE));
+            response.on_hover_text(spans.join("\n"));
+        });
+    }
 }
 
 /// Where subtask `k`'s segment starts: the marked step, or the approach detector's (`detected`),

@@ -251,6 +251,155 @@ pub fn write_annotations(
     write_signals(input, out, &names, ends, starts)
 }
 
+/// One arm of a two-arm source file as the annotate screen sees it: its spec's subtasks, and per
+/// demo its view (its end effector) with proposed ends and the ends its stored signals give.
+#[derive(Debug)]
+pub struct ArmAnnotations {
+    /// The arm (`robot0`).
+    pub name: String,
+    /// The arm's subtasks, as a one-arm spec.
+    pub spec: TaskSpec,
+    /// Per demo: the arm's view and its annotation.
+    pub demos: Vec<(SourceDemo, DemoAnnotation)>,
+}
+
+/// Reads a two-arm source file of `task` and proposes each arm's subtask ends from that arm's
+/// gripper, fingers and end effector (the task's two-arm spec names each arm's subtasks).
+/// Returns the arms and the task's scene.
+///
+/// # Errors
+/// An unreadable file or one without per-arm `datagen_info`, a scene that does not compile.
+pub fn propose_two_arm(path: &Path, task: mimicgen_sim::two_arm::TwoArmTask) -> Result<(Vec<ArmAnnotations>, Scene), PipelineError> {
+    let label = path.display().to_string();
+    let file = RobomimicDataset::open(path)?;
+    let arms = crate::two_arm::ARMS;
+    let views = file.to_arm_source_datasets(&SourceSelection::default(), &arms)?;
+    let spec = task.spec().map_err(|e| PipelineError::engine("bundled spec", e))?;
+    let model_xml = views.first().and_then(|v| v.demos.first()).and_then(|d| d.sim.model_xml.clone());
+    let scene = match model_xml {
+        Some(xml) => task.scene_from_model_file(&xml, &format!("{label} (model_file)"))?,
+        None => task.scene()?,
+    };
+    let mut out = Vec::new();
+    for (arm, (name, view)) in arms.iter().zip(views).enumerate() {
+        let arm_spec =
+            spec.arm_spec(arm).ok_or_else(|| PipelineError::input(label.clone(), "arm", format!("the spec has no arm {arm}")))?;
+        let robot = scene
+            .robots()
+            .get(arm)
+            .copied()
+            .cloned()
+            .ok_or_else(|| PipelineError::input(label.clone(), "arm", format!("the scene has no arm {arm}")))?;
+        let signal_names: Vec<String> =
+            arm_spec.subtasks.iter().take(arm_spec.subtasks.len().saturating_sub(1)).filter_map(|s| s.term_signal.clone()).collect();
+        let mut demos = Vec::new();
+        for demo in view.demos {
+            let widths = if demo.sim.states.is_empty() { None } else { scene.finger_widths_of(&robot, &demo.sim.states)? };
+            let mut start = 0;
+            let signal_ends = signal_names
+                .iter()
+                .map(|name| {
+                    let end = subtask_end_from_signal(demo.subtask_term_signals.get(name)?, start)?;
+                    start = end;
+                    Some(end)
+                })
+                .collect::<Option<Vec<usize>>>();
+            // The detector reads a grasp and a release per subtask; an arm's subtasks that hold on
+            // (a carry, a wait) have none, and then its stored signals are the proposal.
+            let proposals = match propose_subtask_ends(&demo, &arm_spec, widths.as_deref()) {
+                Ok(p) => p,
+                Err(e) => match &signal_ends {
+                    Some(ends) => ends
+                        .iter()
+                        .enumerate()
+                        .map(|(subtask, &end)| Proposal { subtask, end, confidence: 0.5, reason: format!("the stored signal ({e})") })
+                        .collect(),
+                    None => return Err(PipelineError::engine(label.clone(), e)),
+                },
+            };
+            let annotation = DemoAnnotation { demo: demo.name.clone(), len: demo.len(), proposals, signal_ends, finger_width_m: widths };
+            demos.push((demo, annotation));
+        }
+        out.push(ArmAnnotations { name: (*name).to_owned(), spec: arm_spec, demos });
+    }
+    Ok((out, scene))
+}
+
+/// Writes `input` to `out` with each arm's subtask ends as its signals: per arm its signal names
+/// (one per subtask but the last) and its ends per demo. A signal both arms end on (a handover's
+/// `at_handover`) must end on the same step in both.
+///
+/// # Errors
+/// As [`write_signals`], and [`PipelineError::Input`] naming the demo and signal where the two
+/// arms disagree.
+pub fn write_arm_signals(input: &Path, out: &Path, arms: &[(Vec<String>, BTreeMap<String, Vec<usize>>)]) -> Result<(), PipelineError> {
+    let mut file = RobomimicDataset::open(input)?;
+    let label = input.display().to_string();
+    let demos: std::collections::BTreeSet<&String> = arms.iter().flat_map(|(_, ends)| ends.keys()).collect();
+    for demo in demos {
+        let (len, field) = (file.demo_len(demo), format!("data/{demo}"));
+        if file.demo(demo).is_none() {
+            return Err(PipelineError::input(label.clone(), field, "no such demo"));
+        }
+        let mut signals: BTreeMap<String, usize> = BTreeMap::new();
+        for (arm, (names, ends)) in arms.iter().enumerate() {
+            let Some(demo_ends) = ends.get(demo) else { continue };
+            if demo_ends.len() != names.len() {
+                return Err(PipelineError::input(
+                    label.clone(),
+                    field,
+                    format!("arm {arm}: {} subtask ends given for {} signals", demo_ends.len(), names.len()),
+                ));
+            }
+            let mut previous = 0;
+            for (name, &end) in names.iter().zip(demo_ends) {
+                if end <= previous + 1 || end >= len {
+                    return Err(PipelineError::input(
+                        label.clone(),
+                        field,
+                        format!("arm {arm}: subtask end {end} must come after {} and before the demo's {len} steps", previous + 1),
+                    ));
+                }
+                previous = end;
+                if let Some(&other) = signals.get(name)
+                    && other != end
+                {
+                    return Err(PipelineError::input(
+                        label.clone(),
+                        field,
+                        format!(
+                            "both arms end a subtask on signal {name:?}, at steps {} and {}: move one to the other",
+                            other - 1,
+                            end - 1
+                        ),
+                    ));
+                }
+                signals.insert(name.clone(), end);
+            }
+        }
+        let Some(Node::Group(data)) = file.root.members.get_mut("data") else {
+            return Err(PipelineError::input(label.clone(), "data", "missing"));
+        };
+        let Some(Node::Group(group)) = data.members.get_mut(demo) else {
+            return Err(PipelineError::input(label.clone(), field, "not a group"));
+        };
+        let Some(Node::Group(info)) = group.members.get_mut("datagen_info") else {
+            return Err(PipelineError::input(
+                label.clone(),
+                format!("{field}/datagen_info"),
+                "missing: prepare the file first (`mimicgen prepare`)",
+            ));
+        };
+        let mut group = Group::default();
+        for (name, end) in signals {
+            group.members.insert(name, Node::Dataset(Dataset::new(Array::i64(vec![len], signal_for_end(end, len)))));
+        }
+        info.members.insert("subtask_term_signals".to_owned(), Node::Group(group));
+    }
+    file.write(out)?;
+    Ok(())
+}
+
 /// [`write_annotations`] with the signal names given (one per subtask but the last).
 ///
 /// # Errors

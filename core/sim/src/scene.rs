@@ -454,7 +454,15 @@ impl Scene {
     /// # Errors
     /// [`SimError::State`] for states too short for this scene.
     pub fn finger_widths(&self, states: &mimicgen_engine::Rows) -> Result<Option<Vec<f64>>, SimError> {
-        let [left, right] = match self.robot.finger_qpos.as_slice() {
+        self.finger_widths_of(&self.robot, states)
+    }
+
+    /// [`Scene::finger_widths`] of `robot` (a two-arm scene's second arm, say).
+    ///
+    /// # Errors
+    /// As [`Scene::finger_widths`].
+    pub fn finger_widths_of(&self, robot: &RobotIndices, states: &mimicgen_engine::Rows) -> Result<Option<Vec<f64>>, SimError> {
+        let [left, right] = match robot.finger_qpos.as_slice() {
             [l, r] => [*l, *r],
             _ => return Ok(None),
         };
