@@ -45,6 +45,8 @@ before(async () => {
   copyFileSync(path.join(repo, "core/io/tests/data/source_D0_prepared.hdf5"), path.join(root, "demos.hdf5"));
   // A plain robomimic file (robosuite's Lift demos, no datagen_info): the server prepares it.
   copyFileSync(path.join(repo, "core/io/tests/data/robosuite_lift_demo.hdf5"), path.join(root, "lift.hdf5"));
+  // Two Arm Lift's bundled source demos: one view per arm.
+  copyFileSync(path.join(repo, "core/sim/data/two_arm_lift_D0_source.hdf5"), path.join(root, "two_arm.hdf5"));
   server = startServer(["demos.hdf5", "--root", root, "--port", "0"]);
   url = await server.ready;
   browser = await chromium.launch({ executablePath: process.env.CHROMIUM || "/usr/bin/chromium", args: FLAGS });
@@ -280,6 +282,42 @@ test("a plain robomimic file: opened from the served folder, prepared, previewed
   s = await until(page, "the run of the prepared file", (s) => s.run && s.run.planned === 2 && s.run.finished, 300_000);
   assert.equal(s.run.attempts, 2);
   assert.equal(s.run.error, null);
+  assert.deepEqual(errors, [], "no page errors");
+  await page.close();
+});
+
+test("a two-arm file: one arm's end annotated, the other kept, both saved", async () => {
+  const { page, errors } = await openApp();
+  await until(page, "the served file", (s) => s.file && s.demos > 0 && s.in_flight === 0);
+  await click(page, "TextInput", "Source demos:");
+  await page.keyboard.press("Control+A");
+  await page.keyboard.type("two_arm.hdf5");
+  await click(page, "Button", "Open");
+  let s = await until(page, "the two-arm file", (s) => s.file && s.file.endsWith("/two_arm.hdf5") && s.arms === 2 && s.in_flight === 0);
+  const [arm0, arm1] = s.arm_ends;
+  if (s.screen !== "Annotate") {
+    await click(page, "Button", "Annotate");
+    await until(page, "the annotate screen", (s) => s.screen === "Annotate");
+  }
+  await click(page, null, /^arm 1 \(robot1\)$/);
+  s = await until(page, "arm 1 annotated", (s) => s.arm === 1);
+  assert.deepEqual(s.ends, arm1);
+  for (let i = 0; i < 25; i++) await page.keyboard.press("ArrowRight");
+  await until(page, "the cursor", (s) => s.cursor === 25);
+  await page.keyboard.press("e");
+  s = await until(page, "arm 1's end moved", (s) => s.ends[0] === 26);
+  assert.deepEqual(s.arm_ends[0], arm0, "arm 0 keeps its own end");
+  await click(page, null, /^arm 0 \(robot0\)$/);
+  s = await until(page, "arm 0 annotated", (s) => s.arm === 0);
+  assert.deepEqual(s.ends, arm0);
+  assert.deepEqual(s.arm_ends[1], [26]);
+  await shot(page, "web_two_arm.png");
+  await click(page, "TextInput", "Save to:");
+  await page.keyboard.press("Control+A");
+  await page.keyboard.type("two_arm_annotated.hdf5");
+  await click(page, "Button", "Save as");
+  s = await until(page, "saved", (s) => s.status.startsWith("saved") && s.in_flight === 0);
+  assert.ok(existsSync(path.join(root, "two_arm_annotated.hdf5")));
   assert.deepEqual(errors, [], "no page errors");
   await page.close();
 });
