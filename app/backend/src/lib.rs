@@ -451,8 +451,7 @@ impl Worker {
                 if let Some(refused) = refuse_output(&source, &out, overwrite) {
                     return refused;
                 }
-                let arms: Vec<(Vec<String>, std::collections::BTreeMap<String, Vec<usize>>)> =
-                    arms.into_iter().map(|a| (a.signal_names, a.ends)).collect();
+                let arms: Vec<annotate::ArmEnds> = arms.into_iter().map(|a| (a.signal_names, a.ends)).collect();
                 match annotate::write_arm_signals(&source, &out, &arms) {
                     Ok(()) => Reply::Saved { out, demos: arms.first().map_or(0, |(_, ends)| ends.len()) },
                     Err(e) => Reply::Failed { what: format!("saving {}", out.display()), error: e.to_string() },
@@ -566,6 +565,21 @@ impl mimicgen_ui::Transport for Backend {
     }
 }
 
+/// The reply refusing to save `out`: over the open file, or over an existing file without
+/// `overwrite`.
+fn refuse_output(source: &std::path::Path, out: &std::path::Path, overwrite: bool) -> Option<Reply> {
+    if out.canonicalize().is_ok_and(|o| source.canonicalize().is_ok_and(|s| s == o)) {
+        return Some(Reply::Failed {
+            what: format!("saving {}", out.display()),
+            error: format!("{} is the open file: saving over it is not allowed; choose a new file", out.display()),
+        });
+    }
+    (out.exists() && !overwrite).then(|| Reply::Failed {
+        what: format!("saving {}", out.display()),
+        error: format!("{} exists: choose a new file, or tick \"replace\" to save over it", out.display()),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use std::sync::mpsc::channel;
@@ -615,19 +629,4 @@ mod tests {
         };
         assert!(report.cancelled && report.attempts < 1000, "{report:?}");
     }
-}
-
-/// The reply refusing to save `out`: over the open file, or over an existing file without
-/// `overwrite`.
-fn refuse_output(source: &std::path::Path, out: &std::path::Path, overwrite: bool) -> Option<Reply> {
-    if out.canonicalize().is_ok_and(|o| source.canonicalize().is_ok_and(|s| s == o)) {
-        return Some(Reply::Failed {
-            what: format!("saving {}", out.display()),
-            error: format!("{} is the open file: saving over it is not allowed; choose a new file", out.display()),
-        });
-    }
-    (out.exists() && !overwrite).then(|| Reply::Failed {
-        what: format!("saving {}", out.display()),
-        error: format!("{} exists: choose a new file, or tick \"replace\" to save over it", out.display()),
-    })
 }

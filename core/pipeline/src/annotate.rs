@@ -325,6 +325,9 @@ pub fn propose_two_arm(path: &Path, task: mimicgen_sim::two_arm::TwoArmTask) -> 
     Ok((out, scene))
 }
 
+/// One arm's signal names (one per subtask but the last) and its ends per demo.
+pub type ArmEnds = (Vec<String>, BTreeMap<String, Vec<usize>>);
+
 /// Writes `input` to `out` with each arm's subtask ends as its signals: per arm its signal names
 /// (one per subtask but the last) and its ends per demo. A signal both arms end on (a handover's
 /// `at_handover`) must end on the same step in both.
@@ -332,7 +335,7 @@ pub fn propose_two_arm(path: &Path, task: mimicgen_sim::two_arm::TwoArmTask) -> 
 /// # Errors
 /// As [`write_signals`], and [`PipelineError::Input`] naming the demo and signal where the two
 /// arms disagree.
-pub fn write_arm_signals(input: &Path, out: &Path, arms: &[(Vec<String>, BTreeMap<String, Vec<usize>>)]) -> Result<(), PipelineError> {
+pub fn write_arm_signals(input: &Path, out: &Path, arms: &[ArmEnds]) -> Result<(), PipelineError> {
     let mut file = RobomimicDataset::open(input)?;
     let label = input.display().to_string();
     let demos: std::collections::BTreeSet<&String> = arms.iter().flat_map(|(_, ends)| ends.keys()).collect();
