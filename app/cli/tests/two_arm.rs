@@ -59,6 +59,13 @@ fn two_arm_lift_writes_both_arms_and_the_seed_decides_the_dataset() {
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("one.json")).unwrap()).unwrap();
     assert_eq!(report["attempts"], 6);
     assert_eq!(report["successes"].as_u64().unwrap(), a.demo_names().len() as u64);
+    // One-arm commands say that the file is a two-arm one and what reads it.
+    for (command, args) in [("doctor", vec![one.to_str().unwrap()]), ("coverage", vec![one.to_str().unwrap()])] {
+        let run = mimicgen().arg(command).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{command}: {err}");
+        assert!(err.contains("two-arm"), "{command}: {err}");
+    }
 }
 
 /// Recorded two-arm demos are a source for generation.

@@ -157,6 +157,13 @@ pub fn task_from_env_name(env_name: &str) -> Result<(Arc<dyn Task>, String), Str
     };
     let (base, variant) = env_name.rsplit_once('_').filter(|(base, v)| is_variant(base, v)).unwrap_or((env_name, "D0"));
     let info = tasks().find(|t| t.env_name.eq_ignore_ascii_case(base)).ok_or_else(|| {
+        if let Some(two_arm) = crate::two_arm::TwoArmTask::ALL.into_iter().find(|t| t.env_name().eq_ignore_ascii_case(base)) {
+            return format!(
+                "environment {env_name:?} is two-arm ({}): `mimicgen generate --task {}`, `mimicgen prepare` and the app's annotate screen read it; this command is one-arm only so far",
+                two_arm.name(),
+                two_arm.name()
+            );
+        }
         let envs: Vec<&str> = tasks().map(|t| t.env_name.as_str()).collect();
         format!("environment {env_name:?} is not one of ours ({})", envs.join(", "))
     })?;
