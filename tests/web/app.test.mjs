@@ -286,7 +286,7 @@ test("a plain robomimic file: opened from the served folder, prepared, previewed
   await page.close();
 });
 
-test("a two-arm file: one arm's end annotated, the other kept, both saved", async () => {
+test("a two-arm file: one arm's end annotated, the other kept, both saved, an attempt tried with both", async () => {
   const { page, errors } = await openApp();
   await until(page, "the served file", (s) => s.file && s.demos > 0 && s.in_flight === 0);
   await click(page, "TextInput", "Source demos:");
@@ -302,15 +302,24 @@ test("a two-arm file: one arm's end annotated, the other kept, both saved", asyn
   await click(page, null, /^arm 1 \(robot1\)$/);
   s = await until(page, "arm 1 annotated", (s) => s.arm === 1);
   assert.deepEqual(s.ends, arm1);
+  // One step per key (a key pressed while the canvas takes focus may be lost): wait until the
+  // cursor has stopped moving and put the end where it is.
   for (let i = 0; i < 25; i++) await page.keyboard.press("ArrowRight");
-  await until(page, "the cursor", (s) => s.cursor === 25);
+  let cursor = -1;
+  for (let still = 0; still < 3; ) {
+    await page.waitForTimeout(200);
+    const now = (await state(page)).cursor;
+    still = now === cursor ? still + 1 : 0;
+    cursor = now;
+  }
+  assert.ok(cursor >= 20 && cursor <= 25, `cursor ${cursor}`);
   await page.keyboard.press("e");
-  s = await until(page, "arm 1's end moved", (s) => s.ends[0] === 26);
+  s = await until(page, "arm 1's end moved", (s) => s.ends[0] === cursor + 1);
   assert.deepEqual(s.arm_ends[0], arm0, "arm 0 keeps its own end");
   await click(page, null, /^arm 0 \(robot0\)$/);
   s = await until(page, "arm 0 annotated", (s) => s.arm === 0);
   assert.deepEqual(s.ends, arm0);
-  assert.deepEqual(s.arm_ends[1], [26]);
+  assert.deepEqual(s.arm_ends[1], [cursor + 1]);
   await shot(page, "web_two_arm.png");
   await click(page, "TextInput", "Save to:");
   await page.keyboard.press("Control+A");
@@ -318,6 +327,14 @@ test("a two-arm file: one arm's end annotated, the other kept, both saved", asyn
   await click(page, "Button", "Save as");
   s = await until(page, "saved", (s) => s.status.startsWith("saved") && s.in_flight === 0);
   assert.ok(existsSync(path.join(root, "two_arm_annotated.hdf5")));
+  // The preview tries an attempt with both arms' ends and draws the lift's coordination.
+  await click(page, "Button", "Preview");
+  s = await until(page, "the two-arm preview", (s) => s.preview && s.preview.task === "two_arm_lift" && s.in_flight === 0);
+  assert.equal(s.error, null, "no refusal");
+  assert.equal(s.preview.arms, 2);
+  assert.deepEqual(s.preview.ties, ["coordination"]);
+  assert.notEqual(s.preview.executed, null);
+  await shot(page, "web_two_arm_preview.png");
   assert.deepEqual(errors, [], "no page errors");
   await page.close();
 });

@@ -97,7 +97,7 @@ pub struct Worker {
     loaded: Option<Annotations>,
     /// The open file (for a plain robomimic file, its prepared copy).
     loaded_path: Option<PathBuf>,
-    /// The open file is a two-arm one (annotated per arm; no preview, run or 3D view yet).
+    /// The open file is a two-arm one (annotated per arm, previews tried; no run or 3D view yet).
     two_arm: bool,
     previewer: Option<(RunConfig, Previewer)>,
     viewer: Option<(ViewerSink, RunLogger)>,
@@ -394,7 +394,7 @@ impl Worker {
     pub fn handle(&mut self, request: Request) -> Reply {
         if self.two_arm
             && let Some(what) = match &request {
-                Request::Preview(_) | Request::SideBySide(_) => Some("previewing an attempt"),
+                Request::SideBySide(_) => Some("comparing two attempts"),
                 Request::Run(_) => Some("starting a run"),
                 Request::Open3d { .. } | Request::ShowDemo { in_3d: true, .. } => Some("the 3D view"),
                 _ => None,
@@ -402,7 +402,7 @@ impl Worker {
         {
             return Reply::Failed {
                 what: what.to_owned(),
-                error: "the open file is a two-arm one: the app annotates its arms; preview, runs and the 3D view are one-arm only so far (`mimicgen generate --task two_arm_lift --rerun run.rrd` runs and shows two arms)".to_owned(),
+                error: "the open file is a two-arm one: the app annotates its arms and tries attempts; runs, side by side and the 3D view are one-arm only so far (`mimicgen generate --task two_arm_lift --rerun run.rrd` runs and shows two arms)".to_owned(),
             };
         }
         match request {
@@ -481,6 +481,11 @@ impl Worker {
                     Err(error) => Reply::Failed { what: format!("showing demo {demo} in 3D"), error },
                 }
             }
+            Request::Preview(request) if self.two_arm => match self.loaded_path.clone().map(|path| two_arm_preview(&path, &request)) {
+                Some(Ok(view)) => Reply::Previewed(Box::new(view)),
+                Some(Err(e)) => preview_failed(&request, &e),
+                None => Reply::Failed { what: "trying an attempt".to_owned(), error: "open a file first".to_owned() },
+            },
             Request::Preview(request) => match self.preview(&request) {
                 Ok(view) => Reply::Previewed(Box::new(view)),
                 Err(e) => preview_failed(&request, &e),
@@ -563,6 +568,36 @@ impl mimicgen_ui::Transport for Backend {
     fn try_replies(&mut self) -> Vec<Reply> {
         self.replies.try_iter().collect()
     }
+}
+
+/// Tries attempt `request.index` of a two-arm file at `path` with each arm's ends
+/// (`request.arm_ends`), seed and variant: the attempt as the two-arm generator runs it.
+fn two_arm_preview(path: &std::path::Path, request: &PreviewRequest) -> Result<PreviewView, PipelineError> {
+    use mimicgen_sim::two_arm::{TwoArmSimEnv, TwoArmTask};
+    let task = files::two_arm_task(path).ok_or_else(|| PipelineError::Input {
+        file: path.display().to_string(),
+        field: "data attribute env_args".to_owned(),
+        reason: "names no two-arm task".to_owned(),
+    })?;
+    let variant = request.variant.clone().unwrap_or_else(|| "D0".to_owned());
+    let variant = if task.variants().contains(&variant.as_str()) { variant } else { "D0".to_owned() };
+    let file = mimicgen_io::RobomimicDataset::open(path)?;
+    let mut views = file.to_arm_source_datasets(&mimicgen_engine::spec::SourceSelection::default(), &mimicgen_pipeline::two_arm::ARMS)?;
+    for (view, ends) in views.iter_mut().zip(&request.arm_ends) {
+        for demo in &mut view.demos {
+            if let Some(e) = ends.get(&demo.name) {
+                demo.manual_subtask_ends = Some(e.clone());
+            }
+        }
+    }
+    let mut spec = task.spec().map_err(|e| PipelineError::Engine { file: "bundled spec".to_owned(), source: e })?;
+    spec.generation.seed = request.seed;
+    let generator = mimicgen_engine::two_arm::TwoArmGenerator::new(spec.clone(), views)
+        .map_err(|e| PipelineError::Engine { file: path.display().to_string(), source: e })?;
+    let scene = std::sync::Arc::new(task.scene()?);
+    let mut env = TwoArmSimEnv::new(scene, task, &variant)?;
+    let attempt = generator.attempt(&mut env, request.index).map_err(|e| PipelineError::Engine { file: String::new(), source: e })?;
+    Ok(views::two_arm_preview_view(TwoArmTask::name(task), &variant, &spec, &attempt))
 }
 
 /// The reply refusing to save `out`: over the open file, or over an existing file without

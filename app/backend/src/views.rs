@@ -8,7 +8,8 @@ use mimicgen_pipeline::PipelineError;
 use mimicgen_pipeline::preview::Previewer;
 
 use mimicgen_ui::protocol::{
-    ExecutedView, ObjectView, Point, PreviewRequest, PreviewView, RankView, Reply, SubtaskDiagnostics, SubtaskPreview,
+    ArmPreview, ExecutedView, ObjectView, Point, PreviewRequest, PreviewView, RankView, Reply, SubtaskDiagnostics, SubtaskPreview,
+    TiePreview,
 };
 
 pub(crate) fn point(pose: &Pose) -> Point {
@@ -105,6 +106,89 @@ pub(crate) fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<
         subtasks,
         executed,
         failure_3d: None,
+        arms: Vec::new(),
+        ties: Vec::new(),
+    }
+}
+
+/// A tried two-arm attempt as the preview draws it: per arm its path and its subtasks' waypoints,
+/// and the ties where both of their subtasks ran; `executed` carries the outcome (and arm 0's
+/// path, as a one-arm preview's).
+pub(crate) fn two_arm_preview_view(
+    task: &str,
+    variant: &str,
+    spec: &mimicgen_engine::two_arm::TwoArmSpec,
+    attempt: &mimicgen_engine::two_arm::TwoArmAttempt,
+) -> PreviewView {
+    use mimicgen_engine::two_arm::Constraint;
+    let arms: Vec<ArmPreview> = attempt
+        .arms
+        .iter()
+        .enumerate()
+        .map(|(k, track)| ArmPreview {
+            name: spec.arms.get(k).map_or_else(|| format!("arm{k}"), |a| a.name.clone()),
+            path: track.eef_poses.iter().map(point).collect(),
+            segments: track.plans.iter().map(|p| p.waypoints.iter().map(|(w, _)| point(w)).collect()).collect(),
+            sources: track.plans.iter().map(|p| p.src_demo).collect(),
+        })
+        .collect();
+    let plan = |(a, k): (usize, usize)| attempt.arms.get(a).and_then(|t| t.plans.get(k));
+    let at = |a: usize, step: usize| {
+        attempt.arms.get(a).and_then(|t| t.eef_poses.get(step.min(t.eef_poses.len().saturating_sub(1)))).map(point).unwrap_or_default()
+    };
+    let ties = spec
+        .constraints()
+        .into_iter()
+        .filter_map(|c| match c {
+            Constraint::Coordination(x, y) => {
+                let (px, _) = (plan(x)?, plan(y)?);
+                let (start, end) = (px.first_step, px.first_step + px.waypoints.len());
+                Some(TiePreview {
+                    coordination: true,
+                    from: x,
+                    to: y,
+                    from_point: at(x.0, start),
+                    to_point: at(y.0, start),
+                    steps: (start, end),
+                })
+            }
+            Constraint::Sequential { first, later } => {
+                let (pf, pl) = (plan(first)?, plan(later)?);
+                let ended = pf.first_step + pf.waypoints.len();
+                Some(TiePreview {
+                    coordination: false,
+                    from: first,
+                    to: later,
+                    from_point: at(first.0, ended.saturating_sub(1)),
+                    to_point: at(later.0, pl.first_step),
+                    steps: (ended, pl.first_step),
+                })
+            }
+        })
+        .collect();
+    let final_objects = objects(&attempt.object_poses.iter().filter_map(|(n, p)| Some((n.clone(), *p.last()?))).collect());
+    PreviewView {
+        task: task.to_owned(),
+        variant: variant.to_owned(),
+        seed: spec.generation.seed,
+        index: attempt.index,
+        eef: arms.first().and_then(|a| a.path.first().copied()).unwrap_or_default(),
+        objects: objects(&attempt.initial_object_poses),
+        subtasks: Vec::new(),
+        executed: Some(ExecutedView {
+            success: attempt.success,
+            failure: attempt.failure.as_ref().map(ToString::to_string),
+            cause: None,
+            path: arms.first().map(|a| a.path.clone()).unwrap_or_default(),
+            planned: Vec::new(),
+            subtask_of_step: attempt.arms.first().map(|t| t.subtask_labels.clone()).unwrap_or_default(),
+            sources: arms.first().map(|a| a.sources.clone()).unwrap_or_default(),
+            final_objects,
+            diagnostics: Vec::new(),
+        }),
+        failure_3d: None,
+        arms,
+        ties,
     }
 }
 

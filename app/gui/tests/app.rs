@@ -960,7 +960,8 @@ fn an_object_transfer_run_is_split_by_mug() {
 
 /// A two-arm source file: a row per arm; clicking an arm annotates it (its signals, its ends, the
 /// keys move its end), the other arm keeps its own, and saving writes both arms' signals where the
-/// two-arm generator reads them. Preview is refused by name (one-arm only so far).
+/// two-arm generator reads them. The preview tries an attempt with both arms and draws the ties;
+/// the 3D view is refused by name (one-arm only so far).
 #[test]
 fn a_two_arm_file_is_annotated_arm_by_arm_and_saved() {
     let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/two_arm_lift_D0_source.hdf5");
@@ -995,7 +996,25 @@ fn a_two_arm_file_is_annotated_arm_by_arm_and_saved() {
     h.step();
     settle(&mut h);
     assert!(h.state().model.error.is_none(), "{:?}", h.state().model.error);
+    // The preview tries an attempt with both arms' ends: each arm's segments, its path, and the
+    // lift's coordination drawn between the hands.
     h.state_mut().command(Command::Show(mimicgen_gui::Screen::Preview));
+    settle(&mut h);
+    let model = &h.state().model;
+    assert!(model.error.is_none(), "{:?}", model.error);
+    let view = model.preview.view.as_ref().unwrap();
+    assert_eq!(view.arms.len(), 2);
+    assert!(
+        view.arms.iter().all(|a| a.segments.len() == 2 && !a.path.is_empty()),
+        "{:?}",
+        view.arms.iter().map(|a| a.segments.len()).collect::<Vec<_>>()
+    );
+    assert!(view.ties.iter().any(|t| t.coordination && t.from == (0, 1) && t.to == (1, 1)), "{:?}", view.ties);
+    assert!(view.executed.is_some());
+    h.run_steps(2);
+    assert_eq!(h.get_all_by_label_contains("coordination: robot0 subtask 1 with robot1 subtask 1").count(), 2, "in both views");
+    // The 3D view is one-arm only: refused by name.
+    h.state_mut().command(Command::Open3d(mimicgen_gui::protocol::ViewerSink::Save(dir.path().join("x.rrd"))));
     settle(&mut h);
     let error = h.state().model.error.clone().unwrap_or_default();
     assert!(error.contains("two-arm"), "{error}");

@@ -174,6 +174,12 @@ impl AppModel {
         self.preview.sources.resize(file.subtask_objects.len(), None);
         let p = &self.preview;
         self.busy = Some(format!("{} attempt {} (seed {})", if execute { "trying" } else { "planning" }, p.index, p.seed));
+        let arm_ends: Vec<BTreeMap<String, Vec<usize>>> = (0..file.arms.len())
+            .map(|k| {
+                let annotation = if k == self.arm { &self.annotation } else { self.arm_annotations.get(k).unwrap_or(&self.annotation) };
+                annotation.marks.ends.clone()
+            })
+            .collect();
         Some(Request::Preview(Box::new(PreviewRequest {
             source: file.path.clone(),
             marks: self.annotation.marks.clone(),
@@ -184,6 +190,7 @@ impl AppModel {
             execute,
             variant: p.variant.clone(),
             spec: p.spec.clone(),
+            arm_ends,
         })))
     }
 
@@ -209,6 +216,7 @@ impl AppModel {
             execute: true,
             variant: run.config.variant.clone(),
             spec: run.config.spec.clone(),
+            arm_ends: Vec::new(),
         })
     }
 

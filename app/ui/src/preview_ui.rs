@@ -8,7 +8,7 @@
 )]
 
 use egui::{Color32, RichText};
-use egui_plot::{Corner, Legend, Line, LineStyle, MarkerShape, Plot, PlotPoint, PlotPoints, Points, Text};
+use egui_plot::{Arrows, Corner, Legend, Line, LineStyle, MarkerShape, Plot, PlotPoint, PlotPoints, Points, Text};
 
 use crate::model::{AppModel, Command};
 use crate::protocol::{ExecutedView, Point, PreviewView};
@@ -35,6 +35,8 @@ const PICK_RADIUS_PX: f32 = 12.0;
 const EXECUTED: Color32 = Color32::from_rgb(235, 235, 235);
 /// Planned collision-free transit (the Rerun stream's colour for it too).
 const TRANSIT: Color32 = Color32::from_rgb(0, 206, 180);
+/// Executed path of a two-arm attempt's second arm (the first's is [`EXECUTED`]).
+const EXECUTED_SECOND: Color32 = Color32::from_rgb(250, 210, 120);
 
 /// The controls: seed, scene, source per subtask with its ranking, "try it" and its outcome.
 pub fn controls(ui: &mut egui::Ui, model: &AppModel, commands: &mut Vec<Command>) {
@@ -213,8 +215,34 @@ pub fn view_plot(
                     );
                 }
             }
-            if let Some(e) = &view.executed {
-                plot.line(Line::new("executed", xy(&e.path, axes)).color(EXECUTED).width(1.5));
+            for (a, arm) in view.arms.iter().enumerate() {
+                for (k, segment) in arm.segments.iter().enumerate() {
+                    let style = if a == 0 { LineStyle::Solid } else { LineStyle::dashed_loose() };
+                    plot.line(
+                        Line::new(format!("{} subtask {k}", arm.name), xy(segment, axes)).color(subtask_color(k)).width(2.5).style(style),
+                    );
+                }
+                let color = if a == 0 { EXECUTED } else { EXECUTED_SECOND };
+                plot.line(Line::new(format!("{} executed", arm.name), xy(&arm.path, axes)).color(color).width(1.5));
+            }
+            for tie in &view.ties {
+                let (from, to) = ([tie.from_point[axes.0], tie.from_point[axes.1]], [tie.to_point[axes.0], tie.to_point[axes.1]]);
+                let name = |(a, k): (usize, usize)| format!("{} subtask {k}", view.arms.get(a).map_or("arm", |arm| arm.name.as_str()));
+                if tie.coordination {
+                    let label = format!("coordination: {} with {} (steps {}..{})", name(tie.from), name(tie.to), tie.steps.0, tie.steps.1);
+                    plot.line(
+                        Line::new(label, PlotPoints::new(vec![from, to])).color(subtask_color(tie.from.1).gamma_multiply(0.4)).width(9.0),
+                    );
+                } else {
+                    let label =
+                        format!("sequential: {} after {} (step {} after {})", name(tie.to), name(tie.from), tie.steps.1, tie.steps.0);
+                    plot.arrows(Arrows::new(label, PlotPoints::new(vec![from]), PlotPoints::new(vec![to])).color(Color32::LIGHT_RED));
+                }
+            }
+            if let Some(e) = view.executed.as_ref() {
+                if view.arms.is_empty() {
+                    plot.line(Line::new("executed", xy(&e.path, axes)).color(EXECUTED).width(1.5));
+                }
                 for o in &e.final_objects {
                     plot.points(
                         Points::new("executed", PlotPoints::new(vec![[o.position[axes.0], o.position[axes.1]]]))

@@ -216,6 +216,10 @@ pub struct PreviewRequest {
     pub variant: Option<String>,
     /// Spec fields set over the task spec's (the run form's, or the re-run run's).
     pub spec: SpecOverrides,
+    /// A two-arm file: each arm's subtask ends per demo (`marks` is then unused). A two-arm
+    /// preview is always tried: an arm's later subtasks are planned as the schedule starts them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub arm_ends: Vec<BTreeMap<String, Vec<usize>>>,
 }
 
 /// A reply from the backend. Each request gets exactly one reply that [`Reply::ends_request`];
@@ -487,6 +491,42 @@ pub struct PreviewView {
     pub executed: Option<ExecutedView>,
     /// Why the executed attempt could not be sent to the 3D view, if it could not.
     pub failure_3d: Option<String>,
+    /// A two-arm attempt: each arm's part (empty for one arm).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub arms: Vec<ArmPreview>,
+    /// A two-arm attempt's ties, where both of their subtasks ran.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ties: Vec<TiePreview>,
+}
+
+/// One arm of a tried two-arm attempt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ArmPreview {
+    /// The arm (`robot0`).
+    pub name: String,
+    /// Its end effector at every step.
+    pub path: Vec<Point>,
+    /// Per subtask it started: its waypoints (interpolation, then the transformed segment).
+    pub segments: Vec<Vec<Point>>,
+    /// The source demo each of its subtasks used.
+    pub sources: Vec<usize>,
+}
+
+/// A tie between two subtasks of a tried two-arm attempt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TiePreview {
+    /// Coordinated (both ran together) or sequential (`to` waited for `from` to end).
+    pub coordination: bool,
+    /// `(arm, subtask)` of the first (the one waited for).
+    pub from: (usize, usize),
+    /// `(arm, subtask)` of the other.
+    pub to: (usize, usize),
+    /// Where the first's arm was: where the pair started, or where the first one ended.
+    pub from_point: Point,
+    /// Where the other's arm was when it started.
+    pub to_point: Point,
+    /// The steps: the pair's, or from the first's end to the other's start.
+    pub steps: (usize, usize),
 }
 
 /// An executed attempt ("try it").

@@ -124,6 +124,8 @@ pub fn record(model: &mimicgen_ui::AppModel) {
             "task": v.task,
             "index": v.index,
             "executed": v.executed.as_ref().map(|e| e.success),
+            "arms": v.arms.len(),
+            "ties": v.ties.iter().map(|t| if t.coordination { "coordination" } else { "sequential" }).collect::<Vec<_>>(),
         })),
     });
     *slot = value.to_string();
