@@ -30,7 +30,10 @@ from the file's env_args and the bundled spec. Without --out nothing is written.
 transit (`generate --transit plan`) that segment is replayed from there and the robot gets there by
 a collision-free path; unmarked subtasks start where the gripper first comes `approach_m` near the
 object. Starts go in the demo's `mimicgen_subtask_starts` attribute (-1 where unmarked), which the
-reference ignores.")]
+reference ignores.
+
+A two-arm file (Two Arm Lift, Two Arm Handover) gets each arm's proposals; with --auto --out they
+are written as each arm's signals (the app edits them arm by arm).")]
 pub struct AnnotateArgs {
     /// Source demos (MimicGen source layout, with datagen_info).
     file: PathBuf,
@@ -110,6 +113,17 @@ pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         crate::check_output(out, Some(&args.file), args.overwrite)?;
     }
+    let two_arm = match args.task.as_deref() {
+        Some(name) => mimicgen_sim::two_arm::TwoArmTask::from_name(name),
+        // Only the file's attributes are read here (a large one-arm file is read once, below).
+        None => mimicgen_io::DemoReader::open_with(&args.file, mimicgen_io::ReadOptions::default()).ok().and_then(|reader| {
+            use mimicgen_io::DemoSource as _;
+            reader.env_args_json().and_then(mimicgen_sim::two_arm::TwoArmTask::from_env_args)
+        }),
+    };
+    if let Some(task) = two_arm {
+        return run_two_arm(args, task);
+    }
     let mut ends = parse_ends(&args.ends)?;
     let found = annotate::propose(&args.file, args.task.as_deref(), args.config.as_deref())?;
     for demo in &found.demos {
@@ -161,6 +175,61 @@ pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         annotate::write_annotations(&args.file, out, &found.spec, &ends, &starts)?;
         eprintln!("wrote {} with the subtask ends of {} demo(s) and the segment starts of {}", out.display(), ends.len(), starts.len());
+    }
+    Ok(())
+}
+
+/// `mimicgen annotate` of a two-arm file: each arm's proposals (and stored ends), and with
+/// `--auto --out` every arm's proposals written as its signals.
+fn run_two_arm(args: &AnnotateArgs, task: mimicgen_sim::two_arm::TwoArmTask) -> anyhow::Result<()> {
+    if !args.ends.is_empty() || !args.starts.is_empty() || args.config.is_some() {
+        crate::exit::usage!(
+            "{}: a two-arm file ({}): --ends, --starts and --config are one-arm only so far; --auto proposes each arm's ends (the app edits them arm by arm)",
+            args.file.display(),
+            task.name()
+        );
+    }
+    let (arms, _) = annotate::propose_two_arm(&args.file, task)?;
+    let mut report = Vec::new();
+    for arm in &arms {
+        if !args.json {
+            outln!("arm {}:", arm.name);
+        }
+        for (_, demo) in &arm.demos {
+            if !args.json {
+                outln!("  {} ({} steps)", demo.demo, demo.len);
+                for (i, p) in demo.proposals.iter().enumerate() {
+                    let stored = demo.signal_ends.as_ref().and_then(|e| e.get(i));
+                    outln!(
+                        "    subtask {} ends at step {} (confidence {:.1}){}: {}",
+                        p.subtask,
+                        p.end - 1,
+                        p.confidence,
+                        stored.map_or_else(String::new, |&e| format!(", stored signal: step {}", e - 1)),
+                        p.reason
+                    );
+                }
+            }
+            report.push(serde_json::json!({"arm": arm.name, "demo": demo.demo, "proposals": demo.proposals.iter().map(|p| p.end).collect::<Vec<_>>(), "stored": demo.signal_ends}));
+        }
+    }
+    if args.json {
+        outln!("{}", serde_json::to_string_pretty(&report)?);
+    }
+    if let Some(out) = &args.out {
+        if !args.auto {
+            crate::exit::usage!("--out needs --auto for a two-arm file (the proposals are what is written)");
+        }
+        let ends: Vec<annotate::ArmEnds> = arms
+            .iter()
+            .map(|arm| {
+                let last = arm.spec.subtasks.len().saturating_sub(1);
+                let names = arm.spec.subtasks.iter().take(last).map(|s| s.term_signal.clone().unwrap_or_default()).collect();
+                (names, arm.demos.iter().map(|(_, d)| (d.demo.clone(), d.proposals.iter().map(|p| p.end).collect())).collect())
+            })
+            .collect();
+        annotate::write_arm_signals(&args.file, out, &ends)?;
+        eprintln!("wrote both arms' proposed ends to {}", out.display());
     }
     Ok(())
 }

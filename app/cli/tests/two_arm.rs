@@ -169,3 +169,23 @@ fn prepare_rebuilds_each_arms_annotations_from_states_and_actions() {
     }
     assert!(b.demo(&b.demo_names()[0]).unwrap().group("obs").unwrap().dataset("robot1_eef_pos").is_some(), "observations copied");
 }
+
+/// `mimicgen annotate --auto` on a two-arm file proposes each arm's ends and writes them as each
+/// arm's signals, which generation then reads.
+#[test]
+fn annotate_proposes_each_arms_ends_and_writes_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/two_arm_lift_D0_source.hdf5");
+    let out = dir.path().join("annotated.hdf5");
+    let run = mimicgen().args(["annotate", "--auto", "--out"]).arg(&out).arg(&source).output().unwrap();
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(text.contains("arm robot0:") && text.contains("arm robot1:"), "{text}");
+    let views = RobomimicDataset::open(&out).unwrap().to_arm_source_datasets(&SourceSelection::default(), &["robot0", "robot1"]).unwrap();
+    for (view, signal) in views.iter().zip(["grasp_handle0", "grasp_handle1"]) {
+        assert!(view.demos.iter().all(|d| d.subtask_term_signals[signal].contains(&1)), "{signal}");
+    }
+    let refused = mimicgen().args(["annotate", "--ends", "demo_0=30"]).arg(&source).output().unwrap();
+    assert_eq!(refused.status.code(), Some(2), "{}", String::from_utf8_lossy(&refused.stderr));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("two-arm"));
+}
