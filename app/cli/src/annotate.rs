@@ -133,17 +133,7 @@ pub fn run(args: &AnnotateArgs) -> anyhow::Result<()> {
         }
         if !args.json {
             outln!("{} ({} steps){}", demo.demo, demo.len, if typed.is_some() { ": ends typed with --ends" } else { "" });
-            for (i, p) in demo.proposals.iter().enumerate() {
-                let stored = demo.signal_ends.as_ref().and_then(|e| e.get(i));
-                outln!(
-                    "  subtask {} ends at step {} (confidence {:.1}){}: {}",
-                    p.subtask,
-                    p.end - 1,
-                    p.confidence,
-                    stored.map_or_else(String::new, |&e| format!(", stored signal: step {}", e - 1)),
-                    p.reason
-                );
-            }
+            print_proposals(demo, "  ")?;
         }
     }
     let mut distances = found.distances();
@@ -198,17 +188,7 @@ fn run_two_arm(args: &AnnotateArgs, task: mimicgen_sim::two_arm::TwoArmTask) -> 
         for (_, demo) in &arm.demos {
             if !args.json {
                 outln!("  {} ({} steps)", demo.demo, demo.len);
-                for (i, p) in demo.proposals.iter().enumerate() {
-                    let stored = demo.signal_ends.as_ref().and_then(|e| e.get(i));
-                    outln!(
-                        "    subtask {} ends at step {} (confidence {:.1}){}: {}",
-                        p.subtask,
-                        p.end - 1,
-                        p.confidence,
-                        stored.map_or_else(String::new, |&e| format!(", stored signal: step {}", e - 1)),
-                        p.reason
-                    );
-                }
+                print_proposals(demo, "    ")?;
             }
             report.push(serde_json::json!({"arm": arm.name, "demo": demo.demo, "proposals": demo.proposals.iter().map(|p| p.end).collect::<Vec<_>>(), "stored": demo.signal_ends}));
         }
@@ -230,6 +210,23 @@ fn run_two_arm(args: &AnnotateArgs, task: mimicgen_sim::two_arm::TwoArmTask) -> 
             .collect();
         annotate::write_arm_signals(&args.file, out, &ends)?;
         eprintln!("wrote both arms' proposed ends to {}", out.display());
+    }
+    Ok(())
+}
+
+/// One line per proposed subtask end of `demo` (with the stored signal's end), indented by
+/// `indent`.
+fn print_proposals(demo: &annotate::DemoAnnotation, indent: &str) -> anyhow::Result<()> {
+    for (i, p) in demo.proposals.iter().enumerate() {
+        let stored = demo.signal_ends.as_ref().and_then(|e| e.get(i));
+        outln!(
+            "{indent}subtask {} ends at step {} (confidence {:.1}){}: {}",
+            p.subtask,
+            p.end - 1,
+            p.confidence,
+            stored.map_or_else(String::new, |&e| format!(", stored signal: step {}", e - 1)),
+            p.reason
+        );
     }
     Ok(())
 }

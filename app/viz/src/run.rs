@@ -136,18 +136,23 @@ impl RunLogger {
             self.demos_cleared = true;
         }
         record::log_stats(&self.rec, stats, &self.source_names)?;
-        let states = &attempt.trajectory.states;
+        self.scene.place_fixed_objects(&initial_object_poses(&attempt.trajectory.object_poses));
+        self.log_attempt_scene(&attempt.trajectory.states, attempt.index, attempt.success)
+    }
+
+    /// The scene at every step of attempt `index` (as configured: every attempt, successes only,
+    /// none), on the `step`, `attempt` and `frame` timelines; moves the run's frame past it.
+    fn log_attempt_scene(&mut self, states: &mimicgen_engine::Rows, index: u64, success: bool) -> Result<(), VizError> {
         let n = states.len();
         let wanted = match self.config.scene {
             SceneLevel::All => true,
-            SceneLevel::Successes => attempt.success,
+            SceneLevel::Successes => success,
             SceneLevel::None => false,
         };
         if wanted && n > 0 {
-            let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
+            let k = i64::try_from(index).unwrap_or(i64::MAX);
             let steps: Vec<i64> = (0..n).map(|t| i64::try_from(t).unwrap_or(i64::MAX)).collect();
             let frames: Vec<i64> = steps.iter().map(|t| t + i64::try_from(self.frame).unwrap_or(i64::MAX)).collect();
-            self.scene.place_fixed_objects(&initial_object_poses(&attempt.trajectory.object_poses));
             self.scene.log_states(
                 &self.rec,
                 states,
@@ -181,26 +186,7 @@ impl RunLogger {
         for (what, value) in [("stats/attempts", counts.0 as f64), ("stats/successes", counts.1 as f64)] {
             self.rec.log(what, &rerun::Scalars::single(value)).map_err(|e| VizError::rerun(what, &e))?;
         }
-        let states = &attempt.states;
-        let n = states.len();
-        let wanted = match self.config.scene {
-            SceneLevel::All => true,
-            SceneLevel::Successes => attempt.success,
-            SceneLevel::None => false,
-        };
-        if wanted && n > 0 {
-            let k = i64::try_from(attempt.index).unwrap_or(i64::MAX);
-            let steps: Vec<i64> = (0..n).map(|t| i64::try_from(t).unwrap_or(i64::MAX)).collect();
-            let frames: Vec<i64> = steps.iter().map(|t| t + i64::try_from(self.frame).unwrap_or(i64::MAX)).collect();
-            self.scene.log_states(
-                &self.rec,
-                states,
-                self.config.scene_stride,
-                &[(timelines::STEP, steps), (timelines::ATTEMPT, vec![k; n]), (timelines::FRAME, frames)],
-            )?;
-        }
-        self.frame += n;
-        Ok(())
+        self.log_attempt_scene(&attempt.states, attempt.index, attempt.success)
     }
 
     /// Logs a planned, not executed, attempt: its segments, and the scene at `plan.initial_state`

@@ -325,6 +325,21 @@ pub fn propose_two_arm(path: &Path, task: mimicgen_sim::two_arm::TwoArmTask) -> 
     Ok((out, scene))
 }
 
+/// `data/<demo>/datagen_info` of `file` (read from `label`), to write a demo's signals into.
+fn datagen_info_mut<'a>(file: &'a mut RobomimicDataset, label: &str, demo: &str) -> Result<&'a mut Group, PipelineError> {
+    let field = format!("data/{demo}");
+    let Some(Node::Group(data)) = file.root.members.get_mut("data") else {
+        return Err(PipelineError::input(label, "data", "missing"));
+    };
+    let Some(Node::Group(group)) = data.members.get_mut(demo) else {
+        return Err(PipelineError::input(label, field, "not a group"));
+    };
+    let Some(Node::Group(info)) = group.members.get_mut("datagen_info") else {
+        return Err(PipelineError::input(label, format!("{field}/datagen_info"), "missing: prepare the file first (`mimicgen prepare`)"));
+    };
+    Ok(info)
+}
+
 /// One arm's signal names (one per subtask but the last) and its ends per demo.
 pub type ArmEnds = (Vec<String>, BTreeMap<String, Vec<usize>>);
 
@@ -380,19 +395,7 @@ pub fn write_arm_signals(input: &Path, out: &Path, arms: &[ArmEnds]) -> Result<(
                 signals.insert(name.clone(), end);
             }
         }
-        let Some(Node::Group(data)) = file.root.members.get_mut("data") else {
-            return Err(PipelineError::input(label.clone(), "data", "missing"));
-        };
-        let Some(Node::Group(group)) = data.members.get_mut(demo) else {
-            return Err(PipelineError::input(label.clone(), field, "not a group"));
-        };
-        let Some(Node::Group(info)) = group.members.get_mut("datagen_info") else {
-            return Err(PipelineError::input(
-                label.clone(),
-                format!("{field}/datagen_info"),
-                "missing: prepare the file first (`mimicgen prepare`)",
-            ));
-        };
+        let info = datagen_info_mut(&mut file, &label, demo)?;
         let mut group = Group::default();
         for (name, end) in signals {
             group.members.insert(name, Node::Dataset(Dataset::new(Array::i64(vec![len], signal_for_end(end, len)))));
@@ -461,19 +464,7 @@ pub fn write_signals(
             }
             previous = end;
         }
-        let Some(Node::Group(data)) = file.root.members.get_mut("data") else {
-            return Err(PipelineError::input(label.clone(), "data", "missing"));
-        };
-        let Some(Node::Group(group)) = data.members.get_mut(demo) else {
-            return Err(PipelineError::input(label.clone(), field, "not a group"));
-        };
-        let Some(Node::Group(info)) = group.members.get_mut("datagen_info") else {
-            return Err(PipelineError::input(
-                label.clone(),
-                format!("{field}/datagen_info"),
-                "missing: prepare the file first (`mimicgen prepare`)",
-            ));
-        };
+        let info = datagen_info_mut(&mut file, &label, demo)?;
         let mut signals = Group::default();
         for (name, &end) in names.iter().zip(demo_ends) {
             signals.members.insert(name.clone(), Node::Dataset(Dataset::new(Array::i64(vec![len], signal_for_end(end, len)))));

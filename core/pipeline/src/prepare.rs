@@ -61,20 +61,7 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
     let mut scenes: BTreeMap<String, Arc<Scene>> = BTreeMap::new();
     let names = dataset.demo_names().to_vec();
     for (done, name) in names.iter().enumerate() {
-        let demo = dataset.demo(name).ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "vanished"))?;
-        let xml = demo
-            .attrs
-            .get("model_file")
-            .and_then(|a| a.as_str())
-            .ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "has no model_file attribute"))?;
-        let scene = match scenes.get(xml) {
-            Some(s) => Arc::clone(s),
-            None => {
-                let s = Arc::new(Scene::from_model_file(xml, &format!("{file}: data/{name}/model_file"), task.as_ref())?);
-                scenes.insert(xml.to_owned(), Arc::clone(&s));
-                s
-            }
-        };
+        let (demo, xml, scene) = demo_scene(&dataset, &mut scenes, name, |xml, origin| Scene::from_model_file(xml, origin, task.as_ref()))?;
         let mut env = SimEnv::new(scene, Arc::clone(&task));
         let states = rows(demo, "states", &file, name)?;
         let actions = rows(demo, "actions", &file, name)?;
@@ -137,20 +124,7 @@ fn prepare_two_arm(
     let mut scenes: BTreeMap<String, Arc<Scene>> = BTreeMap::new();
     let names = dataset.demo_names().to_vec();
     for (done, name) in names.iter().enumerate() {
-        let demo = dataset.demo(name).ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "vanished"))?;
-        let xml = demo
-            .attrs
-            .get("model_file")
-            .and_then(|a| a.as_str())
-            .ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "has no model_file attribute"))?;
-        let scene = match scenes.get(xml) {
-            Some(s) => Arc::clone(s),
-            None => {
-                let s = Arc::new(task.scene_from_model_file(xml, &format!("{file}: data/{name}/model_file"))?);
-                scenes.insert(xml.to_owned(), Arc::clone(&s));
-                s
-            }
-        };
+        let (demo, xml, scene) = demo_scene(dataset, &mut scenes, name, |xml, origin| task.scene_from_model_file(xml, origin))?;
         let mut env = TwoArmSimEnv::new(scene, task, "D0")?;
         let states = rows(demo, "states", &file, name)?;
         let actions = rows(demo, "actions", &file, name)?;
@@ -199,6 +173,35 @@ fn prepare_two_arm(
     }
     writer.finish()?;
     Ok(names.len())
+}
+
+/// Demo `name` of `dataset`, its `model_file`, and its scene: compiled by `compile(xml, origin)`
+/// once per distinct `model_file` (kept in `scenes`).
+///
+/// # Errors
+/// A demo without a `model_file` attribute, or `compile`'s error.
+fn demo_scene<'a>(
+    dataset: &'a RobomimicDataset,
+    scenes: &mut BTreeMap<String, Arc<Scene>>,
+    name: &str,
+    compile: impl FnOnce(&str, &str) -> Result<Scene, mimicgen_sim::SimError>,
+) -> Result<(&'a Group, &'a str, Arc<Scene>), PipelineError> {
+    let file = &dataset.file;
+    let demo = dataset.demo(name).ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "vanished"))?;
+    let xml = demo
+        .attrs
+        .get("model_file")
+        .and_then(|a| a.as_str())
+        .ok_or_else(|| PipelineError::input(file.clone(), format!("data/{name}"), "has no model_file attribute"))?;
+    let scene = match scenes.get(xml) {
+        Some(s) => Arc::clone(s),
+        None => {
+            let s = Arc::new(compile(xml, &format!("{file}: data/{name}/model_file"))?);
+            scenes.insert(xml.to_owned(), Arc::clone(&s));
+            s
+        }
+    };
+    Ok((demo, xml, scene))
 }
 
 /// The folder of the app's prepared copies: `$MIMICGEN_CACHE/prepared`.

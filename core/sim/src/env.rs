@@ -499,29 +499,10 @@ impl Environment for SimEnv {
     }
 
     fn state(&self) -> Vec<f64> {
-        let mut s = Vec::with_capacity(self.state.scene.state_dim());
-        s.push(self.state.data.time());
-        s.extend_from_slice(self.state.data.qpos());
-        s.extend_from_slice(self.state.data.qvel());
-        s
+        self.state.flat_state()
     }
 
     fn set_state(&mut self, state: &[f64]) -> Result<(), EnvError> {
-        if state.len() != self.state.scene.state_dim() {
-            return Err(EnvError::Fatal {
-                reason: format!(
-                    "state has {} values, the scene {} needs {}",
-                    state.len(),
-                    self.state.scene.origin,
-                    self.state.scene.state_dim()
-                ),
-            });
-        }
-        let nq = self.state.data.qpos().len();
-        self.state.data.set_time(state[0]);
-        self.state.data.qpos_mut().copy_from_slice(&state[1..=nq]);
-        self.state.data.qvel_mut().copy_from_slice(&state[1 + nq..]);
-        self.state.data.forward();
-        Ok(())
+        self.state.set_flat_state(state)
     }
 }

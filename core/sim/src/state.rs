@@ -118,6 +118,34 @@ impl SimState {
         })
     }
 
+    /// robosuite's flattened state: `[time, qpos, qvel]`.
+    #[must_use]
+    pub fn flat_state(&self) -> Vec<f64> {
+        let mut s = Vec::with_capacity(self.scene.state_dim());
+        s.push(self.data.time());
+        s.extend_from_slice(self.data.qpos());
+        s.extend_from_slice(self.data.qvel());
+        s
+    }
+
+    /// Restores a flattened robosuite state (`[time, qpos, qvel]`) and forwards the kinematics.
+    ///
+    /// # Errors
+    /// [`mimicgen_engine::EnvError::Fatal`] on a state of the wrong length.
+    pub(crate) fn set_flat_state(&mut self, state: &[f64]) -> Result<(), mimicgen_engine::EnvError> {
+        if state.len() != self.scene.state_dim() {
+            return Err(mimicgen_engine::EnvError::Fatal {
+                reason: format!("state has {} values, the scene {} needs {}", state.len(), self.scene.origin, self.scene.state_dim()),
+            });
+        }
+        let nq = self.data.qpos().len();
+        self.data.set_time(state[0]);
+        self.data.qpos_mut().copy_from_slice(&state[1..=nq]);
+        self.data.qvel_mut().copy_from_slice(&state[1 + nq..]);
+        self.data.forward();
+        Ok(())
+    }
+
     /// `world_from_eef`: the robot's end-effector site.
     #[must_use]
     pub fn eef_pose(&self) -> Pose {

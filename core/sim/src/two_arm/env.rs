@@ -187,22 +187,7 @@ impl TwoArmSimEnv {
     /// # Errors
     /// [`EnvError::Fatal`] on a state of the wrong length.
     pub fn set_state(&mut self, state: &[f64]) -> Result<(), EnvError> {
-        if state.len() != self.state.scene.state_dim() {
-            return Err(EnvError::Fatal {
-                reason: format!(
-                    "state has {} values, the scene {} needs {}",
-                    state.len(),
-                    self.state.scene.origin,
-                    self.state.scene.state_dim()
-                ),
-            });
-        }
-        let nq = self.state.data.qpos().len();
-        self.state.data.set_time(state[0]);
-        self.state.data.qpos_mut().copy_from_slice(&state[1..=nq]);
-        self.state.data.qvel_mut().copy_from_slice(&state[1 + nq..]);
-        self.state.data.forward();
-        Ok(())
+        self.state.set_flat_state(state)
     }
 
     /// The task object's placement, drawn as robosuite's reset draws it (in `variant`'s range).
@@ -359,10 +344,6 @@ impl TwoArmEnvironment for TwoArmSimEnv {
     }
 
     fn state(&self) -> Vec<f64> {
-        let mut s = Vec::with_capacity(self.state.scene.state_dim());
-        s.push(self.state.data.time());
-        s.extend_from_slice(self.state.data.qpos());
-        s.extend_from_slice(self.state.data.qvel());
-        s
+        self.state.flat_state()
     }
 }
