@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Write the scene of a robosuite 1.4.1 two-arm task (viewer_assets/scenes/<task>.xml).
 
-Usage: make_two_arm_scene.py [TASK ...]   (TwoArmLift, TwoArmHandover; run with scripts/setup_robosuite.sh's python)
+Usage: make_two_arm_scene.py [TASK ...]   (TwoArmLift, TwoArmHandover, TwoArmTransport; run with scripts/setup_robosuite.sh's python)
 
 robosuite builds the task's environment with two Pandas in the configuration the environment
 defines by default (TwoArmLift: "single-arm-opposed", the arms facing each other across the
@@ -24,6 +24,9 @@ os.environ["MUJOCO_GL"] = "disable"
 TASKS = {
     "TwoArmLift": ["pot_root", "pot_joint0", "pot_handle0", "pot_handle1", "pot_center", "robot1_base"],
     "TwoArmHandover": ["hammer_root", "hammer_joint0", "hammer_handle", "hammer_head", "table_top", "robot1_base"],
+    "TwoArmTransport": ["payload_root", "payload_handle", "trash_main", "transport_start_bin_lid_root",
+                        "transport_start_bin_lid_handle", "transport_target_bin_root", "transport_trash_bin_root",
+                        "robot1_base"],
 }
 
 

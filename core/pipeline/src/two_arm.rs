@@ -16,7 +16,9 @@ use mimicgen_engine::EngineError;
 use mimicgen_engine::demo::SourceDataset;
 use mimicgen_engine::generate::FailureReason;
 use mimicgen_engine::spec::SourceSelection;
-use mimicgen_engine::two_arm::{TwoArmAttempt, TwoArmEnvironment as _, TwoArmGenerator, TwoArmHandoverScript, TwoArmLiftScript};
+use mimicgen_engine::two_arm::{
+    TwoArmAttempt, TwoArmEnvironment as _, TwoArmGenerator, TwoArmHandoverScript, TwoArmLiftScript, TwoArmTransportScript,
+};
 use mimicgen_io::{DatasetWriter, DemoData, RobomimicDataset, WriterOptions};
 use mimicgen_sim::two_arm::{TwoArmSimEnv, TwoArmTask};
 use rand::SeedableRng as _;
@@ -77,6 +79,7 @@ pub fn record_demos(
         let demo = match task {
             TwoArmTask::Lift => TwoArmLiftScript::pot().record(&mut env, &mut rng),
             TwoArmTask::Handover => TwoArmHandoverScript::hammer().record(&mut env, &mut rng),
+            TwoArmTask::Transport => TwoArmTransportScript::transport().record(&mut env, &mut rng),
         }
         .map_err(|e| PipelineError::engine("", EngineError::Env { attempt: 0, source: e }))?;
         if !demo.success {

@@ -1,5 +1,6 @@
-//! robosuite's Two Arm Lift in MuJoCo: both arms under their own controllers, the scripted lift
-//! demonstrator, and generation with a coordinated lift.
+//! robosuite's two-arm tasks in MuJoCo: both arms under their own controllers, the scripted
+//! demonstrators, and generation with coordinated and sequential subtasks (Lift, Handover,
+//! Transport).
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)] // tests fail loudly by design
 
 use std::sync::Arc;
@@ -152,4 +153,84 @@ fn handover_generation_keeps_its_order_and_hands_over() {
         }
     }
     assert!(successes >= 2, "{successes} of 4 handovers succeeded");
+}
+
+/// Two Arm Transport at robosuite's reset: the hammer and the lid in the start bin, the trash in
+/// the target bin, nothing delivered; after a second of holding still everything rests where it
+/// was put, in both variants.
+#[test]
+fn the_transport_scene_rests_unsolved_in_both_variants() {
+    let scene = Arc::new(TwoArmTask::Transport.scene().unwrap());
+    for variant in ["D0", "D1"] {
+        let mut env = TwoArmSimEnv::new(Arc::clone(&scene), TwoArmTask::Transport, variant).unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        for _ in 0..3 {
+            env.reset(&mut rng).unwrap();
+            let before = env.object_poses();
+            let hold: Vec<f64> =
+                (0..2).flat_map(|arm| env.target_pose_to_action(arm, &env.eef_pose(arm)).into_iter().chain([-1.0])).collect();
+            for _ in 0..20 {
+                env.step(&hold).unwrap();
+                assert!(!env.is_success(), "{variant}: solved by holding still");
+            }
+            for (name, pose) in env.object_poses() {
+                let moved = (pose.translation.vector - before[&name].translation.vector).norm();
+                assert!(moved < 0.01, "{variant}: {name} moved {moved:.3} m at rest");
+            }
+            let at = |name: &str| env.object_poses()[name].translation.vector;
+            let flat = |a: &str, b: &str| (at(a).xy() - at(b).xy()).norm();
+            assert!(flat("payload", "start_bin") < 0.02 && flat("lid", "start_bin") < 0.01 && flat("trash", "target_bin") < 0.01);
+            assert!(env.subtask_term_signals().values().all(|&v| v == 0), "{variant}: {:?}", env.subtask_term_signals());
+            assert_eq!(obs_len(&env), 41);
+        }
+    }
+}
+
+/// The scripted transport: arm 0's lid, hammer and handover signals and arm 1's trash signals in
+/// their order, arm 1's grasp of the handle only after the hammer is at the handover, and
+/// robosuite's success; then generation keeps the three sequential ties (arm 1 comes for the
+/// handle only after arm 0's carry ended, arm 0 lets go only after arm 1's grasp ended, arm 1
+/// carries the hammer away only after arm 0's release ended) and delivers both.
+#[test]
+fn the_transport_hands_the_hammer_over_into_the_target_bin_in_order() {
+    use mimicgen_engine::demo::SourceDataset;
+    use mimicgen_engine::two_arm::{TwoArmGenerator, TwoArmTransportScript};
+
+    let scene = Arc::new(TwoArmTask::Transport.scene().unwrap());
+    let mut env = TwoArmSimEnv::new(scene, TwoArmTask::Transport, "D0").unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let spec = TwoArmTask::Transport.spec().unwrap();
+    let mut views: Vec<Vec<_>> = vec![Vec::new(), Vec::new()];
+    let mut tries = 0;
+    while views[0].len() < 2 {
+        tries += 1;
+        assert!(tries <= 6, "the script succeeded {} times in {} tries", views[0].len(), tries - 1);
+        env.reset(&mut rng).unwrap();
+        let demo = TwoArmTransportScript::transport().record(&mut env, &mut rng).unwrap();
+        if !demo.success {
+            continue;
+        }
+        let first_on = |signal: &str| demo.subtask_term_signals[signal].iter().position(|&v| v != 0).unwrap();
+        let order = ["lid_grasp", "lid_off", "payload_lift", "at_handover", "handle_grasp"].map(first_on);
+        assert!(order.is_sorted(), "arm 0's signals out of order: {order:?}");
+        let trash = ["trash_grasp", "trash_in_bin", "handle_grasp"].map(first_on);
+        assert!(trash.is_sorted(), "arm 1's signals out of order: {trash:?}");
+        for (arm, view) in demo.arm_views(&format!("demo_{}", views[0].len())).into_iter().enumerate() {
+            views[arm].push(view);
+        }
+    }
+    let sources = views.into_iter().map(|demos| SourceDataset { demos, env_args: None }).collect();
+    let generator = TwoArmGenerator::new(spec, sources).unwrap();
+    let mut successes = 0;
+    for index in 0..3 {
+        let attempt = generator.attempt(&mut env, index).unwrap();
+        successes += usize::from(attempt.success);
+        let plan = |arm: usize, k: usize| attempt.arms[arm].plans.get(k);
+        for (first, later) in [((0, 3), (1, 3)), ((1, 3), (0, 4)), ((0, 4), (1, 4))] {
+            if let (Some(a), Some(b)) = (plan(first.0, first.1), plan(later.0, later.1)) {
+                assert!(b.first_step >= a.first_step + a.waypoints.len(), "attempt {index}: {later:?} started before {first:?} ended");
+            }
+        }
+    }
+    assert!(successes >= 1, "{successes} of 3 transports succeeded");
 }

@@ -35,6 +35,14 @@ pub enum Goal {
     },
     /// Where the hand is commanded when the leg starts, moved by this much (m, world frame).
     Moved([f64; 3]),
+    /// Over an object, seen when the leg starts: its origin moved by `offset_m` (world frame),
+    /// the hand's rotation as commanded (carry what it holds there without turning it).
+    Over {
+        /// The object.
+        object: String,
+        /// The offset from its origin (m, world frame).
+        offset_m: [f64; 3],
+    },
 }
 
 /// One move of one arm.
@@ -98,10 +106,7 @@ impl TwoArmLiftScript {
     /// # Errors
     /// The environment's error if a step fails, [`EnvError::Fatal`] if the object is missing.
     pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
-        let world_from_object = *env
-            .object_poses()
-            .get(&self.object)
-            .ok_or_else(|| EnvError::Fatal { reason: format!("the scene has no object {:?}", self.object) })?;
+        let world_from_object = object_pose(&*env, &self.object)?;
         let lift = rng.random_range(self.lift_height_m.0..self.lift_height_m.1);
         let lift_speed = rng.random_range(0.004..0.007);
         let mut legs = [Vec::new(), Vec::new()];
@@ -177,42 +182,44 @@ impl TwoArmHandoverScript {
         }
     }
 
-    /// Records one demo from the environment's present state (call `reset` first).
-    ///
-    /// # Errors
-    /// The environment's error if a step fails, [`EnvError::Fatal`] if the object is missing.
-    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
-        let world_from_object = *env
-            .object_poses()
-            .get(&self.object)
-            .ok_or_else(|| EnvError::Fatal { reason: format!("the scene has no object {:?}", self.object) })?;
-        let start = env.eef_pose(0);
-        // Arm 0's fingers close across the handle, with the hand one way round or the other: the
-        // one that ends the handover turn nearer the hand's start (the wrist turns least).
+    /// Arm 0's grasp of the object lying at `world_from_object` and its pose at the handover, for a
+    /// hand starting at `start`: the fingers close across the handle with the hand one way round
+    /// or the other, the one that ends the handover turn nearer the hand's start (the wrist turns
+    /// least); at the handover the handle points at the receiver.
+    fn give<R: Rng + ?Sized>(&self, world_from_object: &Pose, start: &Pose, rng: &mut R) -> (Pose, Pose) {
         let axis = world_from_object.rotation * Vec3::from(self.towards_receiver);
         let want = Vec3::from(self.receiver_direction);
         let turn = want.y.atan2(want.x) - axis.y.atan2(axis.x);
         let turn = turn - (turn / std::f64::consts::TAU).round() * std::f64::consts::TAU;
-        let grip = turned_to(&start, yaw_of(&world_from_object) + rng.random_range(-0.08..0.08));
+        let grip = turned_to(start, yaw_of(world_from_object) + rng.random_range(-0.08..0.08));
         let wrapped = |a: f64| (a - (a / std::f64::consts::TAU).round() * std::f64::consts::TAU).abs();
         let rotation = [grip, Rot::from_axis_angle(&Vec3::z_axis(), std::f64::consts::PI) * grip]
             .into_iter()
             .min_by(|a, b| {
                 let end = |r: &Rot| {
-                    wrapped(yaw_of(&pose_from_parts(Vec3::zeros(), Rot::from_axis_angle(&Vec3::z_axis(), turn) * r)) - yaw_of(&start))
+                    wrapped(yaw_of(&pose_from_parts(Vec3::zeros(), Rot::from_axis_angle(&Vec3::z_axis(), turn) * r)) - yaw_of(start))
                 };
                 end(a).total_cmp(&end(b))
             })
             .unwrap_or(grip);
         let offset = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003));
         let grasp = pose_from_parts((world_from_object * nalgebra::Point3::from(Vec3::from(self.give_point_m))).coords + offset, rotation);
-        let up = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
-        // At the handover the handle points at the receiver: the hand turns by the angle between.
         let handover = pose_from_parts(
             Vec3::from(self.handover_m)
                 + Vec3::new(rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01)),
             Rot::from_axis_angle(&Vec3::z_axis(), turn) * rotation,
         );
+        (grasp, handover)
+    }
+
+    /// Records one demo from the environment's present state (call `reset` first).
+    ///
+    /// # Errors
+    /// The environment's error if a step fails, [`EnvError::Fatal`] if the object is missing.
+    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
+        let world_from_object = object_pose(&*env, &self.object)?;
+        let (grasp, handover) = self.give(&world_from_object, &env.eef_pose(0), rng);
+        let up = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
         let (fast, slow) = (rng.random_range(0.012..0.02), rng.random_range(0.004..0.007));
         let lifted = up(&grasp, rng.random_range(0.12..0.16));
         let give = vec![
@@ -246,6 +253,185 @@ impl TwoArmHandoverScript {
             // Lift once arm 0 has let go and backed off.
             ArmLeg { goal: Goal::Moved([0.0, 0.05, 0.05]), speed_m: slow, gripper: 1.0, hold: 6, after: Some(7) },
         ];
+        follow(env, &[give, receive])
+    }
+}
+
+/// `world_from_object` of `object` now.
+fn object_pose<E: TwoArmEnvironment + ?Sized>(env: &E, object: &str) -> Result<Pose, EnvError> {
+    env.object_poses().get(object).copied().ok_or_else(|| EnvError::Fatal { reason: format!("the scene has no object {object:?}") })
+}
+
+/// robosuite's (and robomimic's) Two Arm Transport, scripted as an operator pair does it: arm 0
+/// lifts the lid off the start bin by its handle and lays it on the table beside the bin, grasps
+/// the hammer in the bin by the handle near its head, lifts it out and carries it to the handover
+/// point (as [`TwoArmHandoverScript`] does); meanwhile arm 1 takes the trash out of the target bin,
+/// drops it into the trash bin and waits to the side. Once the hammer is held at the handover arm 1
+/// grasps the handle's other end; only then arm 0 lets go and backs off, and only then arm 1
+/// carries the hammer over the target bin and lowers it in.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwoArmTransportScript {
+    /// How arm 0 gives the hammer and arm 1 receives it (`object` is robosuite's `payload`).
+    pub handover: TwoArmHandoverScript,
+    /// The lid (its handle at `lid_handle_m` in its frame, long along its y).
+    pub lid: String,
+    /// The lid handle's centre in the lid's frame (m).
+    pub lid_handle_m: [f64; 3],
+    /// Where the lid is laid: its handle moved this far from where it was (m, world frame).
+    pub lid_aside_m: [f64; 3],
+    /// The trash (a cube), the trash bin and the target bin.
+    pub trash: String,
+    /// The bin the trash goes to.
+    pub trash_bin: String,
+    /// The bin the hammer goes to.
+    pub target_bin: String,
+    /// Where arm 1 waits after the trash (m, world frame).
+    pub wait_m: [f64; 3],
+    /// Where arm 1's hand goes over the target bin with the hammer: from the bin's origin (m,
+    /// world frame): the hammer's length centred over the bin, its handle this high.
+    pub place_m: [f64; 3],
+}
+
+impl TwoArmTransportScript {
+    /// robosuite's Two Arm Transport: its lid (`transport_start_bin_lid`, the handle 5 mm over
+    /// its origin), laid 40 cm towards -x on table 0; its hammer (`payload`: the handle along its
+    /// z axis, 20 cm long, the head at +z) handed over as Two Arm Handover's; the trash (a 4 cm
+    /// cube) dropped from 15 cm over the trash bin; the hammer lowered into the target bin with arm
+    /// 1's hand 7 cm towards arm 1 from the bin's centre (the hammer's length centred).
+    #[must_use]
+    pub fn transport() -> Self {
+        Self {
+            handover: TwoArmHandoverScript {
+                object: "payload".to_owned(),
+                give_point_m: [0.0, 0.0, 0.056],
+                ..TwoArmHandoverScript::hammer()
+            },
+            lid: "lid".to_owned(),
+            lid_handle_m: [0.0, 0.0, 0.005],
+            lid_aside_m: [-0.40, 0.0, -0.02],
+            trash: "trash".to_owned(),
+            trash_bin: "trash_bin".to_owned(),
+            target_bin: "target_bin".to_owned(),
+            wait_m: [0.0, 0.28, 1.10],
+            place_m: [0.0, 0.07, 0.0],
+        }
+    }
+
+    /// Records one demo from the environment's present state (call `reset` first).
+    ///
+    /// # Errors
+    /// The environment's error if a step fails, [`EnvError::Fatal`] if an object is missing.
+    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
+        let (fast, slow) = (rng.random_range(0.012..0.02), rng.random_range(0.004..0.007));
+        let leg =
+            |goal: Goal, speed_m: f64, gripper: f64, hold: usize, after: Option<usize>| ArmLeg { goal, speed_m, gripper, hold, after };
+        let moved = |x: f64, y: f64, z: f64| Goal::Moved([x, y, z]);
+        // Arm 0: the lid, lifted off by its handle (across it: the hand's x along the lid's x)
+        // and laid beside the bin.
+        let on_lid = |height_m: f64| Goal::OnObject { object: self.lid.clone(), point_m: self.lid_handle_m, height_m, yaw_offset_rad: 0.0 };
+        let lift_lid = rng.random_range(0.08..0.11);
+        let aside = Vec3::from(self.lid_aside_m) + Vec3::new(rng.random_range(-0.02..0.02), rng.random_range(-0.02..0.02), 0.0);
+        let mut give = vec![
+            leg(on_lid(rng.random_range(0.06..0.09)), fast, -1.0, rng.random_range(0..3), None),
+            leg(on_lid(0.0), slow, -1.0, rng.random_range(2..4), None),
+            leg(moved(0.0, 0.0, 0.0), slow, 1.0, rng.random_range(10..14), None),
+            leg(moved(0.0, 0.0, lift_lid), slow, 1.0, 0, None),
+            leg(moved(aside.x, aside.y, 0.0), fast, 1.0, rng.random_range(0..3), None),
+            // The lid's bottom to 2 cm over the table (it was on the bin's rim, 15 cm up).
+            leg(moved(0.0, 0.0, aside.z - 0.15 - lift_lid + 0.02), slow, 1.0, 2, None),
+            leg(moved(0.0, 0.0, 0.0), slow, -1.0, rng.random_range(6..9), None),
+            leg(moved(0.0, 0.0, 0.12), fast, -1.0, 0, None),
+        ];
+        // Then the hammer out of the bin and to the handover.
+        let world_from_hammer = object_pose(&*env, &self.handover.object)?;
+        let start = env.eef_pose(0);
+        let (grasp, handover) = self.handover.give(&world_from_hammer, &start, rng);
+        let carry = rng.random_range(0.008..0.012);
+        let up = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
+        // Over the bin's walls first (the fingers 10 cm over them), then straight down into it.
+        give.extend([
+            leg(Goal::Fixed(up(&grasp, rng.random_range(0.24..0.27))), fast, -1.0, rng.random_range(0..3), None),
+            leg(Goal::Fixed(up(&grasp, rng.random_range(0.06..0.08))), fast, -1.0, 0, None),
+            leg(Goal::Fixed(grasp), slow, -1.0, rng.random_range(2..4), None),
+            leg(Goal::Fixed(grasp), slow, 1.0, rng.random_range(10..14), None),
+            leg(Goal::Fixed(up(&grasp, rng.random_range(0.22..0.25))), slow, 1.0, 0, None),
+            leg(Goal::Fixed(handover), carry, 1.0, rng.random_range(4..7), None),
+        ]);
+        let at_handover = give.len();
+        // Arm 1: the trash, across the cube the way nearer the hand's yaw.
+        let world_from_trash = object_pose(&*env, &self.trash)?;
+        let hand = env.eef_pose(1);
+        let wrapped = |a: f64| (a - (a / std::f64::consts::PI).round() * std::f64::consts::PI).abs();
+        let trash_yaw = [0.0, std::f64::consts::FRAC_PI_2]
+            .into_iter()
+            .min_by(|a, b| {
+                wrapped(yaw_of(&world_from_trash) + a - yaw_of(&hand)).total_cmp(&wrapped(yaw_of(&world_from_trash) + b - yaw_of(&hand)))
+            })
+            .unwrap_or(0.0);
+        let on_trash =
+            |height_m: f64| Goal::OnObject { object: self.trash.clone(), point_m: [0.0; 3], height_m, yaw_offset_rad: trash_yaw };
+        let on_handle = |height_m: f64| Goal::OnObject {
+            object: self.handover.object.clone(),
+            point_m: self.handover.receive_point_m,
+            height_m,
+            yaw_offset_rad: 0.0,
+        };
+        let wait = pose_from_parts(
+            Vec3::from(self.wait_m) + Vec3::new(rng.random_range(-0.03..0.03), rng.random_range(-0.03..0.03), 0.0),
+            hand.rotation,
+        );
+        // Over the target bin's walls, then down into it.
+        let mut receive = vec![
+            leg(on_trash(rng.random_range(0.24..0.27)), fast, -1.0, rng.random_range(0..3), None),
+            leg(on_trash(rng.random_range(0.05..0.07)), fast, -1.0, 0, None),
+            leg(on_trash(0.0), slow, -1.0, rng.random_range(2..4), None),
+            leg(moved(0.0, 0.0, 0.0), slow, 1.0, rng.random_range(10..14), None),
+            leg(moved(0.0, 0.0, rng.random_range(0.20..0.23)), slow, 1.0, 0, None),
+            leg(
+                Goal::Over {
+                    object: self.trash_bin.clone(),
+                    offset_m: [rng.random_range(-0.03..0.03), rng.random_range(-0.03..0.03), rng.random_range(0.15..0.18)],
+                },
+                fast,
+                1.0,
+                0,
+                None,
+            ),
+            leg(moved(0.0, 0.0, 0.0), slow, -1.0, rng.random_range(8..11), None),
+            leg(Goal::Fixed(wait), fast, -1.0, 0, None),
+            // The handle, once arm 0 holds the hammer still at the handover.
+            leg(on_handle(rng.random_range(0.07..0.1)), fast, -1.0, rng.random_range(0..3), Some(at_handover)),
+            leg(on_handle(0.0), slow, -1.0, rng.random_range(2..4), None),
+            leg(moved(0.0, 0.0, 0.0), slow, 1.0, rng.random_range(10..14), None),
+        ];
+        let grasped = receive.len();
+        // Arm 0 lets go once arm 1 has closed on the handle, then backs off.
+        give.extend([
+            leg(moved(0.0, 0.0, 0.0), slow, -1.0, rng.random_range(8..11), Some(grasped)),
+            leg(moved(0.0, 0.0, 0.08), slow, -1.0, 2, None),
+        ]);
+        let released = give.len();
+        // Arm 1 carries the hammer over the target bin, only once arm 0 is clear, and lowers it in.
+        let place = Vec3::from(self.place_m) + Vec3::new(rng.random_range(-0.02..0.02), rng.random_range(-0.02..0.02), 0.0);
+        receive.extend([
+            leg(moved(0.0, 0.03, 0.05), slow, 1.0, 2, Some(released)),
+            leg(
+                Goal::Over { object: self.target_bin.clone(), offset_m: [place.x, place.y, rng.random_range(0.14..0.17)] },
+                fast,
+                1.0,
+                rng.random_range(0..3),
+                None,
+            ),
+            leg(
+                Goal::Over { object: self.target_bin.clone(), offset_m: [place.x, place.y, rng.random_range(0.02..0.03)] },
+                slow,
+                1.0,
+                2,
+                None,
+            ),
+            leg(moved(0.0, 0.0, 0.0), slow, -1.0, rng.random_range(6..9), None),
+            leg(moved(0.0, 0.0, 0.10), fast, -1.0, 2, None),
+        ]);
         follow(env, &[give, receive])
     }
 }
@@ -350,9 +536,11 @@ fn resolve<E: TwoArmEnvironment + ?Sized>(goal: &Goal, commanded: &Pose, env: &E
     Ok(match goal {
         Goal::Fixed(pose) => *pose,
         Goal::Moved(by) => pose_from_parts(commanded.translation.vector + Vec3::from(*by), commanded.rotation),
+        Goal::Over { object, offset_m } => {
+            pose_from_parts(object_pose(env, object)?.translation.vector + Vec3::from(*offset_m), commanded.rotation)
+        }
         Goal::OnObject { object, point_m, height_m, yaw_offset_rad } => {
-            let world_from_object =
-                *env.object_poses().get(object).ok_or_else(|| EnvError::Fatal { reason: format!("the scene has no object {object:?}") })?;
+            let world_from_object = object_pose(env, object)?;
             let point = (world_from_object * nalgebra::Point3::from(Vec3::from(*point_m))).coords + Vec3::new(0.0, 0.0, *height_m);
             let rotation = turned_to(commanded, yaw_of(&world_from_object) + yaw_offset_rad);
             pose_from_parts(point, rotation)

@@ -61,10 +61,11 @@ impl TwoArmSimEnv {
             name: "robot1_base".to_owned(),
         })?;
         let indices = TaskIndices::resolve(task, &scene)?;
-        let table_top_site = scene.model.name_to_id(MjtObjBase::mjOBJ_SITE, "table_top").ok_or_else(|| SimError::MissingName {
+        let table_site = task.table_site();
+        let table_top_site = scene.model.name_to_id(MjtObjBase::mjOBJ_SITE, table_site).ok_or_else(|| SimError::MissingName {
             file: scene.origin.clone(),
             kind: "site".to_owned(),
-            name: "table_top".to_owned(),
+            name: table_site.to_owned(),
         })?;
         let robots = [scene.robot.clone(), second];
         let nv = usize::try_from(scene.model.ffi().nv).unwrap_or_default();
@@ -119,6 +120,7 @@ impl TwoArmSimEnv {
                 let tilt = (handle_half_length_m + 2.0 * head_half_size_m) * angle.sin();
                 data.geom_xpos()[*handle][2] - handle_radius_m - tilt - self.table_z()
             }
+            TaskIndices::Transport(_) => self.state.object_pose(0).translation.z - self.table_z(),
         }
     }
 
@@ -131,12 +133,17 @@ impl TwoArmSimEnv {
     /// robosuite's observations now: each arm's (`robot0_*`, `robot1_*`) and `object` as the
     /// task's `object-state` orders it: Two Arm Lift the pot's position and `xyzw` quaternion,
     /// both handles' positions, each handle from its arm's gripper; Two Arm Handover the hammer's
-    /// position and quaternion, its handle's position, the handle from each gripper.
+    /// position and quaternion, its handle's position, the handle from each gripper; Two Arm
+    /// Transport as `transport.rs` says.
     #[must_use]
     pub fn observation(&self) -> BTreeMap<String, Vec<f64>> {
         let mut obs = BTreeMap::new();
         for (arm, robot) in self.robots.iter().enumerate() {
             obs.extend(arm_observation(&self.state, robot, &format!("robot{arm}_")));
+        }
+        if let TaskIndices::Transport(transport) = &self.indices {
+            obs.insert("object".to_owned(), transport.object_observation(&self.state, &self.robots));
+            return obs;
         }
         let data = &self.state.data;
         let pose = self.state.object_pose(0);
@@ -160,6 +167,7 @@ impl TwoArmSimEnv {
                     object.extend(from_eef(handle, arm));
                 }
             }
+            TaskIndices::Transport(_) => {}
         }
         obs.insert("object".to_owned(), object);
         obs
@@ -190,8 +198,12 @@ impl TwoArmSimEnv {
         self.state.set_flat_state(state)
     }
 
-    /// The task object's placement, drawn as robosuite's reset draws it (in `variant`'s range).
-    fn sample_scene(&self, rng: &mut dyn RngCore) -> Pose {
+    /// The task's objects' placements, drawn as robosuite's reset draws them (in `variant`'s
+    /// range): `(object index, world_from_object)`.
+    fn sample_scene(&self, rng: &mut dyn RngCore) -> Vec<(usize, Pose)> {
+        if let TaskIndices::Transport(transport) = &self.indices {
+            return transport.placements(&self.state, &self.variant, rng);
+        }
         let ([x0, x1], [y0, y1]) = self.task.placement(&self.variant);
         let (x, y) = (rng.random_range(x0..=x1), rng.random_range(y0..=y1));
         let table = self.state.data.site_xpos()[self.table_top_site];
@@ -203,8 +215,9 @@ impl TwoArmSimEnv {
                 let angle = rng.random_range(0.0..2.0 * PI);
                 (robosuite_hammer_quat(angle, rng.random_bool(0.5)), *handle_radius_m)
             }
+            TaskIndices::Transport(_) => (Rot::identity(), 0.0),
         };
-        pose_from_parts(Vec3::new(table[0] + x, table[1] + y, table[2] + z), rotation)
+        vec![(0, pose_from_parts(Vec3::new(table[0] + x, table[1] + y, table[2] + z), rotation))]
     }
 }
 
@@ -225,15 +238,16 @@ impl TwoArmEnvironment for TwoArmSimEnv {
             }
             osc.initial_joint = arm;
         }
-        let world_from_object = self.sample_scene(rng);
-        let object = &self.state.scene.objects[0];
-        if let (Some(q), Some(v)) = (object.qpos_adr, object.dof_adr) {
-            let t = world_from_object.translation.vector;
-            let w = mimicgen_engine::pose::quat_to_wxyz(&world_from_object.rotation);
-            let qpos = self.state.data.qpos_mut();
-            qpos[q..q + 3].copy_from_slice(t.as_slice());
-            qpos[q + 3..q + 7].copy_from_slice(&w);
-            self.state.data.qvel_mut()[v..v + 6].fill(0.0);
+        for (i, world_from_object) in self.sample_scene(rng) {
+            let object = &self.state.scene.objects[i];
+            if let (Some(q), Some(v)) = (object.qpos_adr, object.dof_adr) {
+                let t = world_from_object.translation.vector;
+                let w = mimicgen_engine::pose::quat_to_wxyz(&world_from_object.rotation);
+                let qpos = self.state.data.qpos_mut();
+                qpos[q..q + 3].copy_from_slice(t.as_slice());
+                qpos[q + 3..q + 7].copy_from_slice(&w);
+                self.state.data.qvel_mut()[v..v + 6].fill(0.0);
+            }
         }
         self.state.data.forward();
         self.gripper_commands = [[0.0; 2]; 2];
@@ -264,6 +278,7 @@ impl TwoArmEnvironment for TwoArmSimEnv {
                     ("handle_grasp".to_owned(), i64::from(arm1_holds_handle)),
                 ])
             }
+            TaskIndices::Transport(transport) => transport.signals(&self.state, &self.robots),
         }
     }
 
@@ -274,6 +289,7 @@ impl TwoArmEnvironment for TwoArmSimEnv {
                 let (arm0_holds, arm1_holds_handle) = self.handover_grasps();
                 arm1_holds_handle && !arm0_holds && self.object_height_m() > HANDOVER_SUCCESS_M
             }
+            TwoArmTask::Transport => matches!(&self.indices, TaskIndices::Transport(t) if t.is_success(&self.state)),
         }
     }
 
@@ -296,6 +312,10 @@ impl TwoArmEnvironment for TwoArmSimEnv {
                 .flatten()
                 .collect()
             }
+            TwoArmTask::Transport => match &self.indices {
+                TaskIndices::Transport(transport) => transport.unmet_success(&self.state),
+                TaskIndices::Lift { .. } | TaskIndices::Handover { .. } => Vec::new(),
+            },
         };
         (!unmet.is_empty()).then(|| unmet.join("; "))
     }

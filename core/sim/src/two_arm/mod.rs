@@ -6,8 +6,10 @@
 //!
 //! The tasks here (`mod.rs`), the environment in `env.rs`.
 //!
-//! Tasks: Two Arm Lift (robosuite's `TwoArmLift`: a pot lifted by its two handles) and Two Arm
-//! Handover (robosuite's `TwoArmHandover`: a hammer handed from one arm to the other).
+//! Tasks: Two Arm Lift (robosuite's `TwoArmLift`: a pot lifted by its two handles), Two Arm
+//! Handover (robosuite's `TwoArmHandover`: a hammer handed from one arm to the other) and Two Arm
+//! Transport (robosuite's `TwoArmTransport`, robomimic's Transport: a hammer taken out of a
+//! lidded bin and handed over into another bin, whose trash goes to a trash bin; `transport.rs`).
 #![allow(
     clippy::indexing_slicing,
     reason = "MuJoCo ids and addresses come from the compiled model (name_to_id, a Scene's names resolved once) and index that model's own arrays; states and actions are checked for length where they come in (set_state, step)"
@@ -31,6 +33,12 @@ pub const TWO_ARM_LIFT_XML: &str = include_str!("../../../../viewer_assets/scene
 /// robosuite drew when the scene was written (`scripts/make_two_arm_scene.py`).
 pub const TWO_ARM_HANDOVER_XML: &str = include_str!("../../../../viewer_assets/scenes/two_arm_handover.xml");
 
+/// robosuite 1.4.1's Two Arm Transport scene as its `TwoArmTransport` compiles it: two tables (0.8
+/// x 0.3 m, at y = -0.45 and +0.45 m), the Pandas at y = -0.81 and +0.81 m facing each other, the
+/// start bin with its lid and the hammer (`payload_root`) on table 0, the target bin with the trash
+/// and the trash bin on table 1 (`scripts/make_two_arm_scene.py`).
+pub const TWO_ARM_TRANSPORT_XML: &str = include_str!("../../../../viewer_assets/scenes/two_arm_transport.xml");
+
 /// A robosuite two-arm task.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TwoArmTask {
@@ -39,6 +47,10 @@ pub enum TwoArmTask {
     /// robosuite's `TwoArmHandover`: arm 0 picks the hammer up and hands it to arm 1, which holds
     /// it by the handle 10 cm over the table with arm 0 let go.
     Handover,
+    /// robosuite's `TwoArmTransport`: arm 0 takes the lid off the start bin and the hammer out of
+    /// it, and hands the hammer to arm 1, which has meanwhile moved the trash from the target bin
+    /// to the trash bin and puts the hammer into the target bin.
+    Transport,
 }
 
 /// The pot's half height (robosuite's `PotWithHandlesObject.top_offset`).
@@ -48,7 +60,7 @@ pub(crate) const LIFT_M: f64 = 0.10;
 
 impl TwoArmTask {
     /// Every two-arm task.
-    pub const ALL: [Self; 2] = [Self::Lift, Self::Handover];
+    pub const ALL: [Self; 3] = [Self::Lift, Self::Handover, Self::Transport];
 
     /// The name on the command line (`two_arm_lift`).
     #[must_use]
@@ -56,6 +68,7 @@ impl TwoArmTask {
         match self {
             Self::Lift => "two_arm_lift",
             Self::Handover => "two_arm_handover",
+            Self::Transport => "two_arm_transport",
         }
     }
 
@@ -71,6 +84,7 @@ impl TwoArmTask {
         match self {
             Self::Lift => "TwoArmLift",
             Self::Handover => "TwoArmHandover",
+            Self::Transport => "TwoArmTransport",
         }
     }
 
@@ -78,7 +92,7 @@ impl TwoArmTask {
     #[must_use]
     pub fn env_configuration(self) -> &'static str {
         match self {
-            Self::Lift | Self::Handover => "single-arm-opposed",
+            Self::Lift | Self::Handover | Self::Transport => "single-arm-opposed",
         }
     }
 
@@ -98,6 +112,9 @@ impl TwoArmTask {
             Self::Handover => {
                 "arm 0 hands the hammer to arm 1 (robosuite's TwoArmHandover); D0 robosuite's reset (0.2 x 0.1 m, any yaw, either face up), D1 0.4 x 0.16 m"
             }
+            Self::Transport => {
+                "arm 0 uncovers the start bin and hands its hammer to arm 1, which has emptied the target bin's trash into the trash bin and puts the hammer in the target bin (robosuite's TwoArmTransport, robomimic's Transport); D0 robosuite's reset (bins within 5 mm, hammer turned +-30 deg), D1 bins within 4 cm, hammer +-60 deg, trash any yaw"
+            }
         }
     }
 
@@ -107,6 +124,7 @@ impl TwoArmTask {
         match self {
             Self::Lift => vec![("pot".to_owned(), "pot_root".to_owned())],
             Self::Handover => vec![("hammer".to_owned(), "hammer_root".to_owned())],
+            Self::Transport => transport::OBJECTS.iter().map(|(name, body)| ((*name).to_owned(), (*body).to_owned())).collect(),
         }
     }
 
@@ -116,6 +134,7 @@ impl TwoArmTask {
         match self {
             Self::Lift => &["grasp_handle0", "grasp_handle1"],
             Self::Handover => &["lift", "at_handover", "handle_grasp"],
+            Self::Transport => &transport::SIGNALS,
         }
     }
 
@@ -126,6 +145,7 @@ impl TwoArmTask {
         match self {
             Self::Lift => include_str!("../../tasks/two_arm_lift.two_arm.toml"),
             Self::Handover => include_str!("../../tasks/two_arm_handover.two_arm.toml"),
+            Self::Transport => include_str!("../../tasks/two_arm_transport.two_arm.toml"),
         }
     }
 
@@ -142,6 +162,7 @@ impl TwoArmTask {
         match self {
             Self::Lift => TWO_ARM_LIFT_XML,
             Self::Handover => TWO_ARM_HANDOVER_XML,
+            Self::Transport => TWO_ARM_TRANSPORT_XML,
         }
     }
 
@@ -214,13 +235,22 @@ impl TwoArmTask {
         Ok(scene)
     }
 
-    /// Where `variant` places the task's object: x and y around the table's centre (m).
+    /// The site on the top of the (first) table.
+    pub(crate) fn table_site(self) -> &'static str {
+        match self {
+            Self::Lift | Self::Handover => "table_top",
+            Self::Transport => "table0_top",
+        }
+    }
+
+    /// Where `variant` places the task's object (Lift, Handover): x and y around the table's
+    /// centre (m).
     pub(crate) fn placement(self, variant: &str) -> ([f64; 2], [f64; 2]) {
         match (self, variant) {
             (Self::Lift, "D1") => ([-0.10, 0.10], [-0.10, 0.10]),
             (Self::Lift, _) => ([-0.03, 0.03], [-0.03, 0.03]),
             (Self::Handover, "D1") => ([-0.20, 0.20], [-0.08, 0.08]),
-            (Self::Handover, _) => ([-0.10, 0.10], [-0.05, 0.05]),
+            (Self::Handover | Self::Transport, _) => ([-0.10, 0.10], [-0.05, 0.05]),
         }
     }
 }
@@ -255,6 +285,7 @@ pub(crate) enum TaskIndices {
         handle_radius_m: f64,
         head_half_size_m: f64,
     },
+    Transport(transport::Transport),
 }
 
 impl TaskIndices {
@@ -292,6 +323,7 @@ impl TaskIndices {
                     head_half_size_m: model.geom_size()[head][1],
                 })
             }
+            TwoArmTask::Transport => Ok(Self::Transport(transport::Transport::resolve(scene)?)),
         }
     }
 }
@@ -312,4 +344,5 @@ pub(crate) fn robosuite_hammer_quat(angle: f64, flip: bool) -> Rot {
 }
 
 mod env;
+mod transport;
 pub use env::TwoArmSimEnv;
