@@ -50,7 +50,7 @@ as the demo attribute mimicgen_failure_cause. An existing output is never replac
 is <out>.partial; after a crash or kill, the same command with --resume continues it, and the
 finished dataset equals an uninterrupted run's (a run killed after its dataset was finished but
 before its report was written gets the report from --resume). Two-arm tasks (two_arm_lift,
-two_arm_handover: robosuite's own two-arm environments) take --task, --variant, --num-demos,
+two_arm_handover, two_arm_transport: robosuite's own two-arm environments) take --task, --variant, --num-demos,
 --guarantee, --max-attempts, --valid-fraction, --seed, --workers, --source, --out, --overwrite and
 the --rerun flags so far, and write the dataset and <out>.json. On a terminal, progress is a bar; in a log (a
 batch job, stderr redirected) it is a `progress N/TOTAL: ...` line per percent of the run.")]

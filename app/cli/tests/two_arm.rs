@@ -1,4 +1,5 @@
-//! `mimicgen demos` and `mimicgen generate` on a two-arm task (robosuite's Two Arm Lift).
+//! `mimicgen demos` and `mimicgen generate` on robosuite's two-arm tasks (Two Arm Lift, Handover,
+//! Transport).
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)] // tests fail loudly by design
 
 use std::path::Path;
@@ -188,4 +189,32 @@ fn annotate_proposes_each_arms_ends_and_writes_them() {
     let refused = mimicgen().args(["annotate", "--ends", "demo_0=30"]).arg(&source).output().unwrap();
     assert_eq!(refused.status.code(), Some(2), "{}", String::from_utf8_lossy(&refused.stderr));
     assert!(String::from_utf8_lossy(&refused.stderr).contains("two-arm"));
+}
+
+/// Two Arm Transport from its bundled scripted sources: a delivery (the hammer in the target bin,
+/// the trash in the trash bin) written as robosuite's TwoArmTransport reads it: 14-wide actions,
+/// its 41-value object-state, both arms' annotations and every signal of the task.
+#[test]
+fn two_arm_transport_delivers_from_the_bundled_sources() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("transport.hdf5");
+    let run = mimicgen()
+        .args(["generate", "--task", "two_arm_transport", "--num-demos", "1", "--guarantee", "--max-attempts", "20"])
+        .args(["--seed", "1", "--workers", "2", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let file = RobomimicDataset::open(&out).unwrap();
+    assert_eq!(file.demo_names().len(), 1);
+    let demo = file.demo(&file.demo_names()[0]).unwrap();
+    assert_eq!(demo.dataset("actions").unwrap().array.shape[1], 14);
+    assert_eq!(demo.group("obs").unwrap().dataset("object").unwrap().array.shape[1], 41, "TwoArmTransport's object-state");
+    for signal in ["lid_grasp", "lid_off", "payload_lift", "at_handover", "trash_grasp", "trash_in_bin", "handle_grasp"] {
+        let path = format!("datagen_info/subtask_term_signals/{signal}");
+        let values = &demo.dataset_at(&path).unwrap_or_else(|| panic!("no {path}")).array;
+        assert!(values.values.to_f64().unwrap().iter().any(|&v| v != 0.0), "{signal} never turned on in a delivery");
+    }
+    let env_args: serde_json::Value = serde_json::from_str(file.env_args().unwrap()).unwrap();
+    assert_eq!(env_args["env_name"], "TwoArmTransport");
 }
