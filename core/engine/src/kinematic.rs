@@ -379,6 +379,7 @@ pub fn pick_place_spec(num_trials: usize, seed: u64) -> TaskSpec {
         apply_noise_during_interpolation: false,
         transit: crate::spec::Transit::Interpolate,
         approach_m: 0.1,
+        selection_object: None,
     };
     TaskSpec {
         name: "kinematic_pick_place".to_owned(),

@@ -244,6 +244,7 @@ mod tests {
             apply_noise_during_interpolation: false,
             transit: crate::spec::Transit::Interpolate,
             approach_m: 0.1,
+            selection_object: None,
         };
         TaskSpec {
             name: "t".into(),

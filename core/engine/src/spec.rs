@@ -121,6 +121,12 @@ pub struct SubtaskSpec {
     /// distance (m) of the object: the approach is replayed, the way there is planned.
     #[serde(default = "default_approach", skip_serializing_if = "is_default_approach")]
     pub approach_m: f64,
+    /// The object whose pose `nearest_neighbor_object` measures to pick the source demo, when not
+    /// `object_ref`: with one source demo per attempt (`select_src_per_subtask = false`), the
+    /// first subtask may pick it by an object a later subtask handles (Two Arm Transport picks
+    /// arm 0's demo, lid first, by the hammer that lies in the bin either face up).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub selection_object: Option<String>,
 }
 
 impl SubtaskSpec {
@@ -396,8 +402,11 @@ impl TaskSpec {
                     if !(pos_weight.is_finite() && rot_weight.is_finite() && *pos_weight >= 0.0 && *rot_weight >= 0.0) {
                         return err(field("selection"), "weights must be non-negative numbers".to_owned());
                     }
-                    if matches!(s.selection, SelectionStrategy::NearestNeighborObject { .. }) && s.object_ref.is_none() {
-                        return err(field("selection"), "nearest_neighbor_object needs an object_ref".to_owned());
+                    if matches!(s.selection, SelectionStrategy::NearestNeighborObject { .. })
+                        && s.object_ref.is_none()
+                        && s.selection_object.is_none()
+                    {
+                        return err(field("selection"), "nearest_neighbor_object needs an object_ref or a selection_object".to_owned());
                     }
                 }
             }
@@ -412,14 +421,16 @@ impl TaskSpec {
     pub fn check_names(&self, objects: &[String], signals: &[String]) -> Result<(), EngineError> {
         let last = self.subtasks.len().saturating_sub(1);
         for (i, s) in self.subtasks.iter().enumerate() {
-            if let Some(object) = &s.object_ref
-                && !objects.contains(object)
-            {
-                return Err(EngineError::UnknownName {
-                    field: format!("subtask[{i}].object_ref"),
-                    name: object.clone(),
-                    available: objects.to_vec(),
-                });
+            for (name, object) in [("object_ref", &s.object_ref), ("selection_object", &s.selection_object)] {
+                if let Some(object) = object
+                    && !objects.contains(object)
+                {
+                    return Err(EngineError::UnknownName {
+                        field: format!("subtask[{i}].{name}"),
+                        name: object.clone(),
+                        available: objects.to_vec(),
+                    });
+                }
             }
             match &s.term_signal {
                 Some(signal) if i < last && !signals.contains(signal) => {

@@ -188,9 +188,10 @@ fn the_transport_scene_rests_unsolved_in_both_variants() {
 
 /// The scripted transport: arm 0's lid, hammer and handover signals and arm 1's trash signals in
 /// their order, arm 1's grasp of the handle only after the hammer is at the handover, and
-/// robosuite's success; then generation keeps the three sequential ties (arm 1 comes for the
-/// handle only after arm 0's carry ended, arm 0 lets go only after arm 1's grasp ended, arm 1
-/// carries the hammer away only after arm 0's release ended). Deliveries from the bundled sources:
+/// robosuite's success; then generation runs arm 1's wait in lockstep with arm 0's carry and keeps
+/// the three sequential ties (arm 1 comes for the handle only after arm 0's carry ended, arm 0
+/// lets go only after arm 1's grasp ended, arm 1 carries the hammer away only after arm 0's release
+/// ended). Deliveries from the bundled sources:
 /// `app/cli/tests/two_arm.rs`.
 #[test]
 fn the_transport_hands_the_hammer_over_into_the_target_bin_in_order() {
@@ -226,6 +227,10 @@ fn the_transport_hands_the_hammer_over_into_the_target_bin_in_order() {
     for index in 0..3 {
         let attempt = generator.attempt(&mut env, index).unwrap();
         let plan = |arm: usize, k: usize| attempt.arms[arm].plans.get(k);
+        // Arm 1's wait runs in lockstep with arm 0's carry.
+        if let (Some(carry), Some(wait)) = (plan(0, 3), plan(1, 2)) {
+            assert_eq!((carry.first_step, carry.src_demo), (wait.first_step, wait.src_demo), "attempt {index}: carry and wait apart");
+        }
         for (first, later) in [((0, 3), (1, 3)), ((1, 3), (0, 4)), ((0, 4), (1, 4))] {
             if let (Some(a), Some(b)) = (plan(first.0, first.1), plan(later.0, later.1)) {
                 assert!(b.first_step >= a.first_step + a.waypoints.len(), "attempt {index}: {later:?} started before {first:?} ended");

@@ -363,8 +363,13 @@ impl Generator {
         let (demo_index, distances) = match here.selected {
             Some(d) if !settings.select_src_per_subtask => (d, None),
             _ => {
-                let scene = SceneContext { world_from_eef: &here.world_from_eef, world_from_obj: world_from_obj_new.as_ref() };
-                let distances = source_distances(&subtask.selection, demos, spans, here.subtask, subtask.object_ref.as_deref(), scene);
+                // The object that picks the demo: `selection_object`, else the subtask's own.
+                let (measured, world_from_measured) = match &subtask.selection_object {
+                    Some(name) => (Some(name.as_str()), here.objects.get(name).copied()),
+                    None => (subtask.object_ref.as_deref(), world_from_obj_new),
+                };
+                let scene = SceneContext { world_from_eef: &here.world_from_eef, world_from_obj: world_from_measured.as_ref() };
+                let distances = source_distances(&subtask.selection, demos, spans, here.subtask, measured, scene);
                 (pick_source(&subtask.selection, distances.as_deref(), demos.len(), &settings.exclude_sources, rng), distances)
             }
         };
@@ -564,4 +569,55 @@ pub fn execute_step<E: Environment + ?Sized, R: Rng + ?Sized>(
     traj.kinds.push(labels.kind);
     env.step(&action)?;
     Ok(signals)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)] // tests fail loudly by design
+
+    use std::collections::BTreeMap;
+
+    use rand::SeedableRng;
+
+    use super::{Generator, PlanInput};
+    use crate::TaskSpec;
+    use crate::demo::SourceDataset;
+    use crate::pose::{Pose, Rot, Vec3, pose_from_parts};
+
+    /// `selection_object` picks the source demo by that object's pose, not the subtask's own:
+    /// demo 0 is nearest by `a`, demo 1 by `b`.
+    #[test]
+    fn a_selection_object_picks_the_source_by_another_objects_pose() {
+        let at = |x: f64| pose_from_parts(Vec3::new(x, 0.0, 0.0), Rot::identity());
+        let demo = |a: f64, b: f64| {
+            let mut d = crate::testing::demo_with_object_at("a", a);
+            d.object_poses.insert("b".to_owned(), vec![at(b); 10]);
+            d
+        };
+        let picked = |selection_object: &str| {
+            let toml = format!(
+                "[[subtask]]\nobject_ref = \"a\"\nselection = {{ strategy = \"nearest_neighbor_object\", nn_k = 1 }}\n{selection_object}"
+            );
+            let spec = TaskSpec::from_toml_str(&toml, "t.toml").unwrap();
+            let dataset = SourceDataset { demos: vec![demo(0.0, 1.0), demo(1.0, 0.0)], env_args: None };
+            let generator = Generator::new(spec, dataset).unwrap();
+            let here = PlanInput {
+                subtask: 0,
+                world_from_eef: Pose::identity(),
+                objects: BTreeMap::from([("a".to_owned(), at(0.0)), ("b".to_owned(), at(0.0))]),
+                last_target: None,
+                selected: None,
+                forced: None,
+                world_from_obj_src: None,
+            };
+            let spans = vec![vec![(0, 10)], vec![(0, 10)]];
+            generator.plan_subtask(&here, &spans, &mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap().0.src_demo
+        };
+        assert_eq!(picked(""), 0);
+        assert_eq!(picked("selection_object = \"b\"\n"), 1);
+        // A selection object the scene lacks is named by check_names.
+        let spec = TaskSpec::from_toml_str("[[subtask]]\nobject_ref = \"a\"\nselection_object = \"c\"\n", "t.toml").unwrap();
+        let err = spec.check_names(&["a".to_owned()], &[]).unwrap_err().to_string();
+        assert!(err.contains("subtask[0].selection_object") && err.contains('c'), "{err}");
+    }
 }

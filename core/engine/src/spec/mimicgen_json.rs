@@ -61,6 +61,7 @@ impl TaskSpec {
                 apply_noise_during_interpolation: sub.apply_noise_during_interpolation,
                 transit: Transit::Interpolate,
                 approach_m: default_approach(),
+                selection_object: None,
             });
         }
         let g = json.experiment.generation;
