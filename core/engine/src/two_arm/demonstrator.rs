@@ -64,9 +64,18 @@ pub struct ArmLeg {
 }
 
 impl ArmLeg {
-    fn fixed(goal: Pose, speed_m: f64, gripper: f64, hold: usize, after: Option<usize>) -> Self {
-        Self { goal: Goal::Fixed(goal), speed_m, gripper, hold, after }
+    fn new(goal: Goal, speed_m: f64, gripper: f64, hold: usize, after: Option<usize>) -> Self {
+        Self { goal, speed_m, gripper, hold, after }
     }
+
+    fn fixed(goal: Pose, speed_m: f64, gripper: f64, hold: usize, after: Option<usize>) -> Self {
+        Self::new(Goal::Fixed(goal), speed_m, gripper, hold, after)
+    }
+}
+
+/// `pose` raised by `height_m`, turned as it is.
+fn raised(pose: &Pose, height_m: f64) -> Pose {
+    pose_from_parts(pose.translation.vector + Vec3::new(0.0, 0.0, height_m), pose.rotation)
 }
 
 /// A scripted two-arm lift of one object by two handles, one per arm.
@@ -119,7 +128,7 @@ impl TwoArmLiftScript {
             let point = self.grasp_points_m.get(arm).copied().unwrap_or_default();
             let offset = Vec3::new(rng.random_range(-0.004..0.004), rng.random_range(-0.002..0.002), rng.random_range(-0.004..0.004));
             let grasp = pose_from_parts((world_from_object * nalgebra::Point3::from(Vec3::from(point))).coords + offset, rotation);
-            let up = |h: f64| pose_from_parts(grasp.translation.vector + Vec3::new(0.0, 0.0, h), rotation);
+            let up = |h: f64| raised(&grasp, h);
             let (fast, slow) = (rng.random_range(0.012..0.022), rng.random_range(0.004..0.008));
             arm_legs.extend([
                 ArmLeg::fixed(
@@ -182,6 +191,26 @@ impl TwoArmHandoverScript {
         }
     }
 
+    /// Arm 1's grasp of the handle, starting once arm 0 has finished `after` legs: over it, down
+    /// to it, closed (across the handle: the hand's x along the object's).
+    fn receive<R: Rng + ?Sized>(&self, fast: f64, slow: f64, after: usize, rng: &mut R) -> [ArmLeg; 3] {
+        let on_handle =
+            |height_m: f64| Goal::OnObject { object: self.object.clone(), point_m: self.receive_point_m, height_m, yaw_offset_rad: 0.0 };
+        [
+            ArmLeg::new(on_handle(rng.random_range(0.07..0.1)), fast, -1.0, rng.random_range(0..3), Some(after)),
+            ArmLeg::new(on_handle(0.0), slow, -1.0, rng.random_range(2..4), None),
+            ArmLeg::new(Goal::Moved([0.0, 0.0, 0.0]), slow, 1.0, rng.random_range(10..14), None),
+        ]
+    }
+
+    /// Arm 0 lets go where it is, once arm 1 has finished `after` legs, and backs off up.
+    fn let_go<R: Rng + ?Sized>(slow: f64, after: usize, rng: &mut R) -> [ArmLeg; 2] {
+        [
+            ArmLeg::new(Goal::Moved([0.0, 0.0, 0.0]), slow, -1.0, rng.random_range(8..11), Some(after)),
+            ArmLeg::new(Goal::Moved([0.0, 0.0, 0.08]), slow, -1.0, 2, None),
+        ]
+    }
+
     /// Arm 0's grasp of the object lying at `world_from_object` and its pose at the handover, for a
     /// hand starting at `start`: the fingers close across the handle with the hand one way round
     /// or the other, the one that ends the handover turn nearer the hand's start (the wrist turns
@@ -219,40 +248,21 @@ impl TwoArmHandoverScript {
     pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
         let world_from_object = object_pose(&*env, &self.object)?;
         let (grasp, handover) = self.give(&world_from_object, &env.eef_pose(0), rng);
-        let up = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
         let (fast, slow) = (rng.random_range(0.012..0.02), rng.random_range(0.004..0.007));
-        let lifted = up(&grasp, rng.random_range(0.12..0.16));
-        let give = vec![
-            ArmLeg::fixed(up(&grasp, rng.random_range(0.06..0.09)), fast, -1.0, rng.random_range(0..3), None),
+        let lifted = raised(&grasp, rng.random_range(0.12..0.16));
+        let mut give = vec![
+            ArmLeg::fixed(raised(&grasp, rng.random_range(0.06..0.09)), fast, -1.0, rng.random_range(0..3), None),
             ArmLeg::fixed(grasp, slow, -1.0, rng.random_range(2..4), None),
             ArmLeg::fixed(grasp, slow, 1.0, rng.random_range(10..14), None),
             ArmLeg::fixed(lifted, slow, 1.0, 0, None),
             ArmLeg::fixed(handover, fast, 1.0, rng.random_range(4..7), None),
-            // Let go once arm 1 has closed on the handle (its third leg), then back off.
-            ArmLeg { goal: Goal::Moved([0.0, 0.0, 0.0]), speed_m: slow, gripper: -1.0, hold: rng.random_range(8..11), after: Some(3) },
-            ArmLeg { goal: Goal::Moved([0.0, 0.0, 0.08]), speed_m: slow, gripper: -1.0, hold: 2, after: None },
         ];
-        let on_handle = |height_m: f64| Goal::OnObject {
-            object: self.object.clone(),
-            point_m: self.receive_point_m,
-            height_m,
-            // Across the handle: the hand's x along the object's.
-            yaw_offset_rad: 0.0,
-        };
-        let receive = vec![
-            // Only once the hammer is held still at the handover (arm 0's fifth leg done).
-            ArmLeg {
-                goal: on_handle(rng.random_range(0.07..0.1)),
-                speed_m: fast,
-                gripper: -1.0,
-                hold: rng.random_range(0..3),
-                after: Some(5),
-            },
-            ArmLeg { goal: on_handle(0.0), speed_m: slow, gripper: -1.0, hold: rng.random_range(2..4), after: None },
-            ArmLeg { goal: Goal::Moved([0.0, 0.0, 0.0]), speed_m: slow, gripper: 1.0, hold: rng.random_range(10..14), after: None },
-            // Lift once arm 0 has let go and backed off.
-            ArmLeg { goal: Goal::Moved([0.0, 0.05, 0.05]), speed_m: slow, gripper: 1.0, hold: 6, after: Some(7) },
-        ];
+        // Let go once arm 1 has closed on the handle (its third leg), then back off.
+        give.extend(Self::let_go(slow, 3, rng));
+        // Only once the hammer is held still at the handover (arm 0's fifth leg done).
+        let mut receive = self.receive(fast, slow, 5, rng).to_vec();
+        // Lift once arm 0 has let go and backed off.
+        receive.push(ArmLeg::new(Goal::Moved([0.0, 0.05, 0.05]), slow, 1.0, 6, Some(7)));
         follow(env, &[give, receive])
     }
 }
@@ -323,8 +333,7 @@ impl TwoArmTransportScript {
     /// The environment's error if a step fails, [`EnvError::Fatal`] if an object is missing.
     pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
         let (fast, slow) = (rng.random_range(0.012..0.02), rng.random_range(0.004..0.007));
-        let leg =
-            |goal: Goal, speed_m: f64, gripper: f64, hold: usize, after: Option<usize>| ArmLeg { goal, speed_m, gripper, hold, after };
+        let leg = ArmLeg::new;
         let moved = |x: f64, y: f64, z: f64| Goal::Moved([x, y, z]);
         // Arm 0: the lid, lifted off by its handle (across it: the hand's x along the lid's x)
         // and laid beside the bin.
@@ -347,14 +356,13 @@ impl TwoArmTransportScript {
         let start = env.eef_pose(0);
         let (grasp, handover) = self.handover.give(&world_from_hammer, &start, rng);
         let carry = rng.random_range(0.008..0.012);
-        let up = |p: &Pose, h: f64| pose_from_parts(p.translation.vector + Vec3::new(0.0, 0.0, h), p.rotation);
         // Over the bin's walls first (the fingers 10 cm over them), then straight down into it.
         give.extend([
-            leg(Goal::Fixed(up(&grasp, rng.random_range(0.24..0.27))), fast, -1.0, rng.random_range(0..3), None),
-            leg(Goal::Fixed(up(&grasp, rng.random_range(0.06..0.08))), fast, -1.0, 0, None),
+            leg(Goal::Fixed(raised(&grasp, rng.random_range(0.24..0.27))), fast, -1.0, rng.random_range(0..3), None),
+            leg(Goal::Fixed(raised(&grasp, rng.random_range(0.06..0.08))), fast, -1.0, 0, None),
             leg(Goal::Fixed(grasp), slow, -1.0, rng.random_range(2..4), None),
             leg(Goal::Fixed(grasp), slow, 1.0, rng.random_range(10..14), None),
-            leg(Goal::Fixed(up(&grasp, rng.random_range(0.22..0.25))), slow, 1.0, 0, None),
+            leg(Goal::Fixed(raised(&grasp, rng.random_range(0.22..0.25))), slow, 1.0, 0, None),
             leg(Goal::Fixed(handover), carry, 1.0, rng.random_range(4..7), None),
         ]);
         let at_handover = give.len();
@@ -370,12 +378,6 @@ impl TwoArmTransportScript {
             .unwrap_or(0.0);
         let on_trash =
             |height_m: f64| Goal::OnObject { object: self.trash.clone(), point_m: [0.0; 3], height_m, yaw_offset_rad: trash_yaw };
-        let on_handle = |height_m: f64| Goal::OnObject {
-            object: self.handover.object.clone(),
-            point_m: self.handover.receive_point_m,
-            height_m,
-            yaw_offset_rad: 0.0,
-        };
         let wait = pose_from_parts(
             Vec3::from(self.wait_m) + Vec3::new(rng.random_range(-0.03..0.03), rng.random_range(-0.03..0.03), 0.0),
             hand.rotation,
@@ -399,17 +401,12 @@ impl TwoArmTransportScript {
             ),
             leg(moved(0.0, 0.0, 0.0), slow, -1.0, rng.random_range(8..11), None),
             leg(Goal::Fixed(wait), fast, -1.0, 0, None),
-            // The handle, once arm 0 holds the hammer still at the handover.
-            leg(on_handle(rng.random_range(0.07..0.1)), fast, -1.0, rng.random_range(0..3), Some(at_handover)),
-            leg(on_handle(0.0), slow, -1.0, rng.random_range(2..4), None),
-            leg(moved(0.0, 0.0, 0.0), slow, 1.0, rng.random_range(10..14), None),
         ];
+        // The handle, once arm 0 holds the hammer still at the handover.
+        receive.extend(self.handover.receive(fast, slow, at_handover, rng));
         let grasped = receive.len();
         // Arm 0 lets go once arm 1 has closed on the handle, then backs off.
-        give.extend([
-            leg(moved(0.0, 0.0, 0.0), slow, -1.0, rng.random_range(8..11), Some(grasped)),
-            leg(moved(0.0, 0.0, 0.08), slow, -1.0, 2, None),
-        ]);
+        give.extend(TwoArmHandoverScript::let_go(slow, grasped, rng));
         let released = give.len();
         // Arm 1 carries the hammer over the target bin, only once arm 0 is clear, and lowers it in.
         let place = Vec3::from(self.place_m) + Vec3::new(rng.random_range(-0.02..0.02), rng.random_range(-0.02..0.02), 0.0);

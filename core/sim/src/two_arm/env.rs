@@ -141,34 +141,38 @@ impl TwoArmSimEnv {
         for (arm, robot) in self.robots.iter().enumerate() {
             obs.extend(arm_observation(&self.state, robot, &format!("robot{arm}_")));
         }
-        if let TaskIndices::Transport(transport) = &self.indices {
-            obs.insert("object".to_owned(), transport.object_observation(&self.state, &self.robots));
-            return obs;
-        }
         let data = &self.state.data;
-        let pose = self.state.object_pose(0);
         let eef = |arm: usize| data.site_xpos()[self.robots[arm].eef_site];
-        let mut object: Vec<f64> = pose.translation.vector.iter().copied().collect();
-        object.extend(quat_to_xyzw(&pose.rotation));
         let from_eef = |point: [f64; 3], arm: usize| (0..3).map(move |i| point[i] - eef(arm)[i]);
-        match &self.indices {
+        // The task object's position and `xyzw` quaternion, with which Lift's and Handover's start.
+        let object_pose = || {
+            let pose = self.state.object_pose(0);
+            let mut object: Vec<f64> = pose.translation.vector.iter().copied().collect();
+            object.extend(quat_to_xyzw(&pose.rotation));
+            object
+        };
+        let object = match &self.indices {
             TaskIndices::Lift { handle_sites, .. } => {
+                let mut object = object_pose();
                 let handle = |k: usize| data.site_xpos()[handle_sites[k]];
                 object.extend(handle(0));
                 object.extend(handle(1));
                 for k in 0..2 {
                     object.extend(from_eef(handle(k), k));
                 }
+                object
             }
             TaskIndices::Handover { handle, .. } => {
+                let mut object = object_pose();
                 let handle = data.geom_xpos()[*handle];
                 object.extend(handle);
                 for arm in 0..2 {
                     object.extend(from_eef(handle, arm));
                 }
+                object
             }
-            TaskIndices::Transport(_) => {}
-        }
+            TaskIndices::Transport(transport) => transport.object_observation(&self.state, &self.robots),
+        };
         obs.insert("object".to_owned(), object);
         obs
     }
@@ -201,23 +205,31 @@ impl TwoArmSimEnv {
     /// The task's objects' placements, drawn as robosuite's reset draws them (in `variant`'s
     /// range): `(object index, world_from_object)`.
     fn sample_scene(&self, rng: &mut dyn RngCore) -> Vec<(usize, Pose)> {
-        if let TaskIndices::Transport(transport) = &self.indices {
-            return transport.placements(&self.state, &self.variant, rng);
+        match &self.indices {
+            TaskIndices::Lift { .. } => vec![(
+                0,
+                self.on_table(rng, POT_HALF_HEIGHT_M, |rng| {
+                    Rot::from_axis_angle(&Vec3::z_axis(), rng.random_range(PI - PI / 3.0..=PI + PI / 3.0))
+                }),
+            )],
+            TaskIndices::Handover { handle_radius_m, .. } => vec![(
+                0,
+                self.on_table(rng, *handle_radius_m, |rng| {
+                    let angle = rng.random_range(0.0..2.0 * PI);
+                    robosuite_hammer_quat(angle, rng.random_bool(0.5))
+                }),
+            )],
+            TaskIndices::Transport(transport) => transport.placements(&self.state, &self.variant, rng),
         }
+    }
+
+    /// Lift's and Handover's one object on the table, `z` over it: x and y drawn in `variant`'s
+    /// range first, then its turn.
+    fn on_table(&self, rng: &mut dyn RngCore, z: f64, turn: impl FnOnce(&mut dyn RngCore) -> Rot) -> Pose {
         let ([x0, x1], [y0, y1]) = self.task.placement(&self.variant);
         let (x, y) = (rng.random_range(x0..=x1), rng.random_range(y0..=y1));
         let table = self.state.data.site_xpos()[self.table_top_site];
-        let (rotation, z) = match &self.indices {
-            TaskIndices::Lift { .. } => {
-                (Rot::from_axis_angle(&Vec3::z_axis(), rng.random_range(PI - PI / 3.0..=PI + PI / 3.0)), POT_HALF_HEIGHT_M)
-            }
-            TaskIndices::Handover { handle_radius_m, .. } => {
-                let angle = rng.random_range(0.0..2.0 * PI);
-                (robosuite_hammer_quat(angle, rng.random_bool(0.5)), *handle_radius_m)
-            }
-            TaskIndices::Transport(_) => (Rot::identity(), 0.0),
-        };
-        vec![(0, pose_from_parts(Vec3::new(table[0] + x, table[1] + y, table[2] + z), rotation))]
+        pose_from_parts(Vec3::new(table[0] + x, table[1] + y, table[2] + z), turn(rng))
     }
 }
 
@@ -283,24 +295,27 @@ impl TwoArmEnvironment for TwoArmSimEnv {
     }
 
     fn is_success(&self) -> bool {
-        match self.task {
-            TwoArmTask::Lift => self.object_height_m() > LIFT_M,
-            TwoArmTask::Handover => {
+        match &self.indices {
+            TaskIndices::Lift { .. } => self.object_height_m() > LIFT_M,
+            TaskIndices::Handover { .. } => {
                 let (arm0_holds, arm1_holds_handle) = self.handover_grasps();
                 arm1_holds_handle && !arm0_holds && self.object_height_m() > HANDOVER_SUCCESS_M
             }
-            TwoArmTask::Transport => matches!(&self.indices, TaskIndices::Transport(t) if t.is_success(&self.state)),
+            TaskIndices::Transport(transport) => transport.is_success(&self.state),
         }
     }
 
     fn unmet_success(&self) -> Option<String> {
-        let height = self.object_height_m();
-        let unmet: Vec<String> = match self.task {
-            TwoArmTask::Lift => (height <= LIFT_M)
-                .then(|| format!("the pot's bottom is {height:.3} m over the table, not over {LIFT_M:.2} m"))
-                .into_iter()
-                .collect(),
-            TwoArmTask::Handover => {
+        let unmet: Vec<String> = match &self.indices {
+            TaskIndices::Lift { .. } => {
+                let height = self.object_height_m();
+                (height <= LIFT_M)
+                    .then(|| format!("the pot's bottom is {height:.3} m over the table, not over {LIFT_M:.2} m"))
+                    .into_iter()
+                    .collect()
+            }
+            TaskIndices::Handover { .. } => {
+                let height = self.object_height_m();
                 let (arm0_holds, arm1_holds_handle) = self.handover_grasps();
                 [
                     (!arm1_holds_handle).then(|| "arm 1 does not hold the handle".to_owned()),
@@ -312,10 +327,7 @@ impl TwoArmEnvironment for TwoArmSimEnv {
                 .flatten()
                 .collect()
             }
-            TwoArmTask::Transport => match &self.indices {
-                TaskIndices::Transport(transport) => transport.unmet_success(&self.state),
-                TaskIndices::Lift { .. } | TaskIndices::Handover { .. } => Vec::new(),
-            },
+            TaskIndices::Transport(transport) => transport.unmet_success(&self.state),
         };
         (!unmet.is_empty()).then(|| unmet.join("; "))
     }

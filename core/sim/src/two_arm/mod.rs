@@ -243,14 +243,15 @@ impl TwoArmTask {
         }
     }
 
-    /// Where `variant` places the task's object (Lift, Handover): x and y around the table's
-    /// centre (m).
+    /// Where `variant` places the task's object: x and y around the table's centre (m). Two Arm
+    /// Transport places its six objects itself (`transport.rs`): none here.
     pub(crate) fn placement(self, variant: &str) -> ([f64; 2], [f64; 2]) {
         match (self, variant) {
             (Self::Lift, "D1") => ([-0.10, 0.10], [-0.10, 0.10]),
             (Self::Lift, _) => ([-0.03, 0.03], [-0.03, 0.03]),
             (Self::Handover, "D1") => ([-0.20, 0.20], [-0.08, 0.08]),
-            (Self::Handover | Self::Transport, _) => ([-0.10, 0.10], [-0.05, 0.05]),
+            (Self::Handover, _) => ([-0.10, 0.10], [-0.05, 0.05]),
+            (Self::Transport, _) => ([0.0, 0.0], [0.0, 0.0]),
         }
     }
 }
