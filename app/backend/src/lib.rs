@@ -97,7 +97,7 @@ pub struct Worker {
     loaded: Option<Annotations>,
     /// The open file (for a plain robomimic file, its prepared copy).
     loaded_path: Option<PathBuf>,
-    /// The open file is a two-arm one (annotated per arm, previews tried; no run or 3D view yet).
+    /// The open file is a two-arm one (annotated per arm, previews tried, runs; no 3D view yet).
     two_arm: bool,
     previewer: Option<(RunConfig, Previewer)>,
     viewer: Option<(ViewerSink, RunLogger)>,
@@ -232,16 +232,22 @@ impl Worker {
         }
         let cancel = Arc::new(AtomicBool::new(false));
         let (flag, notify) = (Arc::clone(&cancel), Arc::clone(&self.run_notify));
-        // The run's own recording (its attempts on the `attempt` and `frame` timelines): a new
-        // recording in the embedded viewer or the spawned one, `<file>_run.rrd` beside a saved one.
-        let logger = match self.viewer.as_ref().map(|(sink, _)| sink.clone()) {
-            Some(ViewerSink::Save(path)) => self.logger(&ViewerSink::Save(mimicgen_pipeline::sibling(&path, "_run", "rrd"))).ok(),
-            Some(sink) => self.logger(&sink).ok(),
-            None => None,
+        let job: Box<dyn FnOnce() + Send> = if self.two_arm {
+            let Some(task) = config.source.as_deref().and_then(files::two_arm_task) else {
+                return Reply::Failed { what: "starting a run".to_owned(), error: "the run's source is no two-arm source file".to_owned() };
+            };
+            Box::new(move || runs::run_two_arm_generation(&config, task, &flag, &notify))
+        } else {
+            // The run's own recording (its attempts on the `attempt` and `frame` timelines): a new
+            // recording in the embedded viewer or the spawned one, `<file>_run.rrd` beside a saved one.
+            let logger = match self.viewer.as_ref().map(|(sink, _)| sink.clone()) {
+                Some(ViewerSink::Save(path)) => self.logger(&ViewerSink::Save(mimicgen_pipeline::sibling(&path, "_run", "rrd"))).ok(),
+                Some(sink) => self.logger(&sink).ok(),
+                None => None,
+            };
+            Box::new(move || run_generation(&config, &flag, &notify, logger))
         };
-        let spawned =
-            std::thread::Builder::new().name("mimicgen-gui-run".to_owned()).spawn(move || run_generation(&config, &flag, &notify, logger));
-        match spawned {
+        match std::thread::Builder::new().name("mimicgen-gui-run".to_owned()).spawn(job) {
             Ok(thread) => {
                 *run = Some((cancel, thread));
                 Reply::RunAccepted
@@ -395,14 +401,13 @@ impl Worker {
         if self.two_arm
             && let Some(what) = match &request {
                 Request::SideBySide(_) => Some("comparing two attempts"),
-                Request::Run(_) => Some("starting a run"),
                 Request::Open3d { .. } | Request::ShowDemo { in_3d: true, .. } => Some("the 3D view"),
                 _ => None,
             }
         {
             return Reply::Failed {
                 what: what.to_owned(),
-                error: "the open file is a two-arm one: the app annotates its arms and tries attempts; runs, side by side and the 3D view are one-arm only so far (`mimicgen generate --task two_arm_lift --rerun run.rrd` runs and shows two arms)".to_owned(),
+                error: "the open file is a two-arm one: the app annotates its arms, tries attempts and runs generation; side by side and the 3D view are one-arm only so far (`mimicgen generate --task two_arm_lift --rerun run.rrd` shows two arms in Rerun)".to_owned(),
             };
         }
         match request {

@@ -127,7 +127,7 @@ fn run_in_app(frames: &mut Frames, args: &BenchAppArgs, file: &std::path::Path) 
     };
     // The pipeline alone before and after the app's run, so drift (caches, clock) does not favour either.
     let alone = |name: &str| -> anyhow::Result<mimicgen_pipeline::Report> {
-        let config = mimicgen_gui::model::RunForm { out: dir.join(name).display().to_string(), ..form.clone() }.config(&source);
+        let config = mimicgen_gui::model::RunForm { out: dir.join(name).display().to_string(), ..form.clone() }.config(&source, None);
         Ok(mimicgen_pipeline::Pipeline::prepare(&config)?.run(&std::sync::atomic::AtomicBool::new(false), |_| {})?)
     };
     let before = alone("cli_run_before.hdf5")?;

@@ -547,18 +547,15 @@ pub struct DemosArgs {
 /// Unknown task, simulator failure, or a failure to write.
 pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     crate::check_output(&args.out, None, args.overwrite)?;
+    let style = if args.hasty { Style::Hasty } else { args.style.into() };
     if mimicgen_sim::two_arm::TwoArmTask::from_name(&args.task).is_some() {
-        if args.hasty || args.style != DemoStyle::Careful {
-            crate::exit::usage!("--style: the two-arm demonstrator has one style (careful) so far");
-        }
-        return crate::two_arm::demos(&args.task, &args.variant, args.num_demos, args.seed, &args.out);
+        return crate::two_arm::demos(&args.task, &args.variant, style, args.num_demos, args.seed, &args.out);
     }
     let task = match registry::task(&args.task, &args.variant) {
         Ok(task) => task,
         Err(e) => crate::exit::usage!("{e}"),
     };
     let mut scripts = task.scripts();
-    let style = if args.hasty { Style::Hasty } else { args.style.into() };
     for script in &mut scripts {
         script.style = style;
     }

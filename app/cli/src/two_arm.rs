@@ -4,20 +4,21 @@ use std::path::Path;
 
 use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressStyle};
+use mimicgen_engine::demonstrator::Style;
 use mimicgen_pipeline::two_arm::{self, TwoArmEvent, TwoArmRun};
 
 use crate::exit::outln;
 
-/// Records scripted two-arm source demos.
+/// Records scripted two-arm source demos, the operators moving in `style`.
 ///
 /// # Errors
 /// An unknown variant, a simulator failure, or a failure to write.
-pub fn demos(task: &str, variant: &str, num_demos: usize, seed: u64, out: &Path) -> anyhow::Result<()> {
+pub fn demos(task: &str, variant: &str, style: Style, num_demos: usize, seed: u64, out: &Path) -> anyhow::Result<()> {
     let task = two_arm::task(task, variant)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let (path, tries) = two_arm::record_demos(task, variant, num_demos, seed, out, &mut |line| eprintln!("{line}"))?;
+    let (path, tries) = two_arm::record_demos(task, variant, style, num_demos, seed, out, &mut |line| eprintln!("{line}"))?;
     eprintln!("wrote {num_demos} demos ({tries} tries) to {}", path.display());
     Ok(())
 }
@@ -53,14 +54,14 @@ pub fn generate(run: &TwoArmRun, rerun: &crate::view::RerunArgs) -> anyhow::Resu
     };
     let mut viz_error: Option<anyhow::Error> = None;
     let mut spec = None;
-    let summary = two_arm::generate(run, &mut |event| match event {
+    let summary = two_arm::generate(run, &std::sync::atomic::AtomicBool::new(false), &mut |event| match event {
         TwoArmEvent::Started { spec: s, source_names } => {
             spec = Some(s.clone());
             if let Some(v) = viz.as_mut() {
                 v.set_source_names(source_names.to_vec());
             }
         }
-        TwoArmEvent::Attempt { attempt, attempts, successes } => {
+        TwoArmEvent::Attempt { attempt, attempts, successes, .. } => {
             bar.set_position(attempts as u64);
             bar.set_message(format!("{successes} successes"));
             if let (Some(v), Some(spec)) = (viz.as_mut(), spec.as_ref())
@@ -79,21 +80,8 @@ pub fn generate(run: &TwoArmRun, rerun: &crate::view::RerunArgs) -> anyhow::Resu
         return Err(e);
     }
     let seconds = started.elapsed().as_secs_f64();
-    #[allow(clippy::cast_precision_loss, reason = "counts far below 2^52")]
-    let rate = if summary.attempts == 0 { 0.0 } else { 100.0 * summary.successes as f64 / summary.attempts as f64 };
-    let report = serde_json::json!({
-        "task": run.task.name(),
-        "env_name": run.task.env_name(),
-        "variant": run.variant,
-        "seed": run.seed,
-        "source": summary.source.display().to_string(),
-        "num_sources": summary.num_sources,
-        "attempts": summary.attempts,
-        "successes": summary.successes,
-        "success_rate": rate,
-        "failures": summary.failures,
-        "seconds": seconds,
-    });
+    let rate = 100.0 * summary.stats.rate();
+    let report = summary.report(run, seconds);
     let report_path = mimicgen_pipeline::sibling(&run.out, "", "json");
     std::fs::write(&report_path, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", report_path.display()))?;
     outln!(

@@ -233,7 +233,7 @@ fn a_killed_run_resumes_from_the_app() {
         overwrite: true,
         ..Default::default()
     };
-    let config = form.config(&source);
+    let config = form.config(&source, None);
     assert!(config.resume && !config.overwrite, "resuming never replaces");
     let (tx, updates) = std::sync::mpsc::channel();
     let tx = std::sync::Mutex::new(tx);

@@ -80,7 +80,17 @@ fn recorded_two_arm_demos_are_a_source() {
     let out = dir.path().join("out.hdf5");
     generate(&out, "1", &["--source", source.to_str().unwrap()]);
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("out.json")).unwrap()).unwrap();
-    assert_eq!(report["num_sources"], 3);
+    // The one-arm runs' report: the three source demos, every subtask of both arms numbered
+    // through (arm 0's, then arm 1's), each attempt counted once per subtask it planned.
+    assert_eq!(report["per_source_demo"].as_array().unwrap().len(), 3);
+    let spec = mimicgen_sim::two_arm::TwoArmTask::Lift.spec().unwrap();
+    let subtasks: usize = spec.arms.iter().map(|a| a.subtasks.len()).sum();
+    let matrix = report["per_subtask_source"].as_array().unwrap();
+    assert_eq!(matrix.len(), subtasks);
+    let first_subtask_uses: u64 = matrix[0].as_array().unwrap().iter().map(|d| d["attempts"].as_u64().unwrap()).sum();
+    assert_eq!(first_subtask_uses, report["attempts"].as_u64().unwrap());
+    let rate = report["successes"].as_f64().unwrap() / report["attempts"].as_f64().unwrap();
+    assert!((report["generation_rate"].as_f64().unwrap() - rate).abs() < 1e-12, "{report}");
 }
 
 /// A flag the two-arm run does not take is refused by name, and nothing is written.

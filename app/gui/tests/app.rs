@@ -489,7 +489,7 @@ fn a_run_started_from_the_app_reports_live_and_can_be_cancelled() {
     assert_eq!(h.state().model.run_form.spec.to_args(), ["--action-noise", "0.05"]);
     h.get_by_label_contains("--num-demos 6 --seed 1 --workers 1");
     let line = mimicgen_gui::model::RunForm { spec: h.state().model.run_form.spec.clone(), ..form.clone() }
-        .command_line(&h.state().model.file.as_ref().unwrap().path);
+        .command_line(&h.state().model.file.as_ref().unwrap().path, None);
     assert!(line.ends_with("--keep-failed --action-noise 0.05"), "{line}");
     h.get_by_label("Start").click();
     h.step();
@@ -701,7 +701,7 @@ fn the_doctor_panel_tests_a_change_and_puts_it_into_the_run_form() {
     h.run_steps(2);
     assert_eq!(h.state().model.run_form.spec, noisy.then(&t.suggestion.change));
     // The form's command line says so.
-    let line = h.state().model.run_form.command_line(&h.state().model.file.as_ref().unwrap().path);
+    let line = h.state().model.run_form.command_line(&h.state().model.file.as_ref().unwrap().path, None);
     assert!(line.contains(&t.suggestion.flags()), "{line}");
     h.get_by_label(&line);
     // Folded again.
@@ -1027,4 +1027,61 @@ fn a_two_arm_file_is_annotated_arm_by_arm_and_saved() {
     let first_on = |signal: &[i64]| signal.iter().position(|&v| v != 0).unwrap();
     assert_eq!(first_on(&views[1].demos[0].subtask_term_signals["grasp_handle1"]), 30);
     assert_eq!(first_on(&views[0].demos[0].subtask_term_signals["grasp_handle0"]), arm0_before[0] - 1);
+}
+
+/// A two-arm run from the app: the form without what two-arm runs lack, Start, the attempts with
+/// their subtasks named by arm, the report (`<out>.json`, as `mimicgen generate` writes it), and a
+/// failed attempt re-run in the preview with both arms' ends fails as the run's did.
+#[test]
+fn a_two_arm_run_is_started_from_the_app_and_a_failure_re_run() {
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/two_arm_handover_D0_source.hdf5");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("two_arm_run.hdf5");
+    let mut h = harness(Some(source));
+    settle(&mut h);
+    assert_eq!(h.state().model.file.as_ref().unwrap().arms.len(), 2);
+    h.get_by_label("Generate").click();
+    h.step();
+    // Seed 1: one of the first 8 attempts misses arm 0's grasp of the hammer.
+    let form = mimicgen_gui::model::RunForm { attempts: 8, seed: 1, workers: 2, out: out.display().to_string(), ..Default::default() };
+    h.state_mut().command(Command::SetRunForm(Box::new(form)));
+    h.run_steps(2);
+    h.get_by_label_contains("mimicgen generate --task two_arm_handover --source");
+    assert!(h.query_by_label("keep failed attempts").is_none() && h.query_by_label("Spec fields").is_none());
+    h.get_by_label("Start").click();
+    h.step();
+    until_run_ends(&mut h);
+    let run = h.state().model.run.clone().unwrap();
+    assert!(run.error.is_none(), "{:?}", run.error);
+    let report = run.report.as_ref().unwrap();
+    assert_eq!((run.rows.len(), report.attempts, report.task.as_str()), (8, 8, "two_arm_handover"));
+    assert_eq!(report.successes, run.rows.iter().filter(|r| r.success).count());
+    assert_eq!(mimicgen_io::RobomimicDataset::open(&out).unwrap().demo_names().len(), report.successes);
+    let written: mimicgen_pipeline::Report =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("two_arm_run.json")).unwrap()).unwrap();
+    assert_eq!((written.attempts, written.successes), (report.attempts, report.successes));
+    // Every subtask of both arms has its row in the success matrix, named by its arm.
+    let spec = mimicgen_sim::two_arm::TwoArmTask::Handover.spec().unwrap();
+    let counts: Vec<usize> = spec.arms.iter().map(|a| a.subtasks.len()).collect();
+    assert_eq!(report.per_subtask_source.len(), counts.iter().sum::<usize>());
+    let failed = run.rows.iter().find(|r| !r.success).expect("seed 1 has a failed attempt among the first 8").clone();
+    assert!(run.rows.iter().all(|r| r.sources.len() == counts.iter().sum::<usize>() || !r.success), "every success planned every subtask");
+    let k = failed.failed_subtask.unwrap();
+    let (arm, subtask) = if k < counts[0] { (0, k) } else { (1, k - counts[0]) };
+    h.get_by_label_contains(&format!("{:>5}  failure", failed.index)).click();
+    h.run_steps(2);
+    h.get_by_label_contains(&format!("failed in robot{arm} subtask {subtask}: {}", failed.reason.as_ref().unwrap()));
+    assert!(h.query_by_label("Side by side").is_none(), "side by side is one-arm only");
+    h.get_by_label("Re-run in preview").click();
+    h.step();
+    settle(&mut h);
+    let model = &h.state().model;
+    assert!(model.error.is_none(), "{:?}", model.error);
+    assert_eq!(model.screen, mimicgen_gui::Screen::Preview);
+    let view = model.preview.view.as_ref().unwrap();
+    assert_eq!((view.seed, view.index, view.arms.len()), (1, failed.index, 2));
+    let executed = view.executed.as_ref().unwrap();
+    assert!(!executed.success);
+    assert_eq!(executed.failure, Some(format!("arm {arm}: subtask {subtask}: {}", failed.reason.as_ref().unwrap())));
+    assert_eq!(executed.path.len(), failed.steps, "the re-run takes the run's steps");
 }

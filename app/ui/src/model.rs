@@ -105,6 +105,35 @@ pub struct AppModel {
 }
 
 impl AppModel {
+    /// A run's subtask `k` in words: `subtask 2`, or for a two-arm file, whose runs number arm 1's
+    /// subtasks after arm 0's, `robot1 subtask 0`.
+    #[must_use]
+    pub fn subtask_name(&self, k: usize) -> String {
+        let arms = self.file.as_ref().map_or(&[][..], |f| f.arms.as_slice());
+        let mut first = 0;
+        for arm in arms {
+            // An arm's subtasks: one more than the signals that end them.
+            let count = arm.signal_names.len() + 1;
+            if k < first + count {
+                return format!("{} subtask {}", arm.name, k - first);
+            }
+            first += count;
+        }
+        format!("subtask {k}")
+    }
+
+    /// Each arm's subtask ends of every demo as annotated (the arm shown: its edits so far), for a
+    /// two-arm file.
+    fn all_arm_ends(&self) -> Vec<BTreeMap<String, Vec<usize>>> {
+        let arms = self.file.as_ref().map_or(0, |f| f.arms.len());
+        (0..arms)
+            .map(|k| {
+                let annotation = if k == self.arm { &self.annotation } else { self.arm_annotations.get(k).unwrap_or(&self.annotation) };
+                annotation.marks.ends.clone()
+            })
+            .collect()
+    }
+
     /// The demo shown, if a file is open.
     #[must_use]
     pub fn demo(&self) -> Option<&crate::protocol::DemoView> {
@@ -174,12 +203,7 @@ impl AppModel {
         self.preview.sources.resize(file.subtask_objects.len(), None);
         let p = &self.preview;
         self.busy = Some(format!("{} attempt {} (seed {})", if execute { "trying" } else { "planning" }, p.index, p.seed));
-        let arm_ends: Vec<BTreeMap<String, Vec<usize>>> = (0..file.arms.len())
-            .map(|k| {
-                let annotation = if k == self.arm { &self.annotation } else { self.arm_annotations.get(k).unwrap_or(&self.annotation) };
-                annotation.marks.ends.clone()
-            })
-            .collect();
+        let arm_ends = self.all_arm_ends();
         Some(Request::Preview(Box::new(PreviewRequest {
             source: file.path.clone(),
             marks: self.annotation.marks.clone(),
@@ -216,7 +240,7 @@ impl AppModel {
             execute: true,
             variant: run.config.variant.clone(),
             spec: run.config.spec.clone(),
-            arm_ends: Vec::new(),
+            arm_ends: self.all_arm_ends(),
         })
     }
 
@@ -399,7 +423,7 @@ impl AppModel {
                     ));
                     return None;
                 }
-                let config = self.run_form.config(&file.path);
+                let config = self.run_form.config(&file.path, file.two_arm_task());
                 self.run = Some(RunState::new(config.clone()));
                 self.forget_attempts();
                 self.busy = Some("starting the run".to_owned());

@@ -334,6 +334,14 @@ pub struct LoadedFile {
     pub arms: Vec<ArmFile>,
 }
 
+impl LoadedFile {
+    /// The task of a two-arm file (`two_arm_lift`); `None` for one arm.
+    #[must_use]
+    pub fn two_arm_task(&self) -> Option<&str> {
+        (!self.arms.is_empty()).then_some(self.task.as_str())
+    }
+}
+
 /// One arm of a two-arm file: its subtasks and its view of the demos (its gripper, its end
 /// effector, its proposals and stored ends).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -43,6 +43,7 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, command
         return;
     };
     let running = model.run.as_ref().is_some_and(RunState::running);
+    let two_arm = file.two_arm_task().is_some();
     let mut f = model.run_form.clone();
     ui.heading("Run");
     ui.add_enabled_ui(!running, |ui| {
@@ -63,25 +64,30 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, command
             let label = ui.label("Output:");
             ui.add(egui::TextEdit::singleline(&mut f.out).desired_width(180.0)).labelled_by(label.id);
             ui.end_row();
-            ui.label("");
-            ui.checkbox(&mut f.keep_failed, "keep failed attempts").on_hover_text("--keep-failed: OUT_failed.hdf5, for the failure views");
-            ui.end_row();
-            ui.label("");
-            ui.checkbox(&mut f.early_abort, "end attempts at a missed subtask").on_hover_text("--early-abort");
-            ui.end_row();
+            if !two_arm {
+                ui.label("");
+                ui.checkbox(&mut f.keep_failed, "keep failed attempts")
+                    .on_hover_text("--keep-failed: OUT_failed.hdf5, for the failure views");
+                ui.end_row();
+                ui.label("");
+                ui.checkbox(&mut f.early_abort, "end attempts at a missed subtask").on_hover_text("--early-abort");
+                ui.end_row();
+            }
             ui.label("");
             if ui.checkbox(&mut f.overwrite, "replace existing outputs").on_hover_text("--overwrite").changed() && f.overwrite {
                 f.resume = false;
             }
             ui.end_row();
-            ui.label("");
-            let resume = ui.checkbox(&mut f.resume, "continue an interrupted run").on_hover_text(
-                "--resume: a run killed before its end left OUT.partial; this continues it, with the arguments it was started with",
-            );
-            if resume.changed() && f.resume {
-                f.overwrite = false;
+            if !two_arm {
+                ui.label("");
+                let resume = ui.checkbox(&mut f.resume, "continue an interrupted run").on_hover_text(
+                    "--resume: a run killed before its end left OUT.partial; this continues it, with the arguments it was started with",
+                );
+                if resume.changed() && f.resume {
+                    f.overwrite = false;
+                }
+                ui.end_row();
             }
-            ui.end_row();
             ui.label("Variant");
             let variants = &file.variants;
             egui::ComboBox::from_id_salt("variant").selected_text(f.variant.clone().unwrap_or_else(|| "the file's".to_owned())).show_ui(
@@ -94,6 +100,9 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, command
                 },
             );
             ui.end_row();
+            if two_arm {
+                return;
+            }
             let label = ui.label("Robot");
             let robots = &model.welcome.robots;
             egui::ComboBox::from_id_salt("robot")
@@ -110,9 +119,13 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, command
             ui.end_row();
             cameras(ui, &mut f.cameras);
         });
-        egui::CollapsingHeader::new("Spec fields")
-            .default_open(!f.spec.is_empty())
-            .show(ui, |ui| spec_fields(ui, &mut f.spec, file.subtask_objects.len()));
+        if two_arm {
+            ui.label(RichText::new("Two arms: no failed-attempt file, resume, robot transfer, cameras or spec fields yet.").small());
+        } else {
+            egui::CollapsingHeader::new("Spec fields")
+                .default_open(!f.spec.is_empty())
+                .show(ui, |ui| spec_fields(ui, &mut f.spec, file.subtask_objects.len()));
+        }
     });
     if f != model.run_form {
         commands.push(Command::SetRunForm(Box::new(f.clone())));
@@ -131,10 +144,10 @@ pub fn form(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, command
             commands.push(Command::CancelRun);
         }
         if ui.button("Copy as command").on_hover_text("The mimicgen generate line for the same run").clicked() {
-            ui.ctx().copy_text(f.command_line(&file.path));
+            ui.ctx().copy_text(f.command_line(&file.path, file.two_arm_task()));
         }
     });
-    ui.label(RichText::new(f.command_line(&file.path)).monospace().small());
+    ui.label(RichText::new(f.command_line(&file.path, file.two_arm_task())).monospace().small());
     if model.annotation.dirty {
         ui.label(RichText::new("Unsaved subtask ends: a run reads the ends saved in the file.").italics());
     }

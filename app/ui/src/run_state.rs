@@ -66,8 +66,23 @@ impl Default for RunForm {
 impl RunForm {
     /// The pipeline's config for a run over `source`. Every field of [`RunConfig`] is named, so
     /// a field the pipeline gains does not compile here until the form has it (or says why not).
+    /// A two-arm source (`two_arm_task`: its task) names its task (the CLI runs two arms by
+    /// `--task`) and leaves out what two-arm runs lack: failed attempts, early abort, resume,
+    /// another robot, cameras, spec fields.
     #[must_use]
-    pub fn config(&self, source: &Path) -> RunConfig {
+    pub fn config(&self, source: &Path, two_arm_task: Option<&str>) -> RunConfig {
+        if let Some(task) = two_arm_task {
+            let one_arm = Self {
+                keep_failed: false,
+                early_abort: false,
+                resume: false,
+                robot: None,
+                cameras: None,
+                spec: SpecOverrides::default(),
+                ..self.clone()
+            };
+            return RunConfig { task: Some(task.to_owned()), ..one_arm.config(source, None) };
+        }
         RunConfig {
             source: Some(source.to_path_buf()),
             out: PathBuf::from(&self.out),
@@ -95,7 +110,7 @@ impl RunForm {
 
     /// The `mimicgen generate` line that makes the same run (for a batch machine).
     #[must_use]
-    pub fn command_line(&self, source: &Path) -> String {
+    pub fn command_line(&self, source: &Path, two_arm_task: Option<&str>) -> String {
         let quote = |s: &str| {
             if s.chars().all(|c| c.is_ascii_alphanumeric() || "/._-+=:,".contains(c)) {
                 s.to_owned()
@@ -103,7 +118,7 @@ impl RunForm {
                 format!("'{}'", s.replace('\'', "'\\''"))
             }
         };
-        let args: Vec<String> = self.config(source).to_args().iter().map(|a| quote(a)).collect();
+        let args: Vec<String> = self.config(source, two_arm_task).to_args().iter().map(|a| quote(a)).collect();
         format!("mimicgen generate {}", args.join(" "))
     }
 }
@@ -234,18 +249,41 @@ mod tests {
     #[test]
     fn the_run_form_is_a_generate_command_line_and_a_pipeline_config() {
         let form = RunForm { attempts: 30, seed: 7, workers: 2, guarantee: true, out: "my runs/out.hdf5".into(), ..RunForm::default() };
-        let line = form.command_line(Path::new("/data/src.hdf5"));
+        let line = form.command_line(Path::new("/data/src.hdf5"), None);
         assert_eq!(
             line,
             "mimicgen generate --source /data/src.hdf5 --num-demos 30 --seed 7 --workers 2 --out 'my runs/out.hdf5' --keep-failed --guarantee"
         );
         let arm = RunForm { robot: Some("ur5e".into()), cameras: Some(CameraConfig::default()), ..form.clone() };
-        assert!(arm.command_line(Path::new("s.hdf5")).contains("--robot ur5e --source s.hdf5"));
-        assert_eq!(arm.config(Path::new("s.hdf5")).cameras, Some(CameraConfig::default()));
-        let config = form.config(Path::new("/data/src.hdf5"));
+        assert!(arm.command_line(Path::new("s.hdf5"), None).contains("--robot ur5e --source s.hdf5"));
+        assert_eq!(arm.config(Path::new("s.hdf5"), None).cameras, Some(CameraConfig::default()));
+        let config = form.config(Path::new("/data/src.hdf5"), None);
         assert_eq!(
             (config.num_demos, config.seed, config.workers, config.guarantee, config.keep_failed),
             (Some(30), Some(7), 2, true, true)
+        );
+    }
+
+    /// A two-arm source's run names its task (the CLI runs two arms by `--task`) and leaves out
+    /// what two-arm runs lack, whatever the form holds from a one-arm file.
+    #[test]
+    fn a_two_arm_run_names_its_task_and_leaves_out_what_two_arm_runs_lack() {
+        let form = RunForm {
+            robot: Some("ur5e".into()),
+            cameras: Some(CameraConfig::default()),
+            early_abort: true,
+            resume: true,
+            spec: SpecOverrides { action_noise: vec![mimicgen_run::Scoped::all(0.1)], ..SpecOverrides::default() },
+            ..RunForm::default()
+        };
+        let config = form.config(Path::new("two.hdf5"), Some("two_arm_lift"));
+        assert_eq!(config.task.as_deref(), Some("two_arm_lift"));
+        assert!(!config.keep_failed && !config.early_abort && !config.resume);
+        assert_eq!((config.robot, config.cameras, config.spec), (None, None, SpecOverrides::default()));
+        assert_eq!((config.num_demos, config.seed), (Some(form.attempts), Some(form.seed)));
+        assert_eq!(
+            form.command_line(Path::new("two.hdf5"), Some("two_arm_lift")),
+            "mimicgen generate --task two_arm_lift --source two.hdf5 --num-demos 50 --seed 1 --workers 1 --out out/app_run.hdf5"
         );
     }
 }

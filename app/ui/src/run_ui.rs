@@ -19,7 +19,7 @@ use crate::style::{FAILURE, SUCCESS};
 /// The success matrix as a heat map: a row per subtask, a column per source demo, each cell its
 /// successes of the attempts whose segment came from there, green to red by rate (grey unused);
 /// a source demo used often and never in a success is flagged.
-fn success_matrix(ui: &mut egui::Ui, run: &RunState) {
+fn success_matrix(ui: &mut egui::Ui, model: &AppModel, run: &RunState) {
     // Live runs count as they go; an opened run has the matrix from its report.
     let matrix: Vec<Vec<(usize, usize)>> = match run.stats().filter(|s| !s.per_subtask_source.is_empty()) {
         Some(stats) => stats.per_subtask_source.iter().map(|row| row.iter().map(|d| (d.successes, d.attempts)).collect()).collect(),
@@ -42,7 +42,7 @@ fn success_matrix(ui: &mut egui::Ui, run: &RunState) {
         }
         ui.end_row();
         for (subtask, row) in matrix.iter().enumerate() {
-            ui.label(format!("subtask {subtask}"));
+            ui.label(model.subtask_name(subtask));
             for d in 0..columns {
                 let (successes, attempts) = row.get(d).copied().unwrap_or_default();
                 #[allow(clippy::cast_precision_loss)] // counts of attempts
@@ -158,7 +158,7 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, com
             ui.strong(title);
             egui::Grid::new(id).striped(true).num_columns(3).show(ui, |ui| {
                 for (subtask, what, count) in rows {
-                    ui.label(format!("subtask {subtask}"));
+                    ui.label(model.subtask_name(*subtask));
                     ui.label(what);
                     ui.label(format!("{count}"));
                     ui.end_row();
@@ -176,7 +176,7 @@ pub fn progress(ui: &mut egui::Ui, model: &AppModel, state: &mut RunUiState, com
                 if !causes.is_empty() {
                     table(ui, "Failures by subtask and cause", "causes", &causes);
                 }
-                ui.vertical(|ui| success_matrix(ui, run));
+                ui.vertical(|ui| success_matrix(ui, model, run));
             });
         });
     }
@@ -387,7 +387,7 @@ fn attempt_table(ui: &mut egui::Ui, model: &AppModel, run: &RunState, state: &mu
             let what = match (&row.reason, row.failed_subtask) {
                 (Some(reason), Some(k)) => {
                     let cause = row.cause.as_ref().map_or(String::new(), |c| format!(" ({c})"));
-                    format!("attempt {}: failed in subtask {k}: {reason}{cause}", row.index)
+                    format!("attempt {}: failed in {}: {reason}{cause}", row.index, model.subtask_name(k))
                 }
                 _ => format!("attempt {}: success, written as {}", row.index, row.outcome),
             };
@@ -405,7 +405,8 @@ fn attempt_table(ui: &mut egui::Ui, model: &AppModel, run: &RunState, state: &mu
                     .and_then(|k| row.sources.get(k))
                     .map_or_else(String::new, |d| format!(" from the same source demo_{d}"));
                 ui.label(format!("nearest success{same}: attempt {} (objects {cm:.1} cm away on average)", near.index));
-                if ui.button("Side by side").on_hover_text("Re-run both and show them next to each other").clicked() {
+                let one_arm = model.file.as_ref().is_none_or(|f| f.arms.is_empty());
+                if one_arm && ui.button("Side by side").on_hover_text("Re-run both and show them next to each other").clicked() {
                     commands.push(Command::SideBySide { failed: row.index, success: Some(near.index) });
                 }
                 if ui.button("Re-run that one").on_hover_text("Try the nearest success in the preview").clicked() {
@@ -423,7 +424,9 @@ fn attempt_table(ui: &mut egui::Ui, model: &AppModel, run: &RunState, state: &mu
                 if row.success { "success" } else { "failure" },
                 row.steps,
                 sources.join(","),
-                row.reason.as_ref().map_or(String::new(), |r| format!("subtask {}: {r}", row.failed_subtask.unwrap_or_default()))
+                row.reason
+                    .as_ref()
+                    .map_or(String::new(), |r| format!("{}: {r}", model.subtask_name(row.failed_subtask.unwrap_or_default())))
             );
             let label = RichText::new(text).monospace().color(if row.success { SUCCESS } else { FAILURE });
             if ui.selectable_label(model.selected_attempt == Some(row.index), label).clicked() {

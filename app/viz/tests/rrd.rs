@@ -166,6 +166,7 @@ fn camera_images_go_on_the_demo_timeline() {
 #[test]
 fn two_arm_attempts_show_each_arm_and_the_ties() {
     use mimicgen_engine::demo::SourceDataset;
+    use mimicgen_engine::demonstrator::Style;
     use mimicgen_engine::two_arm::{TwoArmEnvironment as _, TwoArmGenerator, TwoArmHandoverScript};
     use mimicgen_sim::two_arm::{TwoArmSimEnv, TwoArmTask};
     use rand::SeedableRng as _;
@@ -178,7 +179,7 @@ fn two_arm_attempts_show_each_arm_and_the_ties() {
     let mut views: Vec<Vec<_>> = vec![Vec::new(), Vec::new()];
     while views[0].len() < 2 {
         env.reset(&mut rng).expect("reset");
-        let demo = TwoArmHandoverScript::hammer().record(&mut env, &mut rng).expect("record");
+        let demo = TwoArmHandoverScript::hammer().record(&mut env, Style::Careful, &mut rng).expect("record");
         let arm_views = demo.arm_views(&format!("demo_{}", views[0].len()));
         let one = arm_views.iter().map(|d| SourceDataset { demos: vec![d.clone()], env_args: None }).collect();
         if demo.success && TwoArmGenerator::new(spec.clone(), one).is_ok() {

@@ -126,7 +126,7 @@ fn leg_length(from: &Pose, to: &Pose) -> f64 {
 }
 
 /// A draw from the cube of half-side `half_m` about zero (m), x then y then z.
-fn uniform_jitter<R: Rng + ?Sized>(rng: &mut R, half_m: f64) -> Vec3 {
+pub(crate) fn uniform_jitter<R: Rng + ?Sized>(rng: &mut R, half_m: f64) -> Vec3 {
     Vec3::new(rng.random_range(-half_m..half_m), rng.random_range(-half_m..half_m), rng.random_range(-half_m..half_m))
 }
 
@@ -140,13 +140,13 @@ fn moves(from: &Pose, to: &Pose, speed_m: f64) -> Vec<Pose> {
 }
 
 /// How often a person goes on without waiting for the arm to arrive (per precise leg).
-const HUMAN_IMPATIENCE: f64 = 0.2;
+pub(crate) const HUMAN_IMPATIENCE: f64 = 0.2;
 
 /// Target poses from `from` to `to` as a person moves: speeding up and slowing down (a
 /// minimum-jerk profile peaking at about 1.25 `speed_m`). A precise leg (a descent to grasp or
 /// place) is aimed a few millimetres off half of the time and then corrected, and a third of the
 /// time pauses partway (hesitation). Ends exactly at `to`.
-fn human_moves<R: Rng + ?Sized>(from: &Pose, to: &Pose, speed_m: f64, precise: bool, rng: &mut R) -> Vec<Pose> {
+pub(crate) fn human_moves<R: Rng + ?Sized>(from: &Pose, to: &Pose, speed_m: f64, precise: bool, rng: &mut R) -> Vec<Pose> {
     let smooth = |a: &Pose, b: &Pose, speed: f64| -> Vec<Pose> {
         let distance = leg_length(a, b);
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]

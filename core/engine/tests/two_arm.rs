@@ -303,10 +303,13 @@ fn one_arms_subtasks_with_the_other_arm_idle_are_todays_one_arm_generation() {
     };
     let two = TwoArmGenerator::new(spec, vec![sources.clone(), sources]).unwrap();
     let mut successes = 0;
+    let (mut one_stats, mut two_stats) = (mimicgen_engine::RunStats::new(4), mimicgen_engine::RunStats::new(4));
     for index in 0..12 {
         let a = single.attempt(&mut kinematic::PickPlace::new(0.1), index).unwrap();
         let mut env = WithSecondHand { one: kinematic::PickPlace::new(0.1), hand: mimicgen_engine::Pose::identity() };
         let b = two.attempt(&mut env, index).unwrap();
+        one_stats.record(&a);
+        b.record_into(&mut two_stats, &[one.subtasks.len(), 0]);
         successes += usize::from(a.success);
         assert_eq!(a.success, b.success, "attempt {index}");
         let arm = &b.arms[0];
@@ -325,6 +328,8 @@ fn one_arms_subtasks_with_the_other_arm_idle_are_todays_one_arm_generation() {
         assert_eq!(a.failure.map(|f| (f.subtask, f.reason)), b.failure.map(|f| (f.subtask, f.reason)));
     }
     assert!(successes > 0, "no attempt succeeded: the comparison covered failures only");
+    // The run's statistics too (the two-arm run records no causes yet).
+    assert_eq!(two_stats, mimicgen_engine::RunStats { causes: Vec::new(), ..one_stats });
 }
 
 #[test]
@@ -367,5 +372,15 @@ fn a_coordinated_pair_shares_its_source_demo_and_transform_and_runs_in_lockstep(
         let p2 = &b.arms[1].plans[1];
         assert!(p2.first_step >= end, "attempt {index}: arm 1's last started at {} before {end}", p2.first_step);
         assert!(p0.waypoints.iter().chain(&p1.waypoints).any(|(_, k)| *k == WaypointKind::Transformed));
+        // A run's statistics number arm 1's subtasks after arm 0's two.
+        let mut stats = mimicgen_engine::RunStats::new(4);
+        b.record_into(&mut stats, &[2, 2]);
+        assert_eq!(stats.per_subtask_source.len(), 4);
+        for (k, plan) in b.arms[0].plans.iter().chain(&b.arms[1].plans).enumerate() {
+            assert_eq!(stats.per_subtask_source[k][plan.src_demo].attempts, 1, "attempt {index}: subtask {k}");
+        }
+        if let Some(f) = &b.failure {
+            assert_eq!(stats.failures[0].subtask, 2 * f.arm.unwrap_or(0) + f.subtask);
+        }
     }
 }

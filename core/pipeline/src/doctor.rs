@@ -75,16 +75,16 @@ pub fn read_report(path: &Path) -> Result<(Report, PathBuf), PipelineError> {
         let hint = if json == path { String::new() } else { format!(" (the report `mimicgen generate` writes beside {})", path.display()) };
         PipelineError::input(label.clone(), "", format!("cannot read the run's report{hint}: {e}"))
     })?;
-    let report: Report = serde_json::from_str(&text).map_err(|e| {
-        // A two-arm run's report names its task; the doctor reads one-arm runs.
-        let task = serde_json::from_str::<serde_json::Value>(&text).ok().and_then(|v| v.get("task")?.as_str().map(str::to_owned));
-        match task.filter(|t| mimicgen_sim::two_arm::TwoArmTask::from_name(t).is_some()) {
-            Some(task) => {
-                PipelineError::input(label.clone(), "task", format!("{task} is a two-arm run: the doctor reads one-arm runs only so far"))
-            }
-            None => PipelineError::input(label.clone(), "", format!("is not a `mimicgen generate` report: {e}")),
-        }
-    })?;
+    let report: Report = serde_json::from_str(&text)
+        .map_err(|e| PipelineError::input(label.clone(), "", format!("is not a `mimicgen generate` report: {e}")))?;
+    // A two-arm run's report names its task; the doctor reads one-arm runs.
+    if mimicgen_sim::two_arm::TwoArmTask::from_name(&report.task).is_some() {
+        return Err(PipelineError::input(
+            label,
+            "task",
+            format!("{} is a two-arm run: the doctor reads one-arm runs only so far", report.task),
+        ));
+    }
     Ok((report, json))
 }
 

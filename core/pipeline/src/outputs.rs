@@ -198,7 +198,7 @@ pub(crate) fn differing_fields(a: &serde_json::Value, b: &serde_json::Value) -> 
 /// # Errors
 /// [`PipelineError::Exists`] naming the first output that exists;
 /// [`PipelineError::Fs`] when one cannot be removed or the folder made.
-pub(crate) fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, resumable: bool) -> Result<(), PipelineError> {
+pub fn clear_outputs(out: &Path, extra: Option<&Path>, overwrite: bool, resumable: bool) -> Result<(), PipelineError> {
     let failed = failed_path(out);
     let partial = DatasetWriter::partial_path(out);
     let outputs = [

@@ -13,7 +13,9 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
 
 use mimicgen_engine::EngineError;
+use mimicgen_engine::RunStats;
 use mimicgen_engine::demo::SourceDataset;
+use mimicgen_engine::demonstrator::Style;
 use mimicgen_engine::generate::FailureReason;
 use mimicgen_engine::spec::SourceSelection;
 use mimicgen_engine::two_arm::{
@@ -23,7 +25,7 @@ use mimicgen_io::{DatasetWriter, DemoData, RobomimicDataset, WriterOptions};
 use mimicgen_sim::two_arm::{TwoArmSimEnv, TwoArmTask};
 use rand::SeedableRng as _;
 
-use crate::PipelineError;
+use crate::{PipelineError, Report};
 
 /// The arms' names in files (robosuite's observation prefixes without the `_`).
 pub const ARMS: [&str; 2] = ["robot0", "robot1"];
@@ -43,8 +45,8 @@ pub fn task(name: &str, variant: &str) -> Result<TwoArmTask, PipelineError> {
     Ok(task)
 }
 
-/// Records `num_demos` scripted source demos of `task` in `variant` (seeded by `seed`) into
-/// `out`, keeping those that succeed and that the task's spec splits into both arms' subtasks;
+/// Records `num_demos` scripted source demos of `task` in `variant` (seeded by `seed`), the
+/// operators moving in `style`, into `out`, keeping those that succeed and that the task's spec splits into both arms' subtasks;
 /// `log` gets a line per try. Returns the file and the number of tries.
 ///
 /// # Errors
@@ -53,6 +55,7 @@ pub fn task(name: &str, variant: &str) -> Result<TwoArmTask, PipelineError> {
 pub fn record_demos(
     task: TwoArmTask,
     variant: &str,
+    style: Style,
     num_demos: usize,
     seed: u64,
     out: &Path,
@@ -77,9 +80,9 @@ pub fn record_demos(
         }
         env.reset(&mut rng).map_err(|e| PipelineError::engine("", EngineError::Env { attempt: 0, source: e }))?;
         let demo = match task {
-            TwoArmTask::Lift => TwoArmLiftScript::pot().record(&mut env, &mut rng),
-            TwoArmTask::Handover => TwoArmHandoverScript::hammer().record(&mut env, &mut rng),
-            TwoArmTask::Transport => TwoArmTransportScript::transport().record(&mut env, &mut rng),
+            TwoArmTask::Lift => TwoArmLiftScript::pot().record(&mut env, style, &mut rng),
+            TwoArmTask::Handover => TwoArmHandoverScript::hammer().record(&mut env, style, &mut rng),
+            TwoArmTask::Transport => TwoArmTransportScript::transport().record(&mut env, style, &mut rng),
         }
         .map_err(|e| PipelineError::engine("", EngineError::Env { attempt: 0, source: e }))?;
         if !demo.success {
@@ -141,6 +144,55 @@ pub struct TwoArmSummary {
     pub source: PathBuf,
     /// How many source demos.
     pub num_sources: usize,
+    /// The run's statistics, subtasks numbered through both arms (arm 0's, then arm 1's).
+    pub stats: RunStats,
+    /// Subtasks per arm (how `stats` numbers them).
+    pub subtask_counts: Vec<usize>,
+    /// Control steps simulated (failed attempts included).
+    pub control_steps: usize,
+    /// Whether the run was cancelled before its stopping rule (the dataset holds the attempts
+    /// decided before).
+    pub cancelled: bool,
+}
+
+impl TwoArmSummary {
+    /// The run's report (`<out>.json`), the one-arm runs' [`Report`]: its subtasks numbered
+    /// through both arms ([`Self::subtask_counts`]); no failed-attempt file, quality or causes yet.
+    #[must_use]
+    pub fn report(&self, run: &TwoArmRun, wall_time_s: f64) -> Report {
+        #[allow(clippy::cast_precision_loss, reason = "counts far below 2^52")]
+        let attempts_per_s = if wall_time_s > 0.0 { self.attempts as f64 / wall_time_s } else { 0.0 };
+        Report {
+            task: run.task.name().to_owned(),
+            variant: run.variant.clone(),
+            seed: run.seed,
+            workers: run.workers,
+            source: self.source.display().to_string(),
+            config: None,
+            robot: None,
+            output: self.out.display().to_string(),
+            failed_output: None,
+            attempts: self.stats.attempts,
+            successes: self.stats.successes,
+            generation_rate: self.stats.rate(),
+            wall_time_s,
+            attempts_per_s,
+            control_steps: self.control_steps,
+            per_source_demo: crate::outputs::per_source_demo(&self.stats),
+            per_subtask_source: crate::outputs::per_subtask_source(&self.stats),
+            never_succeeded: crate::outputs::never_succeeded(&self.stats),
+            peak_rss_mib: crate::memory::peak_rss_mib(),
+            failures: crate::outputs::failures(&self.stats),
+            causes: Vec::new(),
+            cancelled: self.cancelled,
+            resumed_from: 0,
+            early_abort: false,
+            spec_overrides: crate::SpecOverrides::default(),
+            shard: None,
+            quality: None,
+            transit: mimicgen_engine::generate::TransitTotals::default(),
+        }
+    }
 }
 
 /// What a two-arm run reports as it goes.
@@ -161,6 +213,10 @@ pub enum TwoArmEvent<'a> {
         attempts: usize,
         /// Successes among them.
         successes: usize,
+        /// The run's statistics with it (subtasks numbered through both arms).
+        stats: &'a RunStats,
+        /// The demo it was written as, if it was.
+        written: Option<&'a str>,
     },
 }
 
@@ -170,11 +226,12 @@ type Finished = (u64, Result<(TwoArmAttempt, Option<DemoData>), PipelineError>);
 /// Runs `run`: attempts in order of index spread over the workers, successes written in that
 /// order (the same dataset for the same seed whatever the number of workers); with `guarantee`,
 /// until `num_trials` successes; `progress` hears of the start and of each attempt, in index
-/// order.
+/// order. Once `cancel` is set no attempt starts; those decided are written and the dataset
+/// finished.
 ///
 /// # Errors
 /// Unreadable sources, a spec they do not fit, simulator or write failures.
-pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> Result<TwoArmSummary, PipelineError> {
+pub fn generate(run: &TwoArmRun, cancel: &AtomicBool, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> Result<TwoArmSummary, PipelineError> {
     let source = match &run.source {
         Some(path) => path.clone(),
         None => crate::bundled::source_demos(run.task.name())?,
@@ -191,6 +248,7 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> R
     spec.generation.max_attempts = run.max_attempts.unwrap_or(0);
     let cap = spec.generation.attempt_cap();
     let target = if run.guarantee { run.num_trials } else { usize::MAX };
+    let subtask_counts: Vec<usize> = spec.arms.iter().map(|a| a.subtasks.len()).collect();
     let generator = TwoArmGenerator::new(spec, views).map_err(|e| PipelineError::engine(file.clone(), e))?;
     progress(TwoArmEvent::Started { spec: generator.spec(), source_names: &source_names });
     let scene = Arc::new(run.task.scene()?);
@@ -201,7 +259,18 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> R
     let next = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
     let (tx, rx) = mpsc::channel::<Finished>();
-    let mut summary = TwoArmSummary { attempts: 0, successes: 0, failures: BTreeMap::new(), out: run.out.clone(), source, num_sources };
+    let mut summary = TwoArmSummary {
+        attempts: 0,
+        successes: 0,
+        failures: BTreeMap::new(),
+        out: run.out.clone(),
+        source,
+        num_sources,
+        stats: RunStats::new(num_sources),
+        subtask_counts,
+        control_steps: 0,
+        cancelled: false,
+    };
     let written: Result<(), PipelineError> = std::thread::scope(|scope| {
         for _ in 0..run.workers.max(1) {
             let (tx, scene, generator, next, stop) = (tx.clone(), Arc::clone(&scene), &generator, &next, &stop);
@@ -216,7 +285,7 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> R
                 };
                 loop {
                     let index = next.fetch_add(1, Ordering::Relaxed);
-                    if index >= cap || stop.load(Ordering::Relaxed) {
+                    if index >= cap || stop.load(Ordering::Relaxed) || cancel.load(Ordering::Relaxed) {
                         return;
                     }
                     let index = u64::try_from(index).unwrap_or(u64::MAX);
@@ -243,9 +312,12 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> R
                     }
                 };
                 summary.attempts += 1;
+                summary.control_steps += attempt.actions.len();
+                attempt.record_into(&mut summary.stats, &summary.subtask_counts);
+                let mut written = None;
                 match (&attempt.failure, data) {
                     (None, Some(data)) => {
-                        writer.append(&data)?;
+                        written = Some(writer.append(&data)?);
                         summary.successes += 1;
                     }
                     (Some(failure), _) => {
@@ -261,7 +333,13 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> R
                     }
                     (None, None) => {}
                 }
-                progress(TwoArmEvent::Attempt { attempt: &attempt, attempts: summary.attempts, successes: summary.successes });
+                progress(TwoArmEvent::Attempt {
+                    attempt: &attempt,
+                    attempts: summary.attempts,
+                    successes: summary.successes,
+                    stats: &summary.stats,
+                    written: written.as_deref(),
+                });
                 // With `guarantee`, the first `num_trials` successes in index order, whatever
                 // the workers ran ahead.
                 if summary.successes >= target {
@@ -274,6 +352,7 @@ pub fn generate(run: &TwoArmRun, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> R
     });
     written?;
     writer.finish()?;
+    summary.cancelled = cancel.load(Ordering::Relaxed) && summary.attempts < cap && summary.successes < target;
     Ok(summary)
 }
 

@@ -5,6 +5,7 @@
 
 use std::sync::Arc;
 
+use mimicgen_engine::demonstrator::Style;
 use mimicgen_engine::two_arm::{TwoArmEnvironment, TwoArmLiftScript};
 use mimicgen_sim::two_arm::{TwoArmSimEnv, TwoArmTask};
 use rand::SeedableRng;
@@ -21,7 +22,7 @@ fn the_scripted_two_arm_lift_lifts_the_pot_by_both_handles() {
     let mut env = env("D0");
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     env.reset(&mut rng).unwrap();
-    let demo = TwoArmLiftScript::pot().record(&mut env, &mut rng).unwrap();
+    let demo = TwoArmLiftScript::pot().record(&mut env, Style::Careful, &mut rng).unwrap();
     assert!(demo.success, "{:?}", env.unmet_success());
     assert_eq!(demo.actions.width(), 14);
     let first_on = |signal: &str| demo.subtask_term_signals[signal].iter().position(|&v| v != 0).unwrap();
@@ -53,7 +54,7 @@ fn two_arm_lift_generates_with_a_coordinated_lift() {
     let mut views: Vec<Vec<_>> = vec![Vec::new(), Vec::new()];
     for k in 0..4 {
         env.reset(&mut rng).unwrap();
-        let demo = TwoArmLiftScript::pot().record(&mut env, &mut rng).unwrap();
+        let demo = TwoArmLiftScript::pot().record(&mut env, Style::Careful, &mut rng).unwrap();
         assert!(demo.success);
         for (arm, view) in demo.arm_views(&format!("demo_{k}")).into_iter().enumerate() {
             views[arm].push(view);
@@ -88,7 +89,7 @@ fn the_scripted_handover_gives_the_hammer_from_arm_0_to_arm_1() {
     let mut successes = 0;
     for _ in 0..4 {
         env.reset(&mut rng).unwrap();
-        let demo = TwoArmHandoverScript::hammer().record(&mut env, &mut rng).unwrap();
+        let demo = TwoArmHandoverScript::hammer().record(&mut env, Style::Careful, &mut rng).unwrap();
         let first_on = |signal: &str| demo.subtask_term_signals[signal].iter().position(|&v| v != 0);
         let (Some(lift), Some(at), Some(grasp)) = (first_on("lift"), first_on("at_handover"), first_on("handle_grasp")) else {
             eprintln!("a signal never turned on: {:?}", demo.subtask_term_signals.keys());
@@ -126,7 +127,7 @@ fn handover_generation_keeps_its_order_and_hands_over() {
     let mut views: Vec<Vec<_>> = vec![Vec::new(), Vec::new()];
     while views[0].len() < 3 {
         env.reset(&mut rng).unwrap();
-        let demo = TwoArmHandoverScript::hammer().record(&mut env, &mut rng).unwrap();
+        let demo = TwoArmHandoverScript::hammer().record(&mut env, Style::Careful, &mut rng).unwrap();
         let arm_views = demo.arm_views(&format!("demo_{}", views[0].len()));
         let one = arm_views.iter().map(|d| SourceDataset { demos: vec![d.clone()], env_args: None }).collect();
         if demo.success && TwoArmGenerator::new(spec.clone(), one).is_ok() {
@@ -208,7 +209,7 @@ fn the_transport_hands_the_hammer_over_into_the_target_bin_in_order() {
         tries += 1;
         assert!(tries <= 6, "the script succeeded {} times in {} tries", views[0].len(), tries - 1);
         env.reset(&mut rng).unwrap();
-        let demo = TwoArmTransportScript::transport().record(&mut env, &mut rng).unwrap();
+        let demo = TwoArmTransportScript::transport().record(&mut env, Style::Careful, &mut rng).unwrap();
         if !demo.success {
             continue;
         }

@@ -127,9 +127,23 @@ impl RunStats {
     /// Counts one attempt from its outcome: whether it succeeded, the source demo of each subtask,
     /// where it failed and why (what [`Self::record`] reads of an [`Attempt`]).
     pub fn record_outcome(&mut self, success: bool, sources: &[usize], failure: Option<&Failure>, cause: Option<&crate::diagnose::Cause>) {
+        self.record_sources(success, sources.iter().copied().enumerate(), failure, cause);
+    }
+
+    /// As [`Self::record_outcome`], the source demo given per subtask index as `(subtask, demo)`
+    /// pairs: subtasks that did not run are left out (a two-arm attempt numbers arm 1's subtasks
+    /// after arm 0's).
+    pub fn record_sources(
+        &mut self,
+        success: bool,
+        sources: impl IntoIterator<Item = (usize, usize)>,
+        failure: Option<&Failure>,
+        cause: Option<&crate::diagnose::Cause>,
+    ) {
         self.attempts += 1;
         self.successes += usize::from(success);
-        for (subtask, &d) in sources.iter().enumerate() {
+        let sources: Vec<(usize, usize)> = sources.into_iter().collect();
+        for &(subtask, d) in &sources {
             if subtask >= self.per_subtask_source.len() {
                 self.per_subtask_source.resize(subtask + 1, Vec::new());
             }
@@ -143,7 +157,7 @@ impl RunStats {
                 }
             }
         }
-        let mut used: Vec<usize> = sources.to_vec();
+        let mut used: Vec<usize> = sources.iter().map(|&(_, d)| d).collect();
         used.sort_unstable();
         used.dedup();
         for d in used {

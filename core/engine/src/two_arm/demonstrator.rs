@@ -4,7 +4,7 @@
 //! teleoperated two-arm demo holds (both arms' actions in one row, each arm's poses, targets and
 //! grippers, the objects and signals), as a [`TwoArmAttempt`] without plans.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
 use rand::Rng;
 
@@ -12,6 +12,7 @@ use super::{ArmTrack, TwoArmAttempt, TwoArmEnvironment};
 use crate::EngineError;
 use crate::action::POSE_ACTION_DIM;
 use crate::demo::Rows;
+use crate::demonstrator::{HUMAN_IMPATIENCE, Style, human_moves, uniform_jitter};
 use crate::env::EnvError;
 use crate::pose::{Pose, Rot, Vec3, pose_from_parts, yaw_of};
 
@@ -110,12 +111,19 @@ impl TwoArmLiftScript {
         }
     }
 
-    /// Records one demo from the environment's present state (call `reset` first).
+    /// Records one demo from the environment's present state (call `reset` first), the operators
+    /// moving in `style`.
     ///
     /// # Errors
     /// The environment's error if a step fails, [`EnvError::Fatal`] if the object is missing.
-    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
+    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(
+        &self,
+        env: &mut E,
+        style: Style,
+        rng: &mut R,
+    ) -> Result<TwoArmAttempt, EnvError> {
         let world_from_object = object_pose(&*env, &self.object)?;
+        let spread = grasp_spread(style);
         let lift = rng.random_range(self.lift_height_m.0..self.lift_height_m.1);
         let lift_speed = rng.random_range(0.004..0.007);
         let mut legs = [Vec::new(), Vec::new()];
@@ -123,10 +131,13 @@ impl TwoArmLiftScript {
             let start = env.eef_pose(arm);
             let yaw = yaw_of(&world_from_object) + self.grasp_yaw_offset_rad;
             let eef_yaw = yaw_of(&start);
-            let grasp_yaw = yaw + ((eef_yaw - yaw) / std::f64::consts::PI).round() * std::f64::consts::PI + rng.random_range(-0.1..0.1);
+            let grasp_yaw = yaw
+                + ((eef_yaw - yaw) / std::f64::consts::PI).round() * std::f64::consts::PI
+                + rng.random_range(-0.1 * spread..0.1 * spread);
             let rotation = Rot::from_axis_angle(&Vec3::z_axis(), grasp_yaw - eef_yaw) * start.rotation;
             let point = self.grasp_points_m.get(arm).copied().unwrap_or_default();
-            let offset = Vec3::new(rng.random_range(-0.004..0.004), rng.random_range(-0.002..0.002), rng.random_range(-0.004..0.004));
+            let g = 0.004 * spread;
+            let offset = Vec3::new(rng.random_range(-g..g), rng.random_range(-g / 2.0..g / 2.0), rng.random_range(-g..g));
             let grasp = pose_from_parts((world_from_object * nalgebra::Point3::from(Vec3::from(point))).coords + offset, rotation);
             let up = |h: f64| raised(&grasp, h);
             let (fast, slow) = (rng.random_range(0.012..0.022), rng.random_range(0.004..0.008));
@@ -150,7 +161,7 @@ impl TwoArmLiftScript {
                 leg.hold = close;
             }
         }
-        follow(env, &legs)
+        follow(env, &legs, style, rng)
     }
 }
 
@@ -215,12 +226,13 @@ impl TwoArmHandoverScript {
     /// hand starting at `start`: the fingers close across the handle with the hand one way round
     /// or the other, the one that ends the handover turn nearer the hand's start (the wrist turns
     /// least); at the handover the handle points at the receiver.
-    fn give<R: Rng + ?Sized>(&self, world_from_object: &Pose, start: &Pose, rng: &mut R) -> (Pose, Pose) {
+    /// `spread` scales the grasp's offset and yaw error ([`grasp_spread`]).
+    fn give<R: Rng + ?Sized>(&self, world_from_object: &Pose, start: &Pose, spread: f64, rng: &mut R) -> (Pose, Pose) {
         let axis = world_from_object.rotation * Vec3::from(self.towards_receiver);
         let want = Vec3::from(self.receiver_direction);
         let turn = want.y.atan2(want.x) - axis.y.atan2(axis.x);
         let turn = turn - (turn / std::f64::consts::TAU).round() * std::f64::consts::TAU;
-        let grip = turned_to(start, yaw_of(world_from_object) + rng.random_range(-0.08..0.08));
+        let grip = turned_to(start, yaw_of(world_from_object) + rng.random_range(-0.08 * spread..0.08 * spread));
         let wrapped = |a: f64| (a - (a / std::f64::consts::TAU).round() * std::f64::consts::TAU).abs();
         let rotation = [grip, Rot::from_axis_angle(&Vec3::z_axis(), std::f64::consts::PI) * grip]
             .into_iter()
@@ -231,7 +243,8 @@ impl TwoArmHandoverScript {
                 end(a).total_cmp(&end(b))
             })
             .unwrap_or(grip);
-        let offset = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003));
+        let g = 0.003 * spread;
+        let offset = Vec3::new(rng.random_range(-g..g), rng.random_range(-g..g), rng.random_range(-g..g));
         let grasp = pose_from_parts((world_from_object * nalgebra::Point3::from(Vec3::from(self.give_point_m))).coords + offset, rotation);
         let handover = pose_from_parts(
             Vec3::from(self.handover_m)
@@ -241,13 +254,19 @@ impl TwoArmHandoverScript {
         (grasp, handover)
     }
 
-    /// Records one demo from the environment's present state (call `reset` first).
+    /// Records one demo from the environment's present state (call `reset` first), the operators
+    /// moving in `style`.
     ///
     /// # Errors
     /// The environment's error if a step fails, [`EnvError::Fatal`] if the object is missing.
-    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
+    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(
+        &self,
+        env: &mut E,
+        style: Style,
+        rng: &mut R,
+    ) -> Result<TwoArmAttempt, EnvError> {
         let world_from_object = object_pose(&*env, &self.object)?;
-        let (grasp, handover) = self.give(&world_from_object, &env.eef_pose(0), rng);
+        let (grasp, handover) = self.give(&world_from_object, &env.eef_pose(0), grasp_spread(style), rng);
         let (fast, slow) = (rng.random_range(0.012..0.02), rng.random_range(0.004..0.007));
         let lifted = raised(&grasp, rng.random_range(0.12..0.16));
         let mut give = vec![
@@ -263,8 +282,14 @@ impl TwoArmHandoverScript {
         let mut receive = self.receive(fast, slow, 5, rng).to_vec();
         // Lift once arm 0 has let go and backed off.
         receive.push(ArmLeg::new(Goal::Moved([0.0, 0.05, 0.05]), slow, 1.0, 6, Some(7)));
-        follow(env, &[give, receive])
+        follow(env, &[give, receive], style, rng)
     }
+}
+
+/// How much wider than the careful operator's a style's grasp offsets and yaw errors are drawn:
+/// twice for a person at a teleoperation device, as the one-arm demonstrator's.
+fn grasp_spread(style: Style) -> f64 {
+    if style == Style::Human { 2.0 } else { 1.0 }
 }
 
 /// `world_from_object` of `object` now.
@@ -327,11 +352,17 @@ impl TwoArmTransportScript {
         }
     }
 
-    /// Records one demo from the environment's present state (call `reset` first).
+    /// Records one demo from the environment's present state (call `reset` first), the operators
+    /// moving in `style`.
     ///
     /// # Errors
     /// The environment's error if a step fails, [`EnvError::Fatal`] if an object is missing.
-    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(&self, env: &mut E, rng: &mut R) -> Result<TwoArmAttempt, EnvError> {
+    pub fn record<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(
+        &self,
+        env: &mut E,
+        style: Style,
+        rng: &mut R,
+    ) -> Result<TwoArmAttempt, EnvError> {
         let (fast, slow) = (rng.random_range(0.012..0.02), rng.random_range(0.004..0.007));
         let leg = ArmLeg::new;
         let moved = |x: f64, y: f64, z: f64| Goal::Moved([x, y, z]);
@@ -354,7 +385,7 @@ impl TwoArmTransportScript {
         // Then the hammer out of the bin and to the handover.
         let world_from_hammer = object_pose(&*env, &self.handover.object)?;
         let start = env.eef_pose(0);
-        let (grasp, handover) = self.handover.give(&world_from_hammer, &start, rng);
+        let (grasp, handover) = self.handover.give(&world_from_hammer, &start, grasp_spread(style), rng);
         let carry = rng.random_range(0.008..0.012);
         // Over the bin's walls first (the fingers 10 cm over them), then straight down into it.
         give.extend([
@@ -429,7 +460,7 @@ impl TwoArmTransportScript {
             leg(moved(0.0, 0.0, 0.0), slow, -1.0, rng.random_range(6..9), None),
             leg(moved(0.0, 0.0, 0.10), fast, -1.0, 2, None),
         ]);
-        follow(env, &[give, receive])
+        follow(env, &[give, receive], style, rng)
     }
 }
 
@@ -444,14 +475,34 @@ struct Follower<'a> {
     /// Steps since the commanded pose reached the goal.
     waited: usize,
     gripper: f64,
+    /// A person's moves: the commanded poses planned to the present leg's goal, next first.
+    planned: VecDeque<Pose>,
+    /// A person's reaction: steps still to wait before the present leg starts (`None`: not drawn).
+    reaction: Option<usize>,
+    /// Go on once the commanded pose is at the goal, without waiting for the arm to get there.
+    impatient: bool,
+    /// A person's hand drifting slowly about the commanded pose (m).
+    drift: Vec3,
 }
 
-/// Steps both arms through their legs and records every step.
+/// Steps both arms through their legs, the operators moving in `style`, and records every step.
+/// Careful: even, straight moves, each leg held until the arm is there. Hasty: on as soon as the
+/// commanded pose is at the goal. Human, per arm: a reaction time at the start and whenever the
+/// arm has waited for the other (never between legs the two start together), moves that speed up
+/// and slow down, descents before the gripper acts aimed a few millimetres off and corrected or
+/// paused partway, a hand drifting by about a millimetre, and now and then no wait for the arm.
+/// Only the human style draws from `rng`.
 ///
 /// # Errors
 /// The environment's error if a step fails.
-pub fn follow<E: TwoArmEnvironment + ?Sized>(env: &mut E, legs: &[Vec<ArmLeg>; 2]) -> Result<TwoArmAttempt, EnvError> {
+pub fn follow<E: TwoArmEnvironment + ?Sized, R: Rng + ?Sized>(
+    env: &mut E,
+    legs: &[Vec<ArmLeg>; 2],
+    style: Style,
+    rng: &mut R,
+) -> Result<TwoArmAttempt, EnvError> {
     let fatal = |e: EngineError| EnvError::Fatal { reason: e.to_string() };
+    let human = style == Style::Human;
     let action_dim: usize = (0..2).map(|a| POSE_ACTION_DIM + env.gripper_dim(a)).sum();
     let initial_state = env.state();
     let mut attempt = TwoArmAttempt {
@@ -469,10 +520,22 @@ pub fn follow<E: TwoArmEnvironment + ?Sized>(env: &mut E, legs: &[Vec<ArmLeg>; 2
     let mut followers: Vec<Follower<'_>> = legs
         .iter()
         .enumerate()
-        .map(|(arm, legs)| Follower { legs, leg: 0, goal: None, commanded: env.eef_pose(arm), held: 0, waited: 0, gripper: -1.0 })
+        .map(|(arm, legs)| Follower {
+            legs,
+            leg: 0,
+            goal: None,
+            commanded: env.eef_pose(arm),
+            held: 0,
+            waited: 0,
+            gripper: -1.0,
+            planned: VecDeque::new(),
+            reaction: None,
+            impatient: style == Style::Hasty,
+            drift: Vec3::zeros(),
+        })
         .collect();
     // A bound on the recording: no demo of a scripted table-top task is this long.
-    for _ in 0..2000 {
+    for _ in 0..3000 {
         if followers.iter().all(|f| f.leg >= f.legs.len()) {
             return Ok(attempt);
         }
@@ -483,27 +546,51 @@ pub fn follow<E: TwoArmEnvironment + ?Sized>(env: &mut E, legs: &[Vec<ArmLeg>; 2
             if let Some(leg) = f.legs.get(f.leg)
                 && leg.after.is_none_or(|n| progress.get(1 - arm).is_none_or(|&other| other >= n))
             {
-                let goal = match f.goal {
-                    Some(goal) => goal,
-                    None => *f.goal.insert(resolve(&leg.goal, &f.commanded, &*env)?),
-                };
-                f.gripper = leg.gripper;
-                f.commanded = step_towards(&f.commanded, &goal, leg.speed_m);
-                if f.commanded == goal {
-                    f.waited += 1;
-                }
-                // There within 1 cm; an arm that cannot get closer (a joint at its limit) goes on
-                // after a second and a half, as an operator would.
-                let arrived = f.commanded == goal
-                    && ((env.eef_pose(arm).translation.vector - goal.translation.vector).norm() < 0.01 || f.waited > 30);
-                if arrived || (f.commanded == goal && f.held > 0) {
-                    f.held += 1;
-                }
-                if f.held > leg.hold {
-                    (f.leg, f.held, f.waited, f.goal) = (f.leg + 1, 0, 0, None);
+                // A reaction before the first leg and after waiting for the other arm; legs the
+                // two arms start together (`after` is the leg's own index) start at once.
+                let reacts = human && f.goal.is_none() && (f.leg == 0 || leg.after.is_some_and(|n| n != f.leg));
+                let reaction = f.reaction.get_or_insert_with(|| if reacts { rng.random_range(3..10) } else { 0 });
+                if *reaction > 0 {
+                    *reaction -= 1;
+                } else {
+                    let goal = match f.goal {
+                        Some(goal) => goal,
+                        None => {
+                            let goal = resolve(&leg.goal, &f.commanded, &*env)?;
+                            if human {
+                                // Precise: the gripper acts once the leg is done (a descent to grasp or to let go).
+                                let precise = f.legs.get(f.leg + 1).is_some_and(|next| (next.gripper - leg.gripper).abs() > 0.5);
+                                f.planned = human_moves(&f.commanded, &goal, leg.speed_m, precise, rng).into();
+                                f.impatient = precise && rng.random_bool(HUMAN_IMPATIENCE);
+                            }
+                            *f.goal.insert(goal)
+                        }
+                    };
+                    f.gripper = leg.gripper;
+                    f.commanded =
+                        if human { f.planned.pop_front().unwrap_or(goal) } else { step_towards(&f.commanded, &goal, leg.speed_m) };
+                    if f.commanded == goal {
+                        f.waited += 1;
+                    }
+                    // There within 1 cm; an arm that cannot get closer (a joint at its limit) goes
+                    // on after a second and a half, as an operator would.
+                    let arrived = f.commanded == goal
+                        && (f.impatient || (env.eef_pose(arm).translation.vector - goal.translation.vector).norm() < 0.01 || f.waited > 30);
+                    if arrived || (f.commanded == goal && f.held > 0) {
+                        f.held += 1;
+                    }
+                    if f.held > leg.hold {
+                        (f.leg, f.held, f.waited, f.goal, f.reaction) = (f.leg + 1, 0, 0, None, None);
+                        f.impatient = style == Style::Hasty;
+                    }
                 }
             }
-            let pose_action = env.target_pose_to_action(arm, &f.commanded);
+            let mut target = f.commanded;
+            if human {
+                f.drift = f.drift * 0.8 + uniform_jitter(rng, 7e-4);
+                target = pose_from_parts(target.translation.vector + f.drift, target.rotation);
+            }
+            let pose_action = env.target_pose_to_action(arm, &target);
             let arm_action: Vec<f64> = pose_action.iter().copied().chain(std::iter::repeat_n(f.gripper, env.gripper_dim(arm))).collect();
             let track = attempt.arms.get_mut(arm).ok_or_else(|| EnvError::Fatal { reason: format!("no arm {arm}") })?;
             track.eef_poses.push(env.eef_pose(arm));
@@ -525,7 +612,7 @@ pub fn follow<E: TwoArmEnvironment + ?Sized>(env: &mut E, legs: &[Vec<ArmLeg>; 2
         env.step(&action)?;
         attempt.success |= env.is_success();
     }
-    Err(EnvError::Fatal { reason: "the script did not end within 2000 steps".to_owned() })
+    Err(EnvError::Fatal { reason: "the script did not end within 3000 steps".to_owned() })
 }
 
 /// The pose `goal` names now, for a hand commanded at `commanded`.

@@ -133,6 +133,22 @@ pub struct TwoArmAttempt {
 }
 
 impl TwoArmAttempt {
+    /// Counts this attempt into `stats`, the subtasks numbered through both arms (arm 0's
+    /// `0..counts[0]`, then arm 1's): each planned subtask's source demo, and where it failed.
+    pub fn record_into(&self, stats: &mut crate::RunStats, counts: &[usize]) {
+        let offset = |arm: usize| counts.iter().take(arm).sum::<usize>();
+        let sources = self
+            .arms
+            .iter()
+            .enumerate()
+            .flat_map(|(arm, track)| track.plans.iter().enumerate().map(move |(k, p)| (offset(arm) + k, p.src_demo)));
+        let failure = self
+            .failure
+            .as_ref()
+            .map(|f| crate::generate::Failure { subtask: offset(f.arm.unwrap_or(0)) + f.subtask, reason: f.reason.clone() });
+        stats.record_sources(self.success, sources, failure.as_ref(), None);
+    }
+
     /// The attempt as a source demo named `name`, one view per arm (its poses, targets and
     /// gripper; the objects and signals the same in each): what [`TwoArmGenerator::new`] takes,
     /// and what a two-arm source file reads back as.
