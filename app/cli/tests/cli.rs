@@ -403,7 +403,7 @@ fn demos_reproduces_every_bundled_source_file() {
         .filter(|s| s.starts_with("mimicgen demos ") && s.contains(" --out core/sim/data/"))
         .map(|s| s.split_whitespace().skip(1).map(str::to_owned).collect())
         .collect();
-    assert!(commands.len() >= 24, "12 tasks in two styles: {} commands in the README", commands.len());
+    assert!(commands.len() >= 30, "12 one-arm and 3 two-arm tasks in two styles: {} commands in the README", commands.len());
     let dir = tempfile::tempdir().unwrap();
     let check = |args: &Vec<String>| -> Option<String> {
         let at = |flag: &str| args.iter().position(|a| a == flag).unwrap() + 1;

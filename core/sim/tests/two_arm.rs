@@ -42,6 +42,41 @@ fn the_scripted_two_arm_lift_lifts_the_pot_by_both_handles() {
     assert_eq!(obs["robot1_eef_pos"].len(), 3);
 }
 
+/// The human style: the same scene and script, recorded slower and with a hand that is never
+/// quite still, yet both arms still close on the same step and lift on the same step (a
+/// reaction is drawn only where an arm waited for the other, never between legs the two start
+/// together).
+#[test]
+fn a_human_style_two_arm_lift_reacts_and_drifts_but_closes_and_lifts_together() {
+    let record = |style: Style| {
+        let mut env = env("D0");
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        env.reset(&mut rng).unwrap();
+        let demo = TwoArmLiftScript::pot().record(&mut env, style, &mut rng).unwrap();
+        assert!(demo.success, "{style:?}: {:?}", env.unmet_success());
+        demo
+    };
+    let (careful, human) = (record(Style::Careful), record(Style::Human));
+    assert!(human.actions.len() > careful.actions.len(), "{} steps, careful {}", human.actions.len(), careful.actions.len());
+    // Each arm's first step: the careful hand starts at once; the human one reacts first.
+    let first_move = |demo: &mimicgen_engine::two_arm::TwoArmAttempt, arm: usize| {
+        let start = demo.arms[arm].target_poses[0].translation.vector;
+        demo.arms[arm].target_poses.iter().position(|p| (p.translation.vector - start).norm() > 0.004).unwrap()
+    };
+    for arm in 0..2 {
+        assert!(first_move(&human, arm) > first_move(&careful, arm), "arm {arm}");
+    }
+    // Both grippers close on one step.
+    let closes = |demo: &mimicgen_engine::two_arm::TwoArmAttempt, arm: usize| {
+        (0..demo.actions.len()).position(|t| demo.arms[arm].gripper_actions.row(t)[0] > 0.0).unwrap()
+    };
+    assert_eq!(closes(&human, 0), closes(&human, 1));
+    // While closing, the commanded hands drift by about a millimetre rather than hold exactly.
+    let t = closes(&human, 0);
+    let drift = (human.arms[0].target_poses[t + 5].translation.vector - human.arms[0].target_poses[t].translation.vector).norm();
+    assert!(drift > 1e-5 && drift < 0.005, "{drift}");
+}
+
 /// Generation from scripted demos: each arm grasps on its own, then both lift in lockstep from
 /// one source demo; most attempts lift the pot.
 #[test]
