@@ -32,7 +32,7 @@ pub mod two_arm;
 pub use data_task::DataTask;
 pub use env::SimEnv;
 pub use geometry::{GeomPoser, Part, Shape, VisibleGeom};
-pub use scene::Scene;
+pub use scene::{ConvexCollider, Scene};
 pub use state::SimState;
 pub use task::Task;
 pub use task_file::TaskFile;

@@ -136,6 +136,24 @@ fn resolve_robot(
     Ok(robot)
 }
 
+/// How MuJoCo computes contacts between convex geoms that have no collider of their own
+/// (cylinders against boxes, meshes): robosuite 1.4's MuJoCo 2.3 runs libccd; MuJoCo 3.17 runs its
+/// native CCD by default, which puts the contacts elsewhere. Two Arm Transport's scripted demos,
+/// replayed in robosuite, part from our states within 60 to 190 steps with the native collider
+/// (the trash, the lid and the hammer settle otherwise) and within 380 to 600 with libccd
+/// (BENCHMARKS.md). Only the simulation changes, never the `model_file` written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ConvexCollider {
+    /// MuJoCo 3.17's native CCD (its default).
+    #[default]
+    Native,
+    /// libccd, as the MuJoCo robosuite 1.4 runs computes them (`nativeccd` disabled).
+    Libccd,
+}
+
+/// The option that makes MuJoCo 3.17 compute convex contacts with libccd.
+const LIBCCD_SECTION: &str = "<option><flag nativeccd=\"disable\"/></option>";
+
 impl Scene {
     /// The arms: the first, then a two-arm scene's second.
     #[must_use]
@@ -153,9 +171,27 @@ impl Scene {
     /// An object body without joints that is not a mocap body yet (robosuite's pegs) is made one,
     /// so that resets can move it while it stays fixed during an episode.
     pub fn compile(xml: &str, origin: &str, objects: &[(String, String)], control_freq_hz: f64) -> Result<Self, SimError> {
+        Self::compile_with(xml, origin, objects, control_freq_hz, ConvexCollider::Native)
+    }
+
+    /// [`Scene::compile`] with convex contacts (cylinders, meshes) computed by `convex`.
+    ///
+    /// # Errors
+    /// As [`Scene::compile`].
+    pub fn compile_with(
+        xml: &str,
+        origin: &str,
+        objects: &[(String, String)],
+        control_freq_hz: f64,
+        convex: ConvexCollider,
+    ) -> Result<Self, SimError> {
         let robot_model = crate::robot::detect(|name| xml.contains(&format!("\"{name}\"")));
         let physics_xml =
             crate::robot::for_simulation(&crate::mjcf_edit::with_arena(&crate::mjcf_edit::without_image_textures(xml), "32M"), robot_model);
+        let physics_xml = match convex {
+            ConvexCollider::Native => physics_xml,
+            ConvexCollider::Libccd => crate::mjcf_edit::with_section(&physics_xml, LIBCCD_SECTION),
+        };
         let model = compile_mjcf(&physics_xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?;
         let section = if crate::legacy_contacts::enabled() { crate::legacy_contacts::contact_section(&model) } else { None };
         let model = match section {
@@ -186,7 +222,7 @@ impl Scene {
                 edited = crate::mjcf_edit::edit_body(&edited, body, &[("mocap", "true".to_owned())], &[])
                     .ok_or_else(|| SimError::MissingName { file: origin.to_owned(), kind: "body tag".to_owned(), name: body.to_owned() })?;
             }
-            return Self::compile(&edited, origin, objects, control_freq_hz);
+            return Self::compile_with(&edited, origin, objects, control_freq_hz, convex);
         }
         let robot = resolve_robot(&model, robot_model, 0, origin)?;
         let second_robot = if model.name_to_id(MjtObjBase::mjOBJ_BODY, "robot1_base").is_some() {

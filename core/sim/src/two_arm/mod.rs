@@ -19,7 +19,7 @@ use mimicgen_engine::pose::Rot;
 use mujoco_rs::prelude::*;
 
 use crate::SimError;
-use crate::scene::Scene;
+use crate::scene::{ConvexCollider, Scene};
 
 /// robosuite 1.4.1's Two Arm Lift scene as its `TwoArmLift` compiles it: two Pandas facing each
 /// other across the table ("single-arm-opposed", `robot0_` at y = -0.56 m, `robot1_` at +0.56 m)
@@ -197,7 +197,9 @@ impl TwoArmTask {
         .to_string()
     }
 
-    /// Compiles the task's scene (robosuite's, asset paths pointed at the local robosuite assets).
+    /// Compiles the task's scene (robosuite's, asset paths pointed at the local robosuite assets),
+    /// its convex contacts computed by libccd as robosuite's MuJoCo computes them
+    /// ([`ConvexCollider::Libccd`]).
     ///
     /// # Errors
     /// [`SimError::Assets`] without local assets, else as [`Scene::compile`]; a scene without a
@@ -206,7 +208,7 @@ impl TwoArmTask {
         let assets = crate::assets::robosuite_assets_dir()?;
         let origin = format!("robosuite's {} scene", self.env_name());
         let xml = self.xml().replace("{ASSETS}", &assets.display().to_string());
-        let scene = Scene::compile(&xml, &origin, &self.objects(), 20.0)?;
+        let scene = Scene::compile_with(&xml, &origin, &self.objects(), 20.0, ConvexCollider::Libccd)?;
         if scene.second_robot.is_none() {
             return Err(SimError::MissingName { file: origin, kind: "body".to_owned(), name: "robot1_base".to_owned() });
         }
@@ -228,7 +230,8 @@ impl TwoArmTask {
     /// As [`TwoArmTask::scene`].
     pub fn scene_from_model_file(self, xml: &str, origin: &str) -> Result<Scene, SimError> {
         let assets = crate::assets::robosuite_assets_dir()?;
-        let scene = Scene::compile(&crate::assets::remap_asset_paths(xml, &assets), origin, &self.objects(), 20.0)?;
+        let scene =
+            Scene::compile_with(&crate::assets::remap_asset_paths(xml, &assets), origin, &self.objects(), 20.0, ConvexCollider::Libccd)?;
         if scene.second_robot.is_none() {
             return Err(SimError::MissingName { file: origin.to_owned(), kind: "body".to_owned(), name: "robot1_base".to_owned() });
         }
