@@ -7,7 +7,10 @@ For each of the first N demos (data/demo_0, data/demo_1, ... in numeric order) t
 robosuite's own environment from the file's `data` attr `env_args`, loads the demo's `model_file`
 (asset paths re-pointed by the env's `edit_model_xml`), restores the first stored state, steps the
 stored actions open loop, and records whether `env._check_success()` held at any step and at the
-end. It prints one line per demo and `robosuite replay: K of N succeeded`.
+end, and where the replay parted from the stored states: the first step at which some joint's
+position (an arm's joint, a gripper finger, an object's free joint) differed from the stored one by
+more than 1 mm (or mrad), 5 mm and 2 cm, and which joint. It prints one line per demo and
+`robosuite replay: K of N succeeded`.
 
 Exit status: 0 ok, 1 fewer than --min-success demos succeeded, 2 bad input (missing file, group,
 attribute or dataset, or an env_args that robosuite cannot use).
@@ -118,6 +121,21 @@ def make_env(env_args, path, render=False):
     return env, env_name, dropped
 
 
+# How far a replayed joint position may be from the stored one before the replay counts as parted
+# from the recording there (m or rad; a free joint's quaternion components count as they are).
+PARTED_AT = (0.001, 0.005, 0.02)
+
+
+def qpos_names(model):
+    """The joint each qpos entry belongs to, `name[k]` for the k-th of a multi-entry joint."""
+    names = []
+    for j in range(model.njnt):
+        size = {0: 7, 1: 4}.get(int(model.jnt_type[j]), 1)
+        jn = model.joint_id2name(j) or f"joint{j}"
+        names += [jn] if size == 1 else [f"{jn}[{k}]" for k in range(size)]
+    return names
+
+
 def replay_demo(env, grp, name, path):
     import numpy as np
 
@@ -163,7 +181,14 @@ def replay_demo(env, grp, name, path):
     # with the last stored state (robomimic's playback compares the same pairs). Time is left out.
     success_any, first_success, success = False, None, False
     last_err = None
+    names, parted = qpos_names(sim.model), {}
     for t, action in enumerate(actions):
+        if t < len(states) and len(parted) < len(PARTED_AT):
+            d = np.abs(np.asarray(sim.data.qpos, dtype=np.float64) - states[t][1:1 + nq])
+            i = int(d.argmax())
+            for limit in PARTED_AT:
+                if limit not in parted and d[i] > limit:
+                    parted[limit] = {"step": t, "joint": names[i] if i < len(names) else str(i), "diff": float(d[i])}
         if t == len(states) - 1:
             rep = np.asarray(sim.get_state().flatten(), dtype=np.float64)
             d = np.abs(rep - states[t])
@@ -180,6 +205,8 @@ def replay_demo(env, grp, name, path):
         "success": success_any,
         "success_at_end": success,
         "first_success_step": first_success,
+        # Limit (m or rad) -> where the replay first parted from the stored states by more.
+        "parted": {f"{limit:g}": parted[limit] for limit in PARTED_AT if limit in parted},
     }
     if last_err is not None:
         out["qpos_err"], out["qvel_err"] = last_err
@@ -243,8 +270,9 @@ def main(argv=None):
                 print(f"{name}: FAILED {r['error']}", file=log)
                 continue
             err = f"{r['state_err']:.3g} (qpos {r['qpos_err']:.3g}, qvel {r['qvel_err']:.3g})" if "state_err" in r else "n/a"
+            parted = ", ".join(f">{k} at step {v['step']} ({v['joint']})" for k, v in r["parted"].items()) or "never by 1 mm"
             print(f"{name}: steps {r['steps']} success {r['success']} (at end {r['success_at_end']}, "
-                  f"first at step {r['first_success_step']}) last-state max abs diff {err} [{r['seconds']:.1f}s]", file=log)
+                  f"first at step {r['first_success_step']}) last-state max abs diff {err}; parted {parted} [{r['seconds']:.1f}s]", file=log)
         env.close()
 
     k, n = sum(r["success"] for r in results), len(results)

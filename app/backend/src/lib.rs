@@ -233,10 +233,7 @@ impl Worker {
         let cancel = Arc::new(AtomicBool::new(false));
         let (flag, notify) = (Arc::clone(&cancel), Arc::clone(&self.run_notify));
         let job: Box<dyn FnOnce() + Send> = if self.two_arm {
-            let Some(task) = config.source.as_deref().and_then(files::two_arm_task) else {
-                return Reply::Failed { what: "starting a run".to_owned(), error: "the run's source is no two-arm source file".to_owned() };
-            };
-            Box::new(move || runs::run_two_arm_generation(&config, task, &flag, &notify))
+            Box::new(move || runs::run_two_arm_generation(&config, &flag, &notify))
         } else {
             // The run's own recording (its attempts on the `attempt` and `frame` timelines): a new
             // recording in the embedded viewer or the spawned one, `<file>_run.rrd` beside a saved one.

@@ -222,112 +222,47 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
     Ok(OpenedRun { path: path.to_path_buf(), info, dimensions: task.coverage_dimensions(), rows, report })
 }
 
-/// The two-arm run `config` asks for over its source (a two-arm file of `task`), or why the
-/// two-arm run cannot make it (the fields it lacks, by name).
-fn two_arm_run(config: &RunConfig, task: mimicgen_sim::two_arm::TwoArmTask) -> Result<two_arm::TwoArmRun, String> {
-    let lacking: Vec<&str> = [
-        (config.config.is_some(), "a spec file"),
-        (config.robot.is_some(), "another robot"),
-        (config.cameras.is_some(), "cameras"),
-        (config.resume, "resume"),
-        (config.shard.is_some(), "shards"),
-        (config.keep_failed, "keeping failed attempts"),
-        (config.early_abort, "early abort"),
-        (!config.spec.is_empty(), "spec fields"),
-    ]
-    .into_iter()
-    .filter_map(|(set, what)| set.then_some(what))
-    .collect();
-    if !lacking.is_empty() {
-        return Err(format!("a two-arm run has no {} yet: leave them out", lacking.join(", ")));
-    }
-    let variant = config.variant.clone().unwrap_or_else(|| "D0".to_owned());
-    if !task.variants().contains(&variant.as_str()) {
-        return Err(format!("{} has variants {}, not {variant:?}", task.name(), task.variants().join(", ")));
-    }
-    if config.source.as_ref().is_some_and(|s| s.canonicalize().ok() == config.out.canonicalize().ok()) {
-        return Err(format!("{} is the source: write the run to another file", config.out.display()));
-    }
-    mimicgen_pipeline::clear_outputs(&config.out, None, config.overwrite, false).map_err(|e| e.to_string())?;
-    Ok(two_arm::TwoArmRun {
-        task,
-        variant,
-        source: config.source.clone(),
-        out: config.out.clone(),
-        num_trials: config.num_demos.unwrap_or(50),
-        guarantee: config.guarantee,
-        max_attempts: config.max_attempts,
-        valid_fraction: config.valid_fraction,
-        seed: config.seed.unwrap_or(1),
-        workers: config.workers.max(1),
-    })
-}
-
-/// Runs `config` as a two-arm run of `task` (the open file is its source), reporting to `notify`
-/// as [`run_generation`] does, its subtasks numbered through both arms (arm 0's, then arm 1's). The report is also written as `<out>.json`, as
-/// `mimicgen generate` writes it.
-pub(crate) fn run_two_arm_generation(config: &RunConfig, task: mimicgen_sim::two_arm::TwoArmTask, cancel: &AtomicBool, notify: &Notify) {
+/// Runs `config` as a two-arm run (its source is a two-arm file), reporting to `notify` as
+/// [`run_generation`] does, its subtasks numbered through both arms (arm 0's, then arm 1's); the
+/// report is also written as `<out>.json`, as `mimicgen generate` writes it.
+pub(crate) fn run_two_arm_generation(config: &RunConfig, cancel: &AtomicBool, notify: &Notify) {
     let update = |u: RunUpdate| notify(Reply::Run(u));
-    let run = match two_arm_run(config, task) {
-        Ok(run) => run,
-        Err(e) => return update(RunUpdate::Failed(e)),
-    };
-    let started = std::time::Instant::now();
-    // Subtasks per arm: arm 1's are numbered after arm 0's.
-    let mut counts: Vec<usize> = Vec::new();
-    let result = two_arm::generate(&run, cancel, &mut |event| match event {
-        two_arm::TwoArmEvent::Started { spec, source_names } => {
-            counts = spec.arms.iter().map(|a| a.subtasks.len()).collect();
-            let info = RunInfo {
-                task: task.name().to_owned(),
-                variant: run.variant.clone(),
-                source: run.source.clone().unwrap_or_default(),
-                num_sources: source_names.len(),
-                workers: run.workers,
-                seed: run.seed,
-                spec_overrides: mimicgen_pipeline::SpecOverrides::default(),
-                target: run.num_trials,
-                guarantee: run.guarantee,
-                resumed_from: 0,
-            };
-            update(RunUpdate::Started { info: Box::new(info), dimensions: Vec::new() });
-        }
-        two_arm::TwoArmEvent::Attempt { attempt, stats, written, .. } => {
-            let offset = |arm: usize| counts.iter().take(arm).sum::<usize>();
-            // Each subtask's source, arm 1's only after all of arm 0's (so they keep their numbers).
-            let mut sources: Vec<usize> = Vec::new();
-            for (arm, track) in attempt.arms.iter().enumerate() {
-                if sources.len() == offset(arm) {
-                    sources.extend(track.plans.iter().map(|p| p.src_demo));
-                }
+    let result = two_arm::TwoArmRun::from_config(config).and_then(|run| {
+        let started = std::time::Instant::now();
+        two_arm::run_and_report(&run, cancel, &mut |event| match event {
+            two_arm::TwoArmEvent::Started { source_names, .. } => {
+                update(RunUpdate::Started { info: Box::new(run.info(source_names.len())), dimensions: Vec::new() });
             }
-            let row = AttemptRow {
-                index: attempt.index,
-                success: attempt.success,
-                failed_subtask: attempt.failure.as_ref().map(|f| offset(f.arm.unwrap_or(0)) + f.subtask),
-                // The arm is in the subtask's number (the UI names it).
-                reason: attempt.failure.as_ref().map(|f| f.reason.to_string()),
-                cause: None,
-                sources,
-                steps: attempt.actions.len(),
-                outcome: written.map_or_else(|| "discarded".to_owned(), str::to_owned),
-                elapsed_s: started.elapsed().as_secs_f64(),
-                objects: objects(&attempt.initial_object_poses),
-                instance: None,
-                stats: stats.clone(),
-            };
-            update(RunUpdate::Attempt(Box::new(row)));
-        }
+            two_arm::TwoArmEvent::Attempt { attempt, stats, written, subtask_counts, .. } => {
+                // Each subtask's source by its number (arm 1's after all of arm 0's).
+                let mut sources = Vec::new();
+                for (k, demo) in attempt.flat_sources(subtask_counts) {
+                    if k == sources.len() {
+                        sources.push(demo);
+                    }
+                }
+                let failure = attempt.flat_failure(subtask_counts);
+                let row = AttemptRow {
+                    index: attempt.index,
+                    success: attempt.success,
+                    failed_subtask: failure.as_ref().map(|f| f.subtask),
+                    // The arm is in the subtask's number (the UI names it).
+                    reason: failure.map(|f| f.reason.to_string()),
+                    cause: None,
+                    sources,
+                    steps: attempt.actions.len(),
+                    outcome: written.map_or_else(|| "discarded".to_owned(), str::to_owned),
+                    elapsed_s: started.elapsed().as_secs_f64(),
+                    objects: objects(&attempt.initial_object_poses),
+                    instance: None,
+                    stats: stats.clone(),
+                };
+                update(RunUpdate::Attempt(Box::new(row)));
+            }
+        })
     });
     match result {
-        Ok(summary) => {
-            let report = summary.report(&run, started.elapsed().as_secs_f64());
-            let path = mimicgen_pipeline::sibling(&run.out, "", "json");
-            match std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap_or_default()) {
-                Ok(()) => update(RunUpdate::Finished(Box::new(report))),
-                Err(e) => update(RunUpdate::Failed(format!("writing {}: {e}", path.display()))),
-            }
-        }
+        Ok((_, report)) => update(RunUpdate::Finished(Box::new(report))),
         Err(e) => update(RunUpdate::Failed(e.worded(FrontEnd::App))),
     }
 }

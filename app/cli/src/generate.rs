@@ -665,6 +665,7 @@ fn generate_two_arm(args: &GenerateArgs, task: mimicgen_sim::two_arm::TwoArmTask
         valid_fraction: args.valid_fraction,
         seed: args.seed.unwrap_or(1),
         workers: args.workers,
+        overwrite: args.overwrite,
     };
     crate::two_arm::generate(&run, &args.rerun)
 }

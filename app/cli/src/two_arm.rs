@@ -46,7 +46,6 @@ pub fn generate(run: &TwoArmRun, rerun: &crate::view::RerunArgs) -> anyhow::Resu
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    let started = std::time::Instant::now();
     let scene = if rerun.is_set() { Some(run.task.scene()?) } else { None };
     let mut viz = match scene.as_ref() {
         Some(scene) => rerun.logger("mimicgen", scene)?,
@@ -54,7 +53,7 @@ pub fn generate(run: &TwoArmRun, rerun: &crate::view::RerunArgs) -> anyhow::Resu
     };
     let mut viz_error: Option<anyhow::Error> = None;
     let mut spec = None;
-    let summary = two_arm::generate(run, &std::sync::atomic::AtomicBool::new(false), &mut |event| match event {
+    let run_result = two_arm::run_and_report(run, &std::sync::atomic::AtomicBool::new(false), &mut |event| match event {
         TwoArmEvent::Started { spec: s, source_names } => {
             spec = Some(s.clone());
             if let Some(v) = viz.as_mut() {
@@ -71,7 +70,7 @@ pub fn generate(run: &TwoArmRun, rerun: &crate::view::RerunArgs) -> anyhow::Resu
                 viz = None;
             }
         }
-    })?;
+    });
     bar.finish_and_clear();
     if let Some(v) = viz {
         v.finish().context("flushing the Rerun recording")?;
@@ -79,11 +78,10 @@ pub fn generate(run: &TwoArmRun, rerun: &crate::view::RerunArgs) -> anyhow::Resu
     if let Some(e) = viz_error {
         return Err(e);
     }
-    let seconds = started.elapsed().as_secs_f64();
-    let rate = 100.0 * summary.stats.rate();
-    let report = summary.report(run, seconds);
+    let (summary, report) = run_result?;
+    let seconds = report.wall_time_s;
+    let rate = 100.0 * report.generation_rate;
     let report_path = mimicgen_pipeline::sibling(&run.out, "", "json");
-    std::fs::write(&report_path, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", report_path.display()))?;
     outln!(
         "{} {}: {} of {} attempts succeeded ({rate:.1} %) from {} source demos in {seconds:.0} s; wrote {} and {}",
         run.task.name(),

@@ -372,6 +372,42 @@ fn event_json(event: &Event) -> Option<String> {
     serde_json::to_string(&value).ok()
 }
 
+/// Runs `config` as a two-arm run (`task="two_arm_lift"`), its events as JSON as [`event_json`]
+/// writes a one-arm run's: subtasks numbered through both arms (arm 0's, then arm 1's), a
+/// failure naming its arm and the arm's own subtask too.
+fn run_two_arm(config: &RunConfig, cancel: &AtomicBool, send: &dyn Fn(String)) -> Result<Report, String> {
+    use mimicgen_pipeline::two_arm::{TwoArmEvent, TwoArmRun, run_and_report};
+    let run = TwoArmRun::from_config(config).map_err(|e| worded(&e))?;
+    let started = std::time::Instant::now();
+    let result = run_and_report(&run, cancel, &mut |event| {
+        let value = match event {
+            TwoArmEvent::Started { source_names, .. } => {
+                let mut v = serde_json::to_value(run.info(source_names.len())).unwrap_or_default();
+                if let Some(o) = v.as_object_mut() {
+                    o.insert("kind".to_owned(), "started".into());
+                }
+                v
+            }
+            TwoArmEvent::Attempt { attempt, stats, written, subtask_counts, .. } => serde_json::json!({
+                "kind": "attempt",
+                "index": attempt.index,
+                "success": attempt.success,
+                "outcome": if written.is_some() { "written" } else { "discarded" },
+                "demo": written,
+                "sources": attempt.flat_sources(subtask_counts).map(|(_, d)| d).collect::<Vec<_>>(),
+                "failure": attempt.failure.as_ref().zip(attempt.flat_failure(subtask_counts)).map(|(f, flat)| serde_json::json!({
+                    "subtask": flat.subtask, "arm": f.arm, "arm_subtask": f.subtask, "reason": f.reason.to_string(),
+                })),
+                "steps": attempt.actions.len(),
+                "stats": stats,
+                "elapsed_s": started.elapsed().as_secs_f64(),
+            }),
+        };
+        send(value.to_string());
+    });
+    result.map(|(_, report)| report).map_err(|e| worded(&e))
+}
+
 /// A generation run going on in the background: iterate it for its events, `wait()` for its
 /// report, `cancel()` to stop it after the attempts already decided (the outputs stay valid).
 #[pyclass(module = "mimicgen_rs._native")]
@@ -394,7 +430,11 @@ impl Run {
                         let _ = tx.send(Message::Event(text));
                     }
                 };
+                let two_arm = config.task.as_deref().is_some_and(|t| mimicgen_sim::two_arm::TwoArmTask::from_name(t).is_some());
                 let result = match env {
+                    None if two_arm => run_two_arm(&config, &flag, &|text| {
+                        let _ = tx.send(Message::Event(text));
+                    }),
                     None => Pipeline::prepare(&config).and_then(|p| p.run(&flag, on_event)).map_err(|e| worded(&e)),
                     Some(factory) => pyenv::run(&config, &factory, &flag, on_event),
                 };

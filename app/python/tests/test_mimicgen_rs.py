@@ -274,3 +274,26 @@ def test_cameras_and_a_lerobot_export_that_pyarrow_reads(tmp_path):
     assert table.column("episode_index").to_pylist()[steps] == 1
     with pytest.raises(mg.MimicgenError, match="obs/nope"):
         mg.export_lerobot(out, tmp_path / "other", state_keys=["nope"])
+
+
+def test_a_two_arm_task_generates_with_the_same_call(tmp_path):
+    """`task="two_arm_handover"`: both arms' actions in one row, events and the report as for one
+    arm, subtasks numbered through both arms; what two-arm runs lack is refused by name."""
+    out = tmp_path / "handover.hdf5"
+    run = mg.generate(out, task="two_arm_handover", num_demos=4, seed=1, workers=2)
+    events = list(run)
+    report = run.wait()
+    assert events[0]["kind"] == "started" and events[0]["task"] == "two_arm_handover"
+    attempts = [e for e in events if e["kind"] == "attempt"]
+    assert [e["index"] for e in attempts] == [0, 1, 2, 3]
+    assert report["attempts"] == 4 and report["successes"] == sum(e["success"] for e in attempts)
+    assert len(report["per_subtask_source"]) == max(len(e["sources"]) for e in attempts)
+    for e in attempts:
+        if e["failure"] is not None:
+            assert e["failure"]["arm"] in (0, 1, None) and e["failure"]["reason"]
+    ds = mg.Dataset(out)
+    assert len(ds) == report["successes"]
+    if len(ds):
+        assert ds.demo("demo_0")["actions"].shape[1] == 14
+    with pytest.raises(mg.MimicgenError, match="--keep-failed"):
+        mg.generate(tmp_path / "kept.hdf5", task="two_arm_lift", keep_failed=True).wait()

@@ -25,7 +25,7 @@ use mimicgen_io::{DatasetWriter, DemoData, RobomimicDataset, WriterOptions};
 use mimicgen_sim::two_arm::{TwoArmSimEnv, TwoArmTask};
 use rand::SeedableRng as _;
 
-use crate::{PipelineError, Report};
+use crate::{PipelineError, Report, RunConfig, RunInfo};
 
 /// The arms' names in files (robosuite's observation prefixes without the `_`).
 pub const ARMS: [&str; 2] = ["robot0", "robot1"];
@@ -126,6 +126,76 @@ pub struct TwoArmRun {
     pub seed: u64,
     /// Worker threads, each with its own simulator.
     pub workers: usize,
+    /// Replace existing outputs (the dataset, its `.partial` and its report).
+    pub overwrite: bool,
+}
+
+impl TwoArmRun {
+    /// The two-arm run `config` asks for: its task named by `config.task` or, without one, by the
+    /// source file's `env_args`; or why it cannot be made.
+    ///
+    /// # Errors
+    /// [`PipelineError::Input`] naming the fields two-arm runs lack (`--resume`, ...), a task that
+    /// is no two-arm task, a variant the task lacks.
+    pub fn from_config(config: &RunConfig) -> Result<Self, PipelineError> {
+        let lacking: Vec<&str> = [
+            (config.config.is_some(), "--config"),
+            (config.robot.is_some(), "--robot"),
+            (config.cameras.is_some(), "--cameras"),
+            (config.resume, "--resume"),
+            (config.shard.is_some(), "--shard"),
+            (config.keep_failed, "--keep-failed"),
+            (config.early_abort, "--early-abort"),
+            (!config.spec.is_empty(), "spec fields (--action-noise, ...)"),
+        ]
+        .into_iter()
+        .filter_map(|(set, flag)| set.then_some(flag))
+        .collect();
+        let name = match (&config.task, &config.source) {
+            (Some(name), _) => name.clone(),
+            (None, Some(source)) => RobomimicDataset::open(source)?
+                .env_args()
+                .and_then(TwoArmTask::from_env_args)
+                .map(|t| t.name().to_owned())
+                .ok_or_else(|| PipelineError::input(source.display().to_string(), "data attribute env_args", "names no two-arm task"))?,
+            (None, None) => return Err(PipelineError::input("", "task", "a two-arm run needs its task or a two-arm source file")),
+        };
+        let variant = config.variant.clone().unwrap_or_else(|| "D0".to_owned());
+        let task = task(&name, &variant)?;
+        if !lacking.is_empty() {
+            return Err(PipelineError::input("", lacking.join(", "), format!("not available for two-arm tasks ({name}) yet")));
+        }
+        Ok(Self {
+            task,
+            variant,
+            source: config.source.clone(),
+            out: config.out.clone(),
+            num_trials: config.num_demos.unwrap_or(100),
+            guarantee: config.guarantee,
+            max_attempts: config.max_attempts,
+            valid_fraction: config.valid_fraction,
+            seed: config.seed.unwrap_or(1),
+            workers: config.workers.max(1),
+            overwrite: config.overwrite,
+        })
+    }
+
+    /// The run as it starts, as a one-arm run reports itself, with `num_sources` source demos.
+    #[must_use]
+    pub fn info(&self, num_sources: usize) -> RunInfo {
+        RunInfo {
+            task: self.task.name().to_owned(),
+            variant: self.variant.clone(),
+            source: self.source.clone().unwrap_or_default(),
+            num_sources,
+            workers: self.workers,
+            seed: self.seed,
+            spec_overrides: crate::SpecOverrides::default(),
+            target: self.num_trials,
+            guarantee: self.guarantee,
+            resumed_from: 0,
+        }
+    }
 }
 
 /// What a two-arm run did.
@@ -217,6 +287,8 @@ pub enum TwoArmEvent<'a> {
         stats: &'a RunStats,
         /// The demo it was written as, if it was.
         written: Option<&'a str>,
+        /// Subtasks per arm (how `stats` numbers them: arm 0's, then arm 1's).
+        subtask_counts: &'a [usize],
     },
 }
 
@@ -232,6 +304,7 @@ type Finished = (u64, Result<(TwoArmAttempt, Option<DemoData>), PipelineError>);
 /// # Errors
 /// Unreadable sources, a spec they do not fit, simulator or write failures.
 pub fn generate(run: &TwoArmRun, cancel: &AtomicBool, progress: &mut dyn FnMut(TwoArmEvent<'_>)) -> Result<TwoArmSummary, PipelineError> {
+    crate::clear_outputs(&run.out, None, run.overwrite, false)?;
     let source = match &run.source {
         Some(path) => path.clone(),
         None => crate::bundled::source_demos(run.task.name())?,
@@ -339,6 +412,7 @@ pub fn generate(run: &TwoArmRun, cancel: &AtomicBool, progress: &mut dyn FnMut(T
                     successes: summary.successes,
                     stats: &summary.stats,
                     written: written.as_deref(),
+                    subtask_counts: &summary.subtask_counts,
                 });
                 // With `guarantee`, the first `num_trials` successes in index order, whatever
                 // the workers ran ahead.
@@ -372,4 +446,23 @@ fn attempt(
         .map_err(|e| PipelineError::engine("", EngineError::Env { attempt: index, source: e }))?;
     let data = DemoData::from_two_arm_attempt(&attempt, &ARMS, obs, Some(xml.to_owned()));
     Ok((attempt, Some(data)))
+}
+
+/// Runs `run` as [`generate`] does and writes its report (`<out>.json`, the one-arm runs'
+/// [`Report`]); returns both.
+///
+/// # Errors
+/// As [`generate`]; a report that cannot be written.
+pub fn run_and_report(
+    run: &TwoArmRun,
+    cancel: &AtomicBool,
+    progress: &mut dyn FnMut(TwoArmEvent<'_>),
+) -> Result<(TwoArmSummary, Report), PipelineError> {
+    let started = std::time::Instant::now();
+    let summary = generate(run, cancel, progress)?;
+    let report = summary.report(run, started.elapsed().as_secs_f64());
+    let path = crate::sibling(&run.out, "", "json");
+    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap_or_default())
+        .map_err(|e| PipelineError::Fs { file: path.display().to_string(), reason: e.to_string() })?;
+    Ok((summary, report))
 }

@@ -133,20 +133,27 @@ pub struct TwoArmAttempt {
 }
 
 impl TwoArmAttempt {
-    /// Counts this attempt into `stats`, the subtasks numbered through both arms (arm 0's
-    /// `0..counts[0]`, then arm 1's): each planned subtask's source demo, and where it failed.
+    /// Where it failed, its subtask numbered through both arms (arm `a`'s subtask `k` is
+    /// `counts[..a].sum() + k`, `counts` the subtasks per arm); an unachieved task at arm 0's.
+    #[must_use]
+    pub fn flat_failure(&self, counts: &[usize]) -> Option<crate::generate::Failure> {
+        self.failure.as_ref().map(|f| crate::generate::Failure {
+            subtask: counts.iter().take(f.arm.unwrap_or(0)).sum::<usize>() + f.subtask,
+            reason: f.reason.clone(),
+        })
+    }
+
+    /// Each planned subtask's source demo as `(subtask, demo)`, numbered through both arms as
+    /// [`Self::flat_failure`] numbers them.
+    pub fn flat_sources(&self, counts: &[usize]) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let offsets: Vec<usize> = (0..self.arms.len()).map(|arm| counts.iter().take(arm).sum()).collect();
+        self.arms.iter().zip(offsets).flat_map(|(track, offset)| track.plans.iter().enumerate().map(move |(k, p)| (offset + k, p.src_demo)))
+    }
+
+    /// Counts this attempt into `stats`, the subtasks numbered through both arms
+    /// ([`Self::flat_failure`]).
     pub fn record_into(&self, stats: &mut crate::RunStats, counts: &[usize]) {
-        let offset = |arm: usize| counts.iter().take(arm).sum::<usize>();
-        let sources = self
-            .arms
-            .iter()
-            .enumerate()
-            .flat_map(|(arm, track)| track.plans.iter().enumerate().map(move |(k, p)| (offset(arm) + k, p.src_demo)));
-        let failure = self
-            .failure
-            .as_ref()
-            .map(|f| crate::generate::Failure { subtask: offset(f.arm.unwrap_or(0)) + f.subtask, reason: f.reason.clone() });
-        stats.record_sources(self.success, sources, failure.as_ref(), None);
+        stats.record_sources(self.success, self.flat_sources(counts), self.flat_failure(counts).as_ref(), None);
     }
 
     /// The attempt as a source demo named `name`, one view per arm (its poses, targets and
