@@ -43,19 +43,20 @@ trap 'rc=$?; rm -rf "$replay_dir"; step "end (exit $rc)"' EXIT
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/square_d0.hdf5" --num 20 --min-success 17
 # Two Arm Lift in robosuite's own TwoArmLift (two Pandas, "single-arm-opposed", 14-wide actions):
 # 20 generated D0 demos and 10 D1 ones, each arm's half of the actions driving its robosuite arm;
-# then 10 Two Arm Handover D0 demos in robosuite's TwoArmHandover (16 of 20 replay there: the
-# hammer between two grippers is where the two simulators part; BENCHMARKS.md).
+# then 10 Two Arm Handover D0 demos in robosuite's TwoArmHandover (19 of 20 replay there since the
+# two-arm scenes compute convex contacts with libccd as robosuite's MuJoCo does; BENCHMARKS.md).
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --task two_arm_lift --num-demos 24 --seed 1 --workers 2 --out "$replay_dir/two_arm_lift_d0.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/two_arm_lift_d0.hdf5" --num 20 --min-success 17
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --task two_arm_lift --variant D1 --num-demos 14 --seed 1 --workers 2 --out "$replay_dir/two_arm_lift_d1.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/two_arm_lift_d1.hdf5" --num 10 --min-success 9
-"$CARGO_TARGET_DIR/debug/mimicgen" generate --task two_arm_handover --num-demos 16 --seed 1 --workers 2 --out "$replay_dir/two_arm_handover_d0.hdf5" >/dev/null
-"$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/two_arm_handover_d0.hdf5" --num 10 --min-success 7
-# Two Arm Transport: robosuite loads and replays our deliveries; an open-loop replay of ~1000 steps
-# through a lid, a hand-over and two drops parts from ours more often (6 of 10 replay; of these
-# three, two: BENCHMARKS.md), hence at least 1 of 3.
+"$CARGO_TARGET_DIR/debug/mimicgen" generate --task two_arm_handover --num-demos 10 --guarantee --max-attempts 40 --seed 1 --workers 2 --out "$replay_dir/two_arm_handover_d0.hdf5" >/dev/null
+"$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/two_arm_handover_d0.hdf5" --num 10 --min-success 8
+# Two Arm Transport: robosuite loads and replays our deliveries; an open-loop replay of ~1100 steps
+# through a lid, a hand-over and two drops parts from ours more often (15 of 20 replay, these three
+# among them; the five that do not part at the trash's grasp, a box-box contact: BENCHMARKS.md),
+# hence at least 2 of 3.
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --task two_arm_transport --num-demos 3 --guarantee --max-attempts 40 --seed 1 --workers 2 --out "$replay_dir/two_arm_transport_d0.hdf5" >/dev/null
-"$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/two_arm_transport_d0.hdf5" --num 3 --min-success 1
+"$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_replay.py "$replay_dir/two_arm_transport_d0.hdf5" --num 3 --min-success 2
 # Our simulator against robosuite's, step by step: three of the reference's generated Stack D0
 # demos, stored actions open loop from the same first state in both. They part by 1.3 mm (end
 # effector) and 0.8 mm (cubes) at most; without the MuJoCo 2.3 box-box contact depth that our
