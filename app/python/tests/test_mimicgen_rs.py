@@ -295,5 +295,5 @@ def test_a_two_arm_task_generates_with_the_same_call(tmp_path):
     assert len(ds) == report["successes"]
     if len(ds):
         assert ds.demo("demo_0")["actions"].shape[1] == 14
-    with pytest.raises(mg.MimicgenError, match="--keep-failed"):
+    with pytest.raises(mg.MimicgenError, match="keep_failed"):
         mg.generate(tmp_path / "kept.hdf5", task="two_arm_lift", keep_failed=True).wait()
