@@ -138,10 +138,10 @@ fn resolve_robot(
 
 /// How MuJoCo computes contacts between convex geoms that have no collider of their own
 /// (cylinders against boxes, meshes): robosuite 1.4's MuJoCo 2.3 runs libccd; MuJoCo 3.17 runs its
-/// native CCD by default, which puts the contacts elsewhere. Two Arm Transport's scripted demos,
-/// replayed in robosuite, part from our states within 60 to 190 steps with the native collider
-/// (the trash, the lid and the hammer settle otherwise) and within 380 to 600 with libccd
-/// (BENCHMARKS.md). Only the simulation changes, never the `model_file` written.
+/// native CCD by default, which puts the contacts elsewhere. Three of Two Arm Transport's scripted
+/// demos, replayed in robosuite, part from our states by 2 cm within 62 to 189 steps with the
+/// native collider (the trash, the lid and the hammer settle otherwise) and after 467 steps or
+/// never with libccd (BENCHMARKS.md). Only the simulation changes, never the `model_file` written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ConvexCollider {
     /// MuJoCo 3.17's native CCD (its default).
