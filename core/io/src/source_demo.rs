@@ -96,7 +96,7 @@ pub fn source_demo_of_arm(file: &str, name: &str, demo: &Group, arm: Option<&str
                 &dg_group,
                 field,
                 &format!(
-                    "holds one end effector per arm ({}): a two-arm demo; `mimicgen generate --task two_arm_lift` (or two_arm_handover) reads it, the one-arm commands and the app do not yet",
+                    "holds one end effector per arm ({}): a two-arm demo; `mimicgen generate --task two_arm_lift` (or two_arm_handover) and the app (annotate, preview, run) read it; this one-arm reader does not",
                     info.group(field).map(|g| g.members.keys().cloned().collect::<Vec<_>>().join(", ")).unwrap_or_default()
                 ),
             )),
