@@ -17,6 +17,11 @@ fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/io/tests/data/source_D0_prepared.hdf5")
 }
 
+/// A bundled source file (`core/sim/data/<name>`).
+fn bundled(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data").join(name)
+}
+
 fn harness(file: Option<PathBuf>) -> Harness<'static, MimicgenApp> {
     let app = mimicgen_gui::desktop(|| {}, file, None, None);
     Harness::builder().with_size(egui::vec2(1280.0, 800.0)).build_ui_state(|ui, app: &mut MimicgenApp| app.show(ui), app)
@@ -794,7 +799,7 @@ fn camera_images_follow_the_cursor_and_the_shown_demo() {
 fn a_ur5e_run_with_cameras_is_launched_watched_and_its_images_seen() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("square_ur5e.hdf5");
-    let square = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/square_D0_source.hdf5");
+    let square = bundled("square_D0_source.hdf5");
     let mut h = harness(Some(square));
     settle(&mut h);
     h.get_by_label("Generate").click();
@@ -888,7 +893,7 @@ fn a_failing_request_is_shown_and_the_app_goes_on() {
     h.state_mut().command(Command::NextScene);
     settle(&mut h);
     assert!(h.state().model.preview.view.is_some(), "{:?}", h.state().model.error);
-    let square = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/square_D0_source.hdf5");
+    let square = bundled("square_D0_source.hdf5");
     h.state_mut().command(Command::Open(square));
     settle(&mut h);
     assert_eq!(h.state().model.file.as_ref().unwrap().task, "square");
@@ -899,7 +904,7 @@ fn a_failing_request_is_shown_and_the_app_goes_on() {
 /// object-centric subtasks, and the tried attempt runs every one of them in MuJoCo.
 #[test]
 fn coffee_preparation_opens_previews_its_five_subtasks_and_is_tried() {
-    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/coffee_preparation_D0_source.hdf5");
+    let source = bundled("coffee_preparation_D0_source.hdf5");
     let mut h = harness(Some(source));
     settle(&mut h);
     let file = h.state().model.file.as_ref().unwrap();
@@ -940,7 +945,7 @@ fn an_object_transfer_run_is_split_by_mug() {
     };
     let pipeline = mimicgen_pipeline::Pipeline::prepare(&config).unwrap();
     let report = pipeline.run(&std::sync::atomic::AtomicBool::new(false), |_| {}).unwrap();
-    let mugs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/mug_cleanup_D0_source.hdf5");
+    let mugs = bundled("mug_cleanup_D0_source.hdf5");
     let mut h = harness(Some(mugs));
     settle(&mut h);
     h.get_by_label("Generate").click();
@@ -964,7 +969,7 @@ fn an_object_transfer_run_is_split_by_mug() {
 /// the 3D view is refused by name (one-arm only so far).
 #[test]
 fn a_two_arm_file_is_annotated_arm_by_arm_and_saved() {
-    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/two_arm_lift_D0_source.hdf5");
+    let source = bundled("two_arm_lift_D0_source.hdf5");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("two_arm_annotated.hdf5");
     let mut h = harness(Some(source));
@@ -1034,7 +1039,7 @@ fn a_two_arm_file_is_annotated_arm_by_arm_and_saved() {
 /// failed attempt re-run in the preview with both arms' ends fails as the run's did.
 #[test]
 fn a_two_arm_run_is_started_from_the_app_and_a_failure_re_run() {
-    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../core/sim/data/two_arm_handover_D0_source.hdf5");
+    let source = bundled("two_arm_handover_D0_source.hdf5");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("two_arm_run.hdf5");
     let mut h = harness(Some(source));
