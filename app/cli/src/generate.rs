@@ -307,8 +307,8 @@ impl GenerateArgs {
 /// # Errors
 /// Bad arguments, unreadable inputs, or a failure to write the outputs.
 pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
-    if let Some(task) = args.task.as_deref().and_then(mimicgen_sim::two_arm::TwoArmTask::from_name) {
-        return generate_two_arm(args, task);
+    if args.task.as_deref().and_then(mimicgen_sim::two_arm::TwoArmTask::from_name).is_some() {
+        return generate_two_arm(args);
     }
     let pipeline = Pipeline::prepare(&args.run_config())?;
     let mut viz = args.rerun.logger("mimicgen", pipeline.scene())?;
@@ -639,34 +639,10 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
 }
 
 /// `mimicgen generate` for a two-arm task: the flags the two-arm run takes, the others refused.
-fn generate_two_arm(args: &GenerateArgs, task: mimicgen_sim::two_arm::TwoArmTask) -> anyhow::Result<()> {
-    let unsupported = [
-        ("--robot", args.robot.is_some()),
-        ("--config", args.config.is_some()),
-        ("--keep-failed", args.keep_failed),
-        ("--early-abort", args.early_abort),
-        ("--resume", args.resume),
-        ("--shard", args.shard.is_some()),
-        ("--cameras", args.cameras.cameras.is_some()),
-        ("spec fields (--action-noise, --selection, ...)", args.spec.overrides() != SpecOverrides::default()),
-    ];
-    if let Some((flag, _)) = unsupported.iter().find(|(_, set)| *set) {
-        crate::exit::usage!("{flag}: not available for two-arm tasks ({}) yet", task.name());
-    }
+/// A two-arm task's run (`TwoArmRun::from_config` refuses by name the flags it lacks).
+fn generate_two_arm(args: &GenerateArgs) -> anyhow::Result<()> {
+    let run = mimicgen_pipeline::two_arm::TwoArmRun::from_config(&args.run_config())?;
     crate::check_output(&args.out, args.source.as_deref(), args.overwrite)?;
-    let run = mimicgen_pipeline::two_arm::TwoArmRun {
-        task: mimicgen_pipeline::two_arm::task(task.name(), args.variant.as_deref().unwrap_or("D0"))?,
-        variant: args.variant.clone().unwrap_or_else(|| "D0".to_owned()),
-        source: args.source.clone(),
-        out: args.out.clone(),
-        num_trials: args.num_demos.unwrap_or(100),
-        guarantee: args.guarantee,
-        max_attempts: args.max_attempts,
-        valid_fraction: args.valid_fraction,
-        seed: args.seed.unwrap_or(1),
-        workers: args.workers,
-        overwrite: args.overwrite,
-    };
     crate::two_arm::generate(&run, &args.rerun)
 }
 
