@@ -39,6 +39,7 @@ kitchen D0 100.0
 nut_assembly D0 50.0
 pick_place D0 32.7
 coffee_preparation D0 53.2
+nut_bolt_assembly D0 66.0
 stack D1 90.0
 stack_three D1 68.9
 square D1 48.9
@@ -49,10 +50,12 @@ hammer_cleanup D1 20.4
 mug_cleanup D1 17.0
 kitchen D1 42.7
 coffee_preparation D1 36.1
+nut_bolt_assembly D1 59.4
 square D2 31.8
 threading D2 21.6
 coffee D2 27.7
-three_piece_assembly D2 31.3"
+three_piece_assembly D2 31.3
+nut_bolt_assembly D2 47.6"
 header="| task | variant |"
 rule="|---|---|"
 for style in $styles; do header+=" $style |"; rule+="---|"; done
