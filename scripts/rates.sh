@@ -40,6 +40,7 @@ nut_assembly D0 50.0
 pick_place D0 32.7
 coffee_preparation D0 53.2
 nut_bolt_assembly D0 66.0
+frame_assembly D0 45.3
 stack D1 90.0
 stack_three D1 68.9
 square D1 48.9
@@ -51,11 +52,13 @@ mug_cleanup D1 17.0
 kitchen D1 42.7
 coffee_preparation D1 36.1
 nut_bolt_assembly D1 59.4
+frame_assembly D1 32.7
 square D2 31.8
 threading D2 21.6
 coffee D2 27.7
 three_piece_assembly D2 31.3
-nut_bolt_assembly D2 47.6"
+nut_bolt_assembly D2 47.6
+frame_assembly D2 28.9"
 header="| task | variant |"
 rule="|---|---|"
 for style in $styles; do header+=" $style |"; rule+="---|"; done
