@@ -927,6 +927,32 @@ fn coffee_preparation_opens_previews_its_five_subtasks_and_is_tried() {
     h.get_by_label_contains("Tried: ");
 }
 
+/// A Factory task (Nut-and-Bolt Assembly, a task file like every other) opens, previews its two
+/// subtasks relative to the nut and the bolt, and is tried in simulation.
+#[test]
+fn nut_bolt_assembly_opens_previews_and_is_tried() {
+    let mut h = harness(Some(bundled("nut_bolt_assembly_D0_source.hdf5")));
+    settle(&mut h);
+    let file = h.state().model.file.as_ref().unwrap();
+    assert_eq!((file.task.as_str(), file.demos.len()), ("nut_bolt_assembly", 10));
+    assert_eq!(file.signal_names, ["grasp"]);
+    h.get_by_label("Preview").click();
+    h.step();
+    settle(&mut h);
+    let view = h.state().model.preview.view.clone().unwrap();
+    let objects: Vec<_> = view.subtasks.iter().map(|s| s.object.clone().unwrap()).collect();
+    assert_eq!(objects, ["nut", "bolt"]);
+    h.get_by_label_contains("Subtask 1 (relative to bolt)");
+    h.get_by_label("Try it").click();
+    h.step();
+    settle(&mut h);
+    let tried = h.state().model.preview.view.clone().unwrap();
+    let executed = tried.executed.as_ref().unwrap();
+    assert_eq!(executed.diagnostics.len(), 2, "both subtasks ran: {:?}", executed.failure);
+    assert_eq!(executed.success, executed.failure.is_none());
+    h.get_by_label_contains("Tried: ");
+}
+
 /// An object-transfer run (Mug Cleanup O2: one of twelve mugs per episode) opened in the app
 /// splits its attempts by the mug each episode drew.
 #[test]
