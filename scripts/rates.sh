@@ -40,6 +40,7 @@ nut_assembly D0 50.0
 pick_place D0 32.7
 coffee_preparation D0 53.2
 nut_bolt_assembly D0 66.0
+gear_assembly D0 46.9
 frame_assembly D0 45.3
 stack D1 90.0
 stack_three D1 68.9
@@ -52,12 +53,14 @@ mug_cleanup D1 17.0
 kitchen D1 42.7
 coffee_preparation D1 36.1
 nut_bolt_assembly D1 59.4
+gear_assembly D1 8.2
 frame_assembly D1 32.7
 square D2 31.8
 threading D2 21.6
 coffee D2 27.7
 three_piece_assembly D2 31.3
 nut_bolt_assembly D2 47.6
+gear_assembly D2 7.1
 frame_assembly D2 28.9"
 header="| task | variant |"
 rule="|---|---|"

@@ -82,6 +82,11 @@ pub struct PickPlaceScript {
     /// After the place, move the closed gripper through these points (in the target's frame, m),
     /// keeping its orientation: a push (closing a lid).
     pub then_m: Vec<[f64; 3]>,
+    /// At the place, before letting go, turn the held object about the vertical through
+    /// `target_point_m` by this much (deg; positive is counter-clockwise seen from above), slowly,
+    /// in steps of at most 10 deg so the hand follows the arc: a gear turned on its shaft by its
+    /// hub, driving the gear it meshes with. 0: no turn.
+    pub turn_deg: f64,
     /// A path instead of a pick-and-place: the object whose frame `path_m` is in.
     pub path_on: String,
     /// The closed gripper's path (in `path_on`'s frame at the path's start, m), keeping its
@@ -222,6 +227,7 @@ impl Default for PickPlaceScript {
             approach_m: None,
             release: true,
             then_m: Vec::new(),
+            turn_deg: 0.0,
             path_on: String::new(),
             path_m: Vec::new(),
             path_yaw_rad: None,
@@ -318,6 +324,21 @@ impl PickPlaceScript {
         let place = self.aim(env, &world_from_target, place_xy, &place.rotation, &home)?;
         current = before(&place, &*env)?;
         let mut put: Vec<Leg> = vec![(place, slow, 1.0, rng.random_range(1..4), true)];
+        let mut place = place;
+        if self.turn_deg != 0.0 {
+            let axis = world_from_target.translation.vector + world_from_target.rotation * Vec3::from(self.target_point_m);
+            let total = self.turn_deg.to_radians();
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let legs = (self.turn_deg.abs() / 10.0).ceil() as usize;
+            let start = place;
+            for k in 1..=legs {
+                #[allow(clippy::cast_precision_loss)]
+                let turn = Rot::from_axis_angle(&Vec3::z_axis(), total * k as f64 / legs as f64);
+                place = pose_from_parts(axis + turn * (start.translation.vector - axis), turn * start.rotation);
+                put.push((place, 0.5 * slow, 1.0, 0, false));
+            }
+            put.push((place, slow, 1.0, rng.random_range(3..6), true));
+        }
         if self.release {
             put.push((place, slow, -1.0, rng.random_range(self.open_steps.0..=self.open_steps.1), false));
             // Retreat, and hold a moment before the recording stops, as an operator would.

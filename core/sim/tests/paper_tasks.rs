@@ -728,3 +728,61 @@ fn frame_assembly_holds_its_clearance() {
         assert!(!holds && stopped.z > 0.04, "{dx} {dy} off: the border at {stopped:?}, task {holds}");
     }
 }
+
+#[test]
+fn gear_assembly_scenes_rest_and_its_demos_put_the_gear_on_and_turn_it() {
+    rests_unsolved("gear_assembly", &["D0", "D1", "D2"]);
+    bundled_demos_succeed_and_generate("gear_assembly", &["grasp"], "D0");
+}
+
+/// Gear Assembly's gear has a square bore 14 mm across the flats over a 12 mm shaft: 1 mm a side
+/// (the paper's tolerance), the shaft's round top its chamfer. Let go level 2 mm over the shaft's
+/// top, turned so its teeth fall between the hinged gear's, on the axis or that clearance plus 1
+/// mm off (2 mm: the round top guides it), it drops onto the collar; 8 mm off (a wall of its hub
+/// over the axis) it stops on the shaft's top or slides off it, and turned an eighth of a tooth pitch the other way
+/// (its teeth over the hinged gear's) it stops on those teeth: nothing passes through the shaft
+/// or a tooth. Seated but not turned, the task does not hold: the hinged gear has not moved.
+#[test]
+fn gear_assembly_holds_its_clearance_and_its_teeth() {
+    use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
+    let file = task_file("gear_assembly");
+    let walls: Vec<_> = compound_geoms(&file, "gear").into_iter().filter(|g| g.size[2] > 0.01).collect();
+    assert_eq!(walls.len(), 4, "a hub of four walls");
+    for g in &walls {
+        let inner = if g.pos[0].abs() > g.pos[1].abs() { g.pos[0].abs() - g.size[0] } else { g.pos[1].abs() - g.size[1] };
+        assert!((inner - 0.007).abs() < 1e-9, "a bore flat {inner:.5} m from the axis: {g:?}");
+    }
+    let shaft = compound_geoms(&file, "gear_base").into_iter().find(|g| g.kind == "capsule").unwrap();
+    assert!((shaft.size[0] - 0.006).abs() < 1e-12 && (shaft.pos[2] + shaft.size[1] + shaft.size[0] - 0.045).abs() < 1e-12, "{shaft:?}");
+
+    let task = registry::task("gear_assembly", "D0").unwrap();
+    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+    let gear_index = scene.objects.iter().position(|o| o.name == "gear").unwrap();
+    let mut env = SimEnv::new(scene, Arc::clone(&task));
+    // The gear let go (level, at rest) turned `yaw_deg` from the base with its bottom 2 mm over the
+    // shaft's top, `dx`, `dy` off the axis: where it is 2 s later, in the base's frame at the
+    // shaft's axis, and whether the task holds.
+    let mut drop = |dx: f64, dy: f64, yaw_deg: f64| {
+        env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
+        let base = env.object_poses()["gear_base"];
+        let over = base.translation.vector + base.rotation * Vec3::new(0.0245 + dx, dy, 0.045 + 0.004 + 0.002);
+        let turned = base.rotation * Rot::from_axis_angle(&Vec3::z_axis(), yaw_deg.to_radians());
+        env.place_object(gear_index, &pose_from_parts(over, turned));
+        for _ in 0..40 {
+            env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
+        }
+        let at = (base.inverse() * env.object_poses()["gear"]).translation.vector - Vec3::new(0.0245, 0.0, 0.0);
+        (at, task.is_success(env.physics()))
+    };
+    for (dx, dy) in [(0.0, 0.0), (0.002, 0.0), (0.0, -0.002)] {
+        let (seated, holds) = drop(dx, dy, 22.5);
+        assert!(
+            !holds && (seated.z - 0.016).abs() < 0.0015 && seated.x.hypot(seated.y) < 0.0015,
+            "{dx} {dy} off the axis: the gear at {seated:?}, task {holds}"
+        );
+    }
+    let (stopped, holds) = drop(0.008, 0.0, 22.5);
+    assert!(!holds && (stopped.z > 0.04 || stopped.x.hypot(stopped.y) > 0.01), "8 mm off the axis: the gear at {stopped:?}, task {holds}");
+    let (on_teeth, holds) = drop(0.0, 0.0, 0.0);
+    assert!(!holds && on_teeth.z > 0.0215, "teeth over teeth: the gear at {on_teeth:?}, task {holds}");
+}
