@@ -5,8 +5,8 @@
 //! and, where the caller has a choice, the keyword to pass. Long calls release the GIL; the
 //! Python layer (`python/mimicgen_rs`) adds keyword arguments, docstrings and the Ray helpers.
 //!
-//! Longer than 500 lines on purpose: the whole Python API surface, one `#[pyfunction]` per call,
-//! so the binding reads as the API it is.
+//! The whole Python API surface, one `#[pyfunction]` per call, so the binding reads as the API it
+//! is.
 // PyO3 hands functions their arguments by value (extracted from Python objects).
 #![allow(clippy::needless_pass_by_value)]
 

@@ -18,8 +18,8 @@
 //!
 //! What it does not do: TLS (tunnel it over SSH, or put a TLS proxy in front).
 //!
-//! About 500 lines on purpose: the connection loop and routing enforce the rules above, and stay
-//! in one file so they can be read against them (the parts with a life of their own are `http`,
+//! The connection loop and routing enforce the rules above, in one file so they can be read
+//! against them (the parts with a life of their own are `http`,
 //! `root`, `session` and `viewer`).
 //!
 //! ```no_run

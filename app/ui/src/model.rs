@@ -2,8 +2,7 @@
 //! the UI (or a test) and returns the backend request it needs, if any; [`AppModel::on_reply`]
 //! takes the backend's answers. Nothing here draws, reads files or waits.
 //!
-//! Longer than 500 lines on purpose: one `match` over every [`Command`] and one over every reply,
-//! each read best whole (the screens' own state lives in `annotation`, `run_state` and the
+//! One `match` over every [`Command`] and one over every reply, each read best whole (the screens' own state lives in `annotation`, `run_state` and the
 //! `*_ui` modules); about a quarter of the file is its tests.
 
 use std::collections::BTreeMap;

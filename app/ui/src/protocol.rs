@@ -2,8 +2,8 @@
 //! same in the desktop window (over a channel) and in the browser (as JSON over a WebSocket, in
 //! the [`ClientMessage`] and [`ServerMessage`] envelopes).
 //!
-//! Longer than 500 lines on purpose: every message type in one place, so the UI, the backend and
-//! the server read the protocol alike; most lines are field docs.
+//! Every message type in one place, so the UI, the backend and the server read the protocol
+//! alike.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;

@@ -11,8 +11,8 @@
 //!
 //! The export is written to `<out>.partial/` and renamed to `<out>` when complete.
 //!
-//! Longer than 500 lines on purpose: one exporter (episodes into parquet chunks, MP4 files and
-//! the metadata that indexes both) whose parts share its running file slots and statistics.
+//! One exporter (episodes into parquet chunks, MP4 files and the metadata that indexes both)
+//! whose parts share its running file slots and statistics.
 
 use std::collections::BTreeMap;
 use std::fs::File;

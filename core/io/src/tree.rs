@@ -1,8 +1,8 @@
 //! A lossless in-memory copy of an HDF5 file's groups, datasets and attributes, so a dataset can
 //! be read, edited and written back with every value, type and attribute intact.
 //!
-//! About 500 lines on purpose: each HDF5 element type is read and written here side by side, so
-//! that a type the reader accepts is one the writer gives back unchanged.
+//! Each HDF5 element type is read and written here side by side, so that a type the reader
+//! accepts is one the writer gives back unchanged.
 
 use std::collections::BTreeMap;
 

@@ -1,7 +1,7 @@
 //! Streaming writer for generated datasets in robomimic layout.
 //!
-//! Longer than 500 lines on purpose: one writer's lifecycle (create or resume a `.partial`, append
-//! demos, commit progress, finish by rename) whose steps share its open file and checkpoint.
+//! One writer's lifecycle (create or resume a `.partial`, append demos, commit progress, finish by
+//! rename), whose steps share its open file and checkpoint.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

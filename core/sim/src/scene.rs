@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use mimicgen_engine::pose::{Pose, Rot, Vec3, pose_from_parts};
+use mimicgen_engine::pose::{Pose, Vec3, pose_from_parts};
 use mujoco_rs::prelude::*;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 
@@ -473,12 +473,6 @@ pub(crate) fn compile_uncached(xml: &str) -> Result<MjModel, String> {
 pub fn pose_from_xpos_xmat(xpos: &[f64; 3], xmat: &[f64; 9]) -> Pose {
     let r = Matrix3::from_row_slice(xmat);
     pose_from_parts(Vec3::new(xpos[0], xpos[1], xpos[2]), UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)))
-}
-
-/// The rotation matrix of a pose, as MuJoCo/robosuite keep it.
-#[must_use]
-pub fn rotation_matrix(rotation: &Rot) -> Matrix3<f64> {
-    rotation.to_rotation_matrix().into_inner()
 }
 
 impl Scene {

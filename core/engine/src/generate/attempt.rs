@@ -1,8 +1,8 @@
 //! How one attempt runs: the generator plans every subtask (source choice, transform,
 //! interpolation) and executes it step by step with noise in an [`Environment`].
 //!
-//! About 500 lines on purpose: planning and executing one attempt share the generator's state and
-//! the attempt's random stream; splitting them would pass both across a module boundary.
+//! Planning and executing one attempt share the generator's state and the attempt's random
+//! stream, so both live here.
 
 use std::collections::BTreeMap;
 
