@@ -208,6 +208,7 @@ pub fn read_run(path: &Path) -> Result<OpenedRun, PipelineError> {
         per_source_demo: Vec::new(),
         per_subtask_source: Vec::new(),
         never_succeeded: Vec::new(),
+        per_object_instance: Vec::new(),
         peak_rss_mib: None,
         failures: Vec::new(),
         causes: Vec::new(),

@@ -394,6 +394,11 @@ pub fn generate(args: &GenerateArgs) -> anyhow::Result<()> {
     if !report.causes.is_empty() {
         eprintln!("why attempts failed: {}", causes_line(&report.causes));
     }
+    if !report.per_object_instance.is_empty() {
+        let rates: Vec<String> =
+            report.per_object_instance.iter().map(|i| format!("{} {}/{}", i.instance, i.successes, i.attempts)).collect();
+        eprintln!("successes per object instance: {}", rates.join(", "));
+    }
     if !report.never_succeeded.is_empty() {
         let demos: Vec<String> = report.never_succeeded.iter().map(|d| format!("demo_{d}")).collect();
         eprintln!(

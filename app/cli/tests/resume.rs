@@ -197,6 +197,15 @@ fn an_object_transfer_run_killed_and_resumed_draws_the_same_mugs() {
             assert!(a.demo(name).unwrap().attrs.contains_key(mimicgen_io::INSTANCE_ATTR), "{name} names no mug");
         }
     }
+    // The report counts every attempt per mug, those before the kill too.
+    let per_mug = |p: &Path| -> serde_json::Value {
+        let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+        report["per_object_instance"].clone()
+    };
+    let whole_mugs = per_mug(&dir.path().join("whole.json"));
+    let attempts: u64 = whole_mugs.as_array().unwrap().iter().map(|m| m["attempts"].as_u64().unwrap()).sum();
+    assert_eq!(attempts, 8, "{whole_mugs}");
+    assert_eq!(per_mug(&dir.path().join("pieces.json")), whole_mugs);
 }
 
 #[test]

@@ -48,8 +48,8 @@ pub mod two_arm;
 pub use error::PipelineError;
 pub use events::{AttemptEvent, Event};
 pub use mimicgen_run::{
-    CameraConfig, CauseReport, Choice, CoverageFigure, DatasetQuality, DemoReport, FailureReport, FrontEnd, NEVER_SUCCEEDS_MIN_USES,
-    OffsetRange, Outcome, ReplayCheck, Report, RunConfig, RunInfo, Scoped, SpecOverrides,
+    CameraConfig, CauseReport, Choice, CoverageFigure, DatasetQuality, DemoReport, FailureReport, FrontEnd, InstanceReport,
+    NEVER_SUCCEEDS_MIN_USES, OffsetRange, Outcome, ReplayCheck, Report, RunConfig, RunInfo, Scoped, SpecOverrides,
 };
 pub use outputs::{
     AttemptRecord, PROGRESS_ATTR, RUN_ATTR, attempt_log_path, clear_outputs, failed_path, quality_path, read_attempt_log, sibling,

@@ -128,6 +128,23 @@ pub(crate) fn logged_quality<'a>(
     (quality, scenes)
 }
 
+/// Attempts and successes per object instance, from each attempt's drawn instance and outcome,
+/// by name; empty when no episode drew one.
+pub(crate) fn per_object_instance<'a>(drawn: impl IntoIterator<Item = (Option<&'a str>, bool)>) -> Vec<crate::InstanceReport> {
+    let mut counts: std::collections::BTreeMap<&str, (usize, usize)> = std::collections::BTreeMap::new();
+    for (instance, success) in drawn {
+        if let Some(instance) = instance {
+            let count = counts.entry(instance).or_default();
+            count.0 += 1;
+            count.1 += usize::from(success);
+        }
+    }
+    counts
+        .into_iter()
+        .map(|(instance, (attempts, successes))| crate::InstanceReport { instance: instance.to_owned(), attempts, successes })
+        .collect()
+}
+
 /// Writes the quality report of the dataset at `out` beside it.
 pub(crate) fn write_quality(out: &Path, quality: &crate::DatasetQuality) -> Result<(), PipelineError> {
     let path = quality_path(out);

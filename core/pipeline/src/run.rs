@@ -436,6 +436,8 @@ impl Pipeline {
         // The quality report covers every demo of the dataset: those of an earlier session from
         // the log.
         let (mut quality, mut initial_scenes) = crate::outputs::logged_quality(&records);
+        // Each attempt's drawn object instance and outcome, those of an earlier session first.
+        let mut drawn: Vec<(Option<String>, bool)> = records.iter().map(|r| (r.instance.clone(), r.success)).collect();
         let mut control_steps = 0usize;
         let control = RunControl {
             start: progress.next_attempt,
@@ -445,6 +447,7 @@ impl Pipeline {
         };
         let result = mimicgen_engine::run_with(&self.generator, envs, control, finish, |attempt, (payload, instance), stats| {
             control_steps += attempt.trajectory.len();
+            drawn.push((instance.clone(), attempt.success));
             let figures = attempt.success.then(|| mimicgen_engine::quality::AttemptFigures::of(&attempt, CONTROL_PERIOD_S));
             if let Some(f) = &figures {
                 quality.add_figures(f);
@@ -518,6 +521,7 @@ impl Pipeline {
         let dataset_quality = dataset_quality(self.task.as_ref(), &written, quality.summary(), &initial_scenes, replay);
         crate::outputs::write_quality(&self.config.out, &dataset_quality)?;
         report.quality = Some(dataset_quality);
+        report.per_object_instance = crate::outputs::per_object_instance(drawn.iter().map(|(i, s)| (i.as_deref(), *s)));
         self.write_report(&report)?;
         on_event(&Event::Finished(Box::new(report.clone())));
         Ok(report)
@@ -557,6 +561,7 @@ impl Pipeline {
             per_source_demo: per_source_demo(stats),
             per_subtask_source: per_subtask_source(stats),
             never_succeeded: never_succeeded(stats),
+            per_object_instance: Vec::new(),
             peak_rss_mib: crate::memory::peak_rss_mib(),
             failures: failures(stats),
             causes: causes(stats),
@@ -609,7 +614,10 @@ impl Pipeline {
         let cancelled = stats.attempts < settings.attempt_cap() && !(settings.guarantee && stats.successes >= settings.num_trials);
         let failed = self.failed_path();
         let failed_written = failed.is_file().then_some(failed);
-        let report = self.report(&stats, progress.next_attempt, 0.0, 0, cancelled, out, failed_written);
+        let mut report = self.report(&stats, progress.next_attempt, 0.0, 0, cancelled, out, failed_written);
+        if let Ok(records) = crate::outputs::read_attempt_log(&self.attempt_log_path()) {
+            report.per_object_instance = crate::outputs::per_object_instance(records.iter().map(|r| (r.instance.as_deref(), r.success)));
+        }
         self.write_report(&report)?;
         Ok(Some(report))
     }

@@ -251,6 +251,7 @@ impl TwoArmSummary {
             per_source_demo: crate::outputs::per_source_demo(&self.stats),
             per_subtask_source: crate::outputs::per_subtask_source(&self.stats),
             never_succeeded: crate::outputs::never_succeeded(&self.stats),
+            per_object_instance: Vec::new(),
             peak_rss_mib: crate::memory::peak_rss_mib(),
             failures: crate::outputs::failures(&self.stats),
             causes: Vec::new(),

@@ -674,6 +674,19 @@ fn object_transfer_draws_a_mug_per_episode_records_it_and_does_not_depend_on_the
         };
         assert_eq!(kept, drawn, "attempt {}", a.attempt.index);
     }
+    // The report's rates per mug: each mug's attempts and successes, as the events drew them.
+    let mut per_mug: std::collections::BTreeMap<String, (usize, usize)> = std::collections::BTreeMap::new();
+    for event in &events {
+        let Event::Attempt(a) = event else { continue };
+        let count = per_mug.entry(a.instance.clone().unwrap()).or_default();
+        count.0 += 1;
+        count.1 += usize::from(a.attempt.success);
+    }
+    let reported: std::collections::BTreeMap<String, (usize, usize)> =
+        report.per_object_instance.iter().map(|i| (i.instance.clone(), (i.attempts, i.successes))).collect();
+    assert_eq!(reported, per_mug);
+    assert_eq!(reported.values().map(|c| c.0).sum::<usize>(), report.attempts);
+    assert_eq!(reported.values().map(|c| c.1).sum::<usize>(), report.successes);
     // Coverage splits the demos by instance.
     let coverage = mimicgen_pipeline::coverage::dataset_coverage(&one, None, None, 3).unwrap();
     assert_eq!(coverage.variant, "O2");

@@ -375,6 +375,7 @@ mod tests {
             per_source_demo: vec![demo(0, 50, 40), demo(1, 30, 20), demo(2, 20, 0)],
             per_subtask_source: Vec::new(),
             never_succeeded: never.to_vec(),
+            per_object_instance: Vec::new(),
             peak_rss_mib: None,
             failures: Vec::new(),
             causes: causes.iter().map(|&(subtask, cause, count)| CauseReport { subtask, cause: cause.into(), count }).collect(),

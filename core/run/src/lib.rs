@@ -28,7 +28,8 @@ pub use camera::CameraConfig;
 pub use config::RunConfig;
 pub use overrides::{OffsetRange, Scoped, SpecOverrides};
 pub use report::{
-    CauseReport, CoverageFigure, DatasetQuality, DemoReport, FailureReport, NEVER_SUCCEEDS_MIN_USES, Outcome, ReplayCheck, Report, RunInfo,
+    CauseReport, CoverageFigure, DatasetQuality, DemoReport, FailureReport, InstanceReport, NEVER_SUCCEEDS_MIN_USES, Outcome, ReplayCheck,
+    Report, RunInfo,
 };
 pub use wording::{Choice, FrontEnd};
 

@@ -126,6 +126,17 @@ pub struct ReplayCheck {
     pub error: Option<String>,
 }
 
+/// The attempts whose episode drew one object instance (object transfer), and their successes.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct InstanceReport {
+    /// The instance (the `mimicgen_object_instance` of the demos that drew it).
+    pub instance: String,
+    /// Attempts whose episode drew it.
+    pub attempts: usize,
+    /// Of those, successes.
+    pub successes: usize,
+}
+
 /// Uses below which a source demo without a success is not yet flagged in
 /// [`Report::never_succeeded`].
 pub const NEVER_SUCCEEDS_MIN_USES: usize = 5;
@@ -176,6 +187,10 @@ pub struct Report {
     /// never to a success: candidates to drop.
     #[serde(default)]
     pub never_succeeded: Vec<usize>,
+    /// Per object instance the episodes drew (object transfer: Mug Cleanup O2's twelve mugs), by
+    /// name, over every session of a resumed run; left out when no episode draws one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub per_object_instance: Vec<InstanceReport>,
     /// Peak resident memory of the process, MiB.
     pub peak_rss_mib: Option<f64>,
     /// Failures by subtask and reason.
