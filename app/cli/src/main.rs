@@ -15,6 +15,7 @@ mod bench_serve;
 mod bench_sim;
 mod bench_transit;
 mod coverage;
+mod demos;
 mod doctor;
 mod exit;
 mod export;
@@ -88,7 +89,7 @@ Examples:
     /// point at and tests the best few against the run's own spec on the same attempts.
     Doctor(doctor::DoctorArgs),
     /// Record scripted source demos of a task (the bundled defaults are made this way).
-    Demos(generate::DemosArgs),
+    Demos(demos::DemosArgs),
     /// List the tasks, their variants and the arms.
     ///
     /// Every task is a task file (`core/sim/tasks/<task>.task.toml`: objects, placement per
@@ -228,7 +229,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Demos(args) => {
-            generate::demos(&args)?;
+            demos::demos(&args)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::App(args) => {
