@@ -300,7 +300,11 @@ mod tests {
         let (task, variant) = task_from_env_name("StackThree_D1").unwrap_or_else(|e| panic!("{e}"));
         assert_eq!((task.name(), variant.as_str()), ("stack_three", "D1"));
         assert_eq!(task_from_env_name("Stack").map(|(t, v)| (t.name().to_owned(), v)), Ok(("stack".to_owned(), "D0".to_owned())));
-        assert!(task_from_env_name("GearAssembly_D0").is_err());
+        assert!(task_from_env_name("NoSuchTask_D0").is_err());
+        assert_eq!(
+            task_from_env_name("GearAssembly_D2").map(|(t, v)| (t.name().to_owned(), v)),
+            Ok(("gear_assembly".to_owned(), "D2".to_owned()))
+        );
         assert_eq!(task_from_env_name("Kitchen_D1").map(|(t, v)| (t.name().to_owned(), v)), Ok(("kitchen".to_owned(), "D1".to_owned())));
         let (task, variant) = task_from_env_name("MugCleanup_O2").unwrap_or_else(|e| panic!("{e}"));
         assert_eq!((task.name(), variant.as_str(), task.instances().len()), ("mug_cleanup", "O2", 12));
