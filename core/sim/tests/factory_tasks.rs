@@ -11,9 +11,41 @@ mod task_checks;
 use std::sync::Arc;
 
 use mimicgen_engine::Environment as _;
+use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
 use mimicgen_sim::{Scene, SimEnv, registry};
 use rand::SeedableRng as _;
 use task_checks::{bundled_demos_succeed_and_generate, compound_geoms, rests_unsolved, task_file};
+
+/// A Factory task's D0 scene in which one part is let go, level and at rest, in the frame of the
+/// part it should go round (seed 1's reset each time).
+struct LetGo {
+    task: Arc<dyn mimicgen_sim::Task>,
+    env: SimEnv,
+    part: (usize, &'static str),
+    onto: &'static str,
+}
+
+impl LetGo {
+    fn new(task_name: &str, part: &'static str, onto: &'static str) -> Self {
+        let task = registry::task(task_name, "D0").unwrap();
+        let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
+        let index = scene.objects.iter().position(|o| o.name == part).unwrap();
+        Self { env: SimEnv::new(scene, Arc::clone(&task)), task, part: (index, part), onto }
+    }
+
+    /// The part let go at `at` turned `yaw_deg`, both in `onto`'s frame: where it is 2 s later,
+    /// in that frame, and whether the task holds.
+    fn let_go(&mut self, at: Vec3, yaw_deg: f64) -> (Vec3, bool) {
+        self.env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
+        let onto = self.env.object_poses()[self.onto];
+        let turned = onto.rotation * Rot::from_axis_angle(&Vec3::z_axis(), yaw_deg.to_radians());
+        self.env.place_object(self.part.0, &pose_from_parts(onto.translation.vector + onto.rotation * at, turned));
+        for _ in 0..40 {
+            self.env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
+        }
+        ((onto.inverse() * self.env.object_poses()[self.part.1]).translation.vector, self.task.is_success(self.env.physics()))
+    }
+}
 
 #[test]
 fn nut_bolt_assembly_scenes_rest_and_its_demos_put_the_nut_on_the_bolt() {
@@ -30,7 +62,6 @@ fn nut_bolt_assembly_scenes_rest_and_its_demos_put_the_nut_on_the_bolt() {
 /// axis and slides on too.)
 #[test]
 fn nut_bolt_assembly_holds_its_clearance() {
-    use mimicgen_engine::pose::{Vec3, pose_from_parts};
     let file = task_file("nut_bolt_assembly");
     let nut = compound_geoms(&file, "nut");
     assert_eq!(nut.len(), 6, "six walls");
@@ -41,22 +72,9 @@ fn nut_bolt_assembly_holds_its_clearance() {
     let shank = compound_geoms(&file, "bolt").into_iter().find(|g| g.kind == "cylinder").unwrap();
     assert!((shank.size[0] - 0.008).abs() < 1e-12 && (shank.pos[2] + shank.size[1] - 0.05).abs() < 1e-12, "{shank:?}");
 
-    let task = registry::task("nut_bolt_assembly", "D0").unwrap();
-    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
-    let nut_index = scene.objects.iter().position(|o| o.name == "nut").unwrap();
-    let mut env = SimEnv::new(scene, Arc::clone(&task));
-    // The nut let go (level, at rest) with its bottom `height` over the shank's tip, `dx`, `dy`
-    // off the axis: where it is 2 s later, in the bolt's frame, and whether the task holds.
-    let mut drop = |dx: f64, dy: f64, height: f64| {
-        env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
-        let bolt = env.object_poses()["bolt"];
-        let over = bolt.translation.vector + bolt.rotation * Vec3::new(dx, dy, 0.05 + 0.007 + height);
-        env.place_object(nut_index, &pose_from_parts(over, bolt.rotation));
-        for _ in 0..40 {
-            env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
-        }
-        ((bolt.inverse() * env.object_poses()["nut"]).translation.vector, task.is_success(env.physics()))
-    };
+    // The nut with its bottom `height` over the shank's tip, `dx`, `dy` off the axis.
+    let mut scene = LetGo::new("nut_bolt_assembly", "nut", "bolt");
+    let mut drop = |dx: f64, dy: f64, height: f64| scene.let_go(Vec3::new(dx, dy, 0.05 + 0.007 + height), 0.0);
     let (on_plate, holds) = drop(0.0, 0.0, 0.002);
     assert!(holds && (on_plate.z - 0.017).abs() < 0.002, "on the axis: the nut at {on_plate:?}, task {holds}");
     for (dx, dy) in [(0.003, 0.0), (0.0, -0.003), (0.0025, 0.0)] {
@@ -78,7 +96,6 @@ fn frame_assembly_scenes_rest_and_its_demos_put_the_frame_on_the_bolts() {
 /// through a bolt, and the task does not hold.
 #[test]
 fn frame_assembly_holds_its_clearance() {
-    use mimicgen_engine::pose::{Vec3, pose_from_parts};
     let file = task_file("frame_assembly");
     let bolts: Vec<_> = compound_geoms(&file, "base").into_iter().filter(|g| g.kind == "cylinder").collect();
     assert_eq!(bolts.len(), 4, "four bolts");
@@ -97,22 +114,9 @@ fn frame_assembly_holds_its_clearance() {
         }
     }
 
-    let task = registry::task("frame_assembly", "D0").unwrap();
-    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
-    let frame_index = scene.objects.iter().position(|o| o.name == "frame").unwrap();
-    let mut env = SimEnv::new(scene, Arc::clone(&task));
-    // The border let go (level, at rest, turned as the base) with its bottom 2 mm over the bolts'
-    // tips, `dx`, `dy` off: where it is 2 s later, in the base's frame, and whether the task holds.
-    let mut drop = |dx: f64, dy: f64| {
-        env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
-        let base = env.object_poses()["base"];
-        let over = base.translation.vector + base.rotation * Vec3::new(dx, dy, 0.04 + 0.006 + 0.002);
-        env.place_object(frame_index, &pose_from_parts(over, base.rotation));
-        for _ in 0..40 {
-            env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
-        }
-        ((base.inverse() * env.object_poses()["frame"]).translation.vector, task.is_success(env.physics()))
-    };
+    // The border, turned as the base, with its bottom 2 mm over the bolts' tips, `dx`, `dy` off.
+    let mut scene = LetGo::new("frame_assembly", "frame", "base");
+    let mut drop = |dx: f64, dy: f64| scene.let_go(Vec3::new(dx, dy, 0.04 + 0.006 + 0.002), 0.0);
     let (on_plate, holds) = drop(0.0, 0.0);
     assert!(holds && (on_plate.z - 0.016).abs() < 0.002, "over the bolts: the border at {on_plate:?}, task {holds}");
     for (dx, dy) in [(0.005, 0.0), (0.0, -0.005)] {
@@ -131,12 +135,11 @@ fn gear_assembly_scenes_rest_and_its_demos_put_the_gear_on_and_turn_it() {
 /// (the paper's tolerance), the shaft's round top its chamfer. Let go level 2 mm over the shaft's
 /// top, turned so its teeth fall between the hinged gear's, on the axis or that clearance plus 1
 /// mm off (2 mm: the round top guides it), it drops onto the collar; 8 mm off (a wall of its hub
-/// over the axis) it stops on the shaft's top or slides off it, and turned an eighth of a tooth pitch the other way
-/// (its teeth over the hinged gear's) it stops on those teeth: nothing passes through the shaft
-/// or a tooth. Seated but not turned, the task does not hold: the hinged gear has not moved.
+/// over the axis) it stops on the shaft's top or slides off it, and turned half a tooth pitch out
+/// of mesh (its teeth over the hinged gear's) it stops on those teeth: nothing passes through the
+/// shaft or a tooth. Seated but not turned, the task does not hold: the hinged gear has not moved.
 #[test]
 fn gear_assembly_holds_its_clearance_and_its_teeth() {
-    use mimicgen_engine::pose::{Rot, Vec3, pose_from_parts};
     let file = task_file("gear_assembly");
     let walls: Vec<_> = compound_geoms(&file, "gear").into_iter().filter(|g| g.size[2] > 0.01).collect();
     assert_eq!(walls.len(), 4, "a hub of four walls");
@@ -147,24 +150,13 @@ fn gear_assembly_holds_its_clearance_and_its_teeth() {
     let shaft = compound_geoms(&file, "gear_base").into_iter().find(|g| g.kind == "capsule").unwrap();
     assert!((shaft.size[0] - 0.006).abs() < 1e-12 && (shaft.pos[2] + shaft.size[1] + shaft.size[0] - 0.045).abs() < 1e-12, "{shaft:?}");
 
-    let task = registry::task("gear_assembly", "D0").unwrap();
-    let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
-    let gear_index = scene.objects.iter().position(|o| o.name == "gear").unwrap();
-    let mut env = SimEnv::new(scene, Arc::clone(&task));
-    // The gear let go (level, at rest) turned `yaw_deg` from the base with its bottom 2 mm over the
-    // shaft's top, `dx`, `dy` off the axis: where it is 2 s later, in the base's frame at the
-    // shaft's axis, and whether the task holds.
+    // The gear turned `yaw_deg` from the base with its bottom 2 mm over the shaft's top, `dx`,
+    // `dy` off the axis; where it comes to rest relative to the shaft's axis.
+    let mut scene = LetGo::new("gear_assembly", "gear", "gear_base");
+    let shaft_axis = Vec3::new(0.0245, 0.0, 0.0);
     let mut drop = |dx: f64, dy: f64, yaw_deg: f64| {
-        env.reset(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1)).unwrap();
-        let base = env.object_poses()["gear_base"];
-        let over = base.translation.vector + base.rotation * Vec3::new(0.0245 + dx, dy, 0.045 + 0.004 + 0.002);
-        let turned = base.rotation * Rot::from_axis_angle(&Vec3::z_axis(), yaw_deg.to_radians());
-        env.place_object(gear_index, &pose_from_parts(over, turned));
-        for _ in 0..40 {
-            env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
-        }
-        let at = (base.inverse() * env.object_poses()["gear"]).translation.vector - Vec3::new(0.0245, 0.0, 0.0);
-        (at, task.is_success(env.physics()))
+        let (at, holds) = scene.let_go(shaft_axis + Vec3::new(dx, dy, 0.045 + 0.004 + 0.002), yaw_deg);
+        (at - shaft_axis, holds)
     };
     for (dx, dy) in [(0.0, 0.0), (0.002, 0.0), (0.0, -0.002)] {
         let (seated, holds) = drop(dx, dy, 22.5);
