@@ -236,7 +236,7 @@ pub fn merge(
         per_source_demo: crate::outputs::per_source_demo(&stats),
         per_subtask_source: crate::outputs::per_subtask_source(&stats),
         never_succeeded: crate::outputs::never_succeeded(&stats),
-        per_object_instance: crate::outputs::per_object_instance(order.iter().map(|r| (r.instance.as_deref(), r.success))),
+        per_object_instance: crate::outputs::InstanceTally::of(order.iter().copied()).report(),
         peak_rss_mib: crate::memory::peak_rss_mib(),
         failures: crate::outputs::failures(&stats),
         causes: crate::outputs::causes(&stats),

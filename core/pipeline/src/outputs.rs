@@ -128,21 +128,36 @@ pub(crate) fn logged_quality<'a>(
     (quality, scenes)
 }
 
-/// Attempts and successes per object instance, from each attempt's drawn instance and outcome,
-/// by name; empty when no episode drew one.
-pub(crate) fn per_object_instance<'a>(drawn: impl IntoIterator<Item = (Option<&'a str>, bool)>) -> Vec<crate::InstanceReport> {
-    let mut counts: std::collections::BTreeMap<&str, (usize, usize)> = std::collections::BTreeMap::new();
-    for (instance, success) in drawn {
+/// Attempts and successes per object instance (object transfer), counted as attempts arrive.
+#[derive(Debug, Default)]
+pub(crate) struct InstanceTally(std::collections::BTreeMap<String, (usize, usize)>);
+
+impl InstanceTally {
+    /// The tally of logged attempts.
+    pub(crate) fn of<'a>(records: impl IntoIterator<Item = &'a AttemptRecord>) -> Self {
+        let mut tally = Self::default();
+        for record in records {
+            tally.add(record.instance.as_deref(), record.success);
+        }
+        tally
+    }
+
+    /// Counts one attempt; one that drew no instance is not counted.
+    pub(crate) fn add(&mut self, instance: Option<&str>, success: bool) {
         if let Some(instance) = instance {
-            let count = counts.entry(instance).or_default();
+            let count = self.0.entry(instance.to_owned()).or_default();
             count.0 += 1;
             count.1 += usize::from(success);
         }
     }
-    counts
-        .into_iter()
-        .map(|(instance, (attempts, successes))| crate::InstanceReport { instance: instance.to_owned(), attempts, successes })
-        .collect()
+
+    /// The report's rows, by name; empty when no attempt drew an instance.
+    pub(crate) fn report(&self) -> Vec<crate::InstanceReport> {
+        self.0
+            .iter()
+            .map(|(instance, &(attempts, successes))| crate::InstanceReport { instance: instance.clone(), attempts, successes })
+            .collect()
+    }
 }
 
 /// Writes the quality report of the dataset at `out` beside it.

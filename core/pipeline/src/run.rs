@@ -436,8 +436,8 @@ impl Pipeline {
         // The quality report covers every demo of the dataset: those of an earlier session from
         // the log.
         let (mut quality, mut initial_scenes) = crate::outputs::logged_quality(&records);
-        // Each attempt's drawn object instance and outcome, those of an earlier session first.
-        let mut drawn: Vec<(Option<String>, bool)> = records.iter().map(|r| (r.instance.clone(), r.success)).collect();
+        // Attempts and successes per drawn object instance, those of an earlier session first.
+        let mut instances = crate::outputs::InstanceTally::of(&records);
         let mut control_steps = 0usize;
         let control = RunControl {
             start: progress.next_attempt,
@@ -447,7 +447,7 @@ impl Pipeline {
         };
         let result = mimicgen_engine::run_with(&self.generator, envs, control, finish, |attempt, (payload, instance), stats| {
             control_steps += attempt.trajectory.len();
-            drawn.push((instance.clone(), attempt.success));
+            instances.add(instance.as_deref(), attempt.success);
             let figures = attempt.success.then(|| mimicgen_engine::quality::AttemptFigures::of(&attempt, CONTROL_PERIOD_S));
             if let Some(f) = &figures {
                 quality.add_figures(f);
@@ -521,7 +521,7 @@ impl Pipeline {
         let dataset_quality = dataset_quality(self.task.as_ref(), &written, quality.summary(), &initial_scenes, replay);
         crate::outputs::write_quality(&self.config.out, &dataset_quality)?;
         report.quality = Some(dataset_quality);
-        report.per_object_instance = crate::outputs::per_object_instance(drawn.iter().map(|(i, s)| (i.as_deref(), *s)));
+        report.per_object_instance = instances.report();
         self.write_report(&report)?;
         on_event(&Event::Finished(Box::new(report.clone())));
         Ok(report)
@@ -616,7 +616,7 @@ impl Pipeline {
         let failed_written = failed.is_file().then_some(failed);
         let mut report = self.report(&stats, progress.next_attempt, 0.0, 0, cancelled, out, failed_written);
         if let Ok(records) = crate::outputs::read_attempt_log(&self.attempt_log_path()) {
-            report.per_object_instance = crate::outputs::per_object_instance(records.iter().map(|r| (r.instance.as_deref(), r.success)));
+            report.per_object_instance = crate::outputs::InstanceTally::of(&records).report();
         }
         self.write_report(&report)?;
         Ok(Some(report))
