@@ -111,7 +111,11 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
     let spec = registry::default_spec_toml(task.name())
         .map(|toml| TaskSpec::from_toml_str(toml, &format!("bundled {} spec", task.name())))
         .transpose()?;
-    let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
+    // Object transfer: each try draws one of the variant's instances (Mobile Kitchen's pans and
+    // carrots), and the demo records which.
+    let instances: Vec<(String, Arc<Scene>)> =
+        Scene::instances_for_task(task.as_ref(), &mimicgen_sim::robot::PANDA)?.into_iter().map(|(label, s)| (label, Arc::new(s))).collect();
+    let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task)).with_instances(instances);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
     let options = WriterOptions {
         env_args: Some(registry::env_args(task.name(), &args.variant)),
@@ -143,6 +147,8 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
         }
         let n = demo.len();
         let initial = initial_object_poses(&demo.object_poses);
+        let instance = env.instance().map(str::to_owned);
+        let instance_xml = instance.as_ref().map(|_| mimicgen_sim::assets::portable_asset_paths(&env.physics().scene().xml));
         let done: Vec<i64> = (0..n).map(|t| i64::from(t + 1 == n)).collect();
         #[allow(clippy::cast_precision_loss)]
         let data = DemoData {
@@ -162,11 +168,11 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
             }),
             src_demo_inds: Vec::new(),
             src_demo_labels: Vec::new(),
-            model_xml: Some(scene.xml_with_fixed_objects(&xml, &initial)?),
+            model_xml: Some(scene.xml_with_fixed_objects(instance_xml.as_deref().unwrap_or(&xml), &initial)?),
             attempt_index: None,
             failure: None,
             cause: None,
-            object_instance: None,
+            object_instance: instance,
         };
         let name = writer.append(&data)?;
         eprintln!("{name}: {n} steps");

@@ -120,7 +120,8 @@ pub fn initial_object_poses(object_poses: &BTreeMap<String, Vec<Pose>>) -> BTree
     object_poses.iter().filter_map(|(name, poses)| poses.first().map(|p| (name.clone(), *p))).collect()
 }
 
-/// What a simulator needs to replay or rewrite a demo; the engine never looks inside.
+/// What a simulator needs to replay or rewrite a demo; the engine reads only the mobile base's
+/// part of the actions ([`crate::base`]).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct SimPayload {
     /// The actions as recorded, `(T, action_dim)`.

@@ -96,6 +96,11 @@ pub struct PickPlaceScript {
     /// (rad, either way round: a half-turn symmetry), and back on the way to the last point;
     /// `None` keeps its yaw.
     pub path_yaw_rad: Option<f64>,
+    /// A robot on a mobile base drives it to `[x, y, yaw_deg]` (in the world) before the pick,
+    /// the arm holding still on it: to the sink, say. `None`: the base stays where it is.
+    pub drive_before_pick: Option<[f64; 3]>,
+    /// The same after the lift, before the place: from the counter to the stove, say.
+    pub drive_before_place: Option<[f64; 3]>,
 }
 
 /// How the scripted operator moves.
@@ -124,6 +129,10 @@ const SETTLE_TOLERANCE_M: f64 = 0.004;
 const MAX_PLACE_TURN_RAD: f64 = 2.4;
 /// The longest the script waits for that (steps).
 const SETTLE_MAX_STEPS: usize = 40;
+/// How close a drive brings the base to its goal (m, rad), and the longest it may take (steps).
+const DRIVE_TOLERANCE_M: f64 = 0.004;
+const DRIVE_TOLERANCE_RAD: f64 = 0.008;
+const MAX_DRIVE_STEPS: usize = 400;
 
 /// How far a leg goes (m): its translation, or its rotation counted at 5 cm per radian if longer.
 fn leg_length(from: &Pose, to: &Pose) -> f64 {
@@ -231,6 +240,8 @@ impl Default for PickPlaceScript {
             path_on: String::new(),
             path_m: Vec::new(),
             path_yaw_rad: None,
+            drive_before_pick: None,
+            drive_before_place: None,
         }
     }
 }
@@ -259,10 +270,13 @@ impl PickPlaceScript {
             return self.record_path(env, traj, rng);
         }
         hold_open(env, traj, rng, self.settle_steps)?;
+        let mut start = env.eef_pose();
+        if let Some(goal) = self.drive_before_pick {
+            self.drive(env, traj, rng, &mut start, goal, -1.0)?;
+        }
         let objects = env.object_poses();
         let world_from_pick = *objects.get(&self.pick).ok_or_else(|| env_err(&self.pick))?;
-        let world_from_target = *objects.get(&self.place_on).ok_or_else(|| env_err(&self.place_on))?;
-        let start = env.eef_pose();
+        let mut world_from_target = *objects.get(&self.place_on).ok_or_else(|| env_err(&self.place_on))?;
         // Grasp about one of the object's symmetric yaws, the one closest to the gripper's.
         let symmetry = self.grasp_symmetry_rad;
         let (object_yaw, eef_yaw) = (yaw_of(&world_from_pick) + self.grasp_yaw_offset_rad, yaw_of(&start));
@@ -298,12 +312,17 @@ impl PickPlaceScript {
         ];
         let mut current = start;
         self.follow(env, traj, rng, &mut current, pick)?;
+        let mut home = start.translation.vector;
+        if let Some(goal) = self.drive_before_place {
+            self.drive(env, traj, rng, &mut current, goal, 1.0)?;
+            world_from_target = *env.object_poses().get(&self.place_on).ok_or_else(|| env_err(&self.place_on))?;
+            home = current.translation.vector;
+        }
         // Like an operator watching the object in the hand: aim the place from where the object
         // actually sits in the gripper (closing the fingers may have pushed it), turning it to
         // the target's yaw when the fit needs it; aim again once above the target.
         let place_xy = Vec3::new(rng.random_range(-0.003..0.003), rng.random_range(-0.003..0.003), self.release_height_m)
             + world_from_target.rotation * Vec3::from(self.target_point_m);
-        let home = start.translation.vector;
         let place = self.aim(env, &world_from_target, place_xy, &grasp_rot, &home)?;
         let (hover, pause) = (rng.random_range(self.preplace_height_m.0..self.preplace_height_m.1), rng.random_range(0..3));
         // The pre-place pose: above the place, or back along the approach (the held object's
@@ -401,6 +420,56 @@ impl PickPlaceScript {
         self.follow(env, traj, rng, &mut current, legs)
     }
 
+    /// Drives the mobile base to `goal` (`[x, y, yaw_deg]`), the arm's target (`current`, moved
+    /// with the base) and the gripper (`gripper`) held, then lets the base come to rest. A
+    /// person's drive is slower or faster and starts after a reaction time.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] for a robot without a base; the environment's error from a step.
+    fn drive<E: Environment + ?Sized, R: Rng + ?Sized>(
+        &self,
+        env: &mut E,
+        traj: &mut Trajectory,
+        rng: &mut R,
+        current: &mut Pose,
+        goal: [f64; 3],
+        gripper: f64,
+    ) -> Result<(), EnvError> {
+        let no_base =
+            || EnvError::Fatal { reason: "the script drives a mobile base (drive_before_*), but this robot stands on none".to_owned() };
+        let base = env.mobile_base().ok_or_else(no_base)?;
+        let goal = [goal[0], goal[1], goal[2].to_radians()];
+        let base_from_target = base.world_from_base.inverse() * *current;
+        let human = self.style == Style::Human;
+        let speed = if human { rng.random_range(0.5..1.0) } else { 0.8 };
+        let pause = if human { rng.random_range(3..12) } else { 2 };
+        let labels = StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed };
+        let hold = |base: &crate::base::MobileBase, command: Vec<f64>| Waypoint {
+            pose: base.world_from_base * base_from_target,
+            gripper: vec![gripper],
+            noise: 0.0,
+            base: command,
+        };
+        for _ in 0..pause {
+            execute_step(env, &hold(&base, Vec::new()), labels, traj, rng)?;
+        }
+        for _ in 0..MAX_DRIVE_STEPS {
+            let base = env.mobile_base().ok_or_else(no_base)?;
+            if crate::base::at_goal(&base, goal, DRIVE_TOLERANCE_M, DRIVE_TOLERANCE_RAD) {
+                break;
+            }
+            let command = crate::base::drive_command(&base, goal, speed);
+            execute_step(env, &hold(&base, command.to_vec()), labels, traj, rng)?;
+        }
+        // The base comes to rest before the arm moves again.
+        for _ in 0..pause.max(4) {
+            let base = env.mobile_base().ok_or_else(no_base)?;
+            execute_step(env, &hold(&base, Vec::new()), labels, traj, rng)?;
+        }
+        *current = env.mobile_base().ok_or_else(no_base)?.world_from_base * base_from_target;
+        Ok(())
+    }
+
     /// The fast and slow speeds of one pick-and-place (m per step).
     fn speeds<R: Rng + ?Sized>(&self, rng: &mut R) -> (f64, f64) {
         match self.style {
@@ -483,6 +552,7 @@ impl PickPlaceScript {
                     pose: pose_from_parts(target.translation.vector + jitter, target.rotation),
                     gripper: vec![gripper],
                     noise: 0.0,
+                    base: Vec::new(),
                 };
                 execute_step(env, &waypoint, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
             }
@@ -497,7 +567,7 @@ impl PickPlaceScript {
                     break;
                 }
                 last = now;
-                let waypoint = Waypoint { pose: goal, gripper: vec![gripper], noise: 0.0 };
+                let waypoint = Waypoint { pose: goal, gripper: vec![gripper], noise: 0.0, base: Vec::new() };
                 execute_step(env, &waypoint, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
             }
             *current = goal;
@@ -513,7 +583,7 @@ fn hold_open<E: Environment + ?Sized, R: Rng + ?Sized>(
     rng: &mut R,
     steps: usize,
 ) -> Result<(), EnvError> {
-    let hold = Waypoint { pose: env.eef_pose(), gripper: vec![-1.0], noise: 0.0 };
+    let hold = Waypoint { pose: env.eef_pose(), gripper: vec![-1.0], noise: 0.0, base: Vec::new() };
     for _ in 0..steps {
         execute_step(env, &hold, StepLabels { src_demo: 0, subtask: 0, kind: WaypointKind::Transformed }, traj, rng)?;
     }
@@ -536,7 +606,7 @@ pub fn record_sequence<E: Environment + ?Sized, R: Rng + ?Sized>(
     name: &str,
     rng: &mut R,
 ) -> Result<SourceDemo, EnvError> {
-    let mut traj = Trajectory::new(env.state().len(), env.action_dim());
+    let mut traj = Trajectory::for_env(env);
     for script in scripts {
         script.record_into(env, &mut traj, rng)?;
     }

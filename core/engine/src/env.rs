@@ -67,8 +67,16 @@ pub trait Environment {
     /// Controller target pose implied by the pose part of `action` in the current state.
     fn action_to_target_pose(&self, action: &[f64]) -> Pose;
 
-    /// Total action width (six pose dimensions plus the gripper).
+    /// Total action width: six pose dimensions, the gripper, then the mobile base's
+    /// [`crate::base::BASE_ACTION_DIM`] for a robot on one.
     fn action_dim(&self) -> usize;
+
+    /// The mobile base the arm stands on, `None` for an arm fixed in the world (the default).
+    /// With a base, the pose part of an action is in the base's frame (the arm's target rides
+    /// with the base) and the action ends with the base's velocity command.
+    fn mobile_base(&self) -> Option<crate::base::MobileBase> {
+        None
+    }
 
     /// Applies one action (one control step).
     ///

@@ -27,6 +27,7 @@
 //! ```
 
 pub mod action;
+pub mod base;
 pub mod coverage;
 pub mod demo;
 pub mod demonstrator;

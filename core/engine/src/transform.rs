@@ -37,6 +37,8 @@ pub struct Waypoint {
     pub gripper: Vec<f64>,
     /// Standard deviation of Gaussian noise on the pose part of the action.
     pub noise: f64,
+    /// The mobile base's part of the action ([`crate::base`]); empty: the base stands still.
+    pub base: Vec<f64>,
 }
 
 /// What kind of step a waypoint is, for labelling and visualisation.
@@ -48,6 +50,9 @@ pub enum WaypointKind {
     Transformed,
     /// Part of a planned collision-free transit ([`crate::transit`]).
     Transit,
+    /// Part of a mobile base's drive copied from the source, the arm holding still on the base
+    /// ([`crate::base`]).
+    Base,
 }
 
 /// Builds the waypoints of one subtask as MimicGen does: `num_interp` interpolated poses from
@@ -71,7 +76,7 @@ pub fn subtask_waypoints(
         let bridge = interpolate_poses(start, first, num_interp);
         for pose in bridge.into_iter().skip(1).chain(std::iter::repeat_n(*first, num_fixed)) {
             out.push((
-                Waypoint { pose, gripper: gripper.first().cloned().unwrap_or_default(), noise: interp_noise },
+                Waypoint { pose, gripper: gripper.first().cloned().unwrap_or_default(), noise: interp_noise, base: Vec::new() },
                 WaypointKind::Interpolation,
             ));
         }
@@ -80,7 +85,7 @@ pub fn subtask_waypoints(
         0
     };
     for (pose, g) in transformed.iter().zip(gripper).skip(transformed_from) {
-        out.push((Waypoint { pose: *pose, gripper: g.clone(), noise }, WaypointKind::Transformed));
+        out.push((Waypoint { pose: *pose, gripper: g.clone(), noise, base: Vec::new() }, WaypointKind::Transformed));
     }
     out
 }

@@ -53,7 +53,10 @@ pub fn dataset_coverage(path: &Path, task: Option<&str>, variant: Option<&str>, 
     for demo_name in reader.demo_names() {
         let demo = reader.load_demo(demo_name)?;
         if let Some(label) = demo.attrs.get(mimicgen_io::INSTANCE_ATTR).and_then(mimicgen_io::tree::Array::as_str) {
-            *instances.entry(label.to_owned()).or_default() += 1;
+            // One instance per object: `pan+carrot` counts under both.
+            for part in label.split('+') {
+                *instances.entry(part.to_owned()).or_default() += 1;
+            }
         }
         let mut scene: BTreeMap<String, Pose> = BTreeMap::new();
         for d in &dims {

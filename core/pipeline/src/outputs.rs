@@ -142,10 +142,11 @@ impl InstanceTally {
         tally
     }
 
-    /// Counts one attempt; one that drew no instance is not counted.
+    /// Counts one attempt under each instance it drew (a label `pan+carrot` names one per
+    /// object); one that drew no instance is not counted.
     pub(crate) fn add(&mut self, instance: Option<&str>, success: bool) {
-        if let Some(instance) = instance {
-            let count = self.0.entry(instance.to_owned()).or_default();
+        for part in instance.into_iter().flat_map(|label| label.split('+')) {
+            let count = self.0.entry(part.to_owned()).or_default();
             count.0 += 1;
             count.1 += usize::from(success);
         }

@@ -129,7 +129,8 @@ pub struct ReplayCheck {
 /// The attempts whose episode drew one object instance (object transfer), and their successes.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct InstanceReport {
-    /// The instance (the `mimicgen_object_instance` of the demos that drew it).
+    /// The instance (the `mimicgen_object_instance` of the demos that drew it, or one of its
+    /// `+`-joined parts where an episode draws one instance per object).
     pub instance: String,
     /// Attempts whose episode drew it.
     pub attempts: usize,

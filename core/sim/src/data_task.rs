@@ -51,12 +51,28 @@ impl DataTask {
             .iter()
             .map(|o| o.place.get(&variant).copied().unwrap_or(Region { x: [0.0; 2], y: [0.0; 2], yaw_deg: [0.0; 2], flip: false }))
             .collect();
-        let mut instances = Vec::new();
+        // With instances for several objects, every combination (Mobile Kitchen: 3 pans times 3
+        // carrots), labelled by its instances joined with `+` in the objects' order.
+        let mut instances: Vec<(String, Vec<ObjectModel>)> = Vec::new();
         for (i, object) in file.objects.iter().enumerate() {
-            for instance in object.instances.iter().filter(|x| x.variants.contains(&variant)) {
-                let models: Vec<ObjectModel> =
-                    file.objects.iter().enumerate().map(|(j, o)| if j == i { &instance.model } else { &o.model }.clone()).collect();
-                instances.push((instance.label.clone(), models));
+            let choices: Vec<&crate::task_file::Instance> = object.instances.iter().filter(|x| x.variants.contains(&variant)).collect();
+            if choices.is_empty() {
+                continue;
+            }
+            let base = if instances.is_empty() {
+                vec![(String::new(), file.objects.iter().map(|o| o.model.clone()).collect::<Vec<_>>())]
+            } else {
+                std::mem::take(&mut instances)
+            };
+            for (label, models) in &base {
+                for instance in &choices {
+                    let mut models = models.clone();
+                    if let Some(slot) = models.get_mut(i) {
+                        *slot = instance.model.clone();
+                    }
+                    let label = if label.is_empty() { instance.label.clone() } else { format!("{label}+{}", instance.label) };
+                    instances.push((label, models));
+                }
             }
         }
         let mut remembered = Vec::new();
@@ -360,6 +376,10 @@ impl Task for DataTask {
 
     fn robot_offset_m(&self) -> [f64; 2] {
         self.file.robot_offset_m
+    }
+
+    fn mobile_base(&self) -> Option<crate::mobile_base::MobileBaseModel> {
+        self.file.mobile_base
     }
 }
 

@@ -9,6 +9,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use mimicgen_engine::action::DeltaPoseScale;
+use mimicgen_engine::base::{BASE_ACTION_DIM, MobileBase};
 use mimicgen_engine::pose::{Pose, quat_to_wxyz};
 use mimicgen_engine::transit::TransitSpace;
 use mimicgen_engine::{EnvError, Environment};
@@ -211,6 +212,16 @@ impl SimEnv {
     pub fn observation(&self) -> BTreeMap<String, Vec<f64>> {
         let mut obs = arm_observation(&self.state, &self.state.scene.robot, "robot0_");
         obs.insert("object".to_owned(), self.task.object_obs(&self.state));
+        if let Some(base) = &self.state.scene.base {
+            // robosuite 1.5's mobile robots' keys: the base in the world, the hand on the base.
+            let world_from_base = base.world_from_base(&self.state.data);
+            let base_from_eef = world_from_base.inverse() * self.state.eef_pose();
+            let xyzw = |q: [f64; 4]| vec![q[1], q[2], q[3], q[0]];
+            obs.insert("robot0_base_pos".to_owned(), world_from_base.translation.vector.as_slice().to_vec());
+            obs.insert("robot0_base_quat".to_owned(), xyzw(quat_to_wxyz(&world_from_base.rotation)));
+            obs.insert("robot0_base_to_eef_pos".to_owned(), base_from_eef.translation.vector.as_slice().to_vec());
+            obs.insert("robot0_base_to_eef_quat".to_owned(), xyzw(quat_to_wxyz(&base_from_eef.rotation)));
+        }
         obs
     }
 
@@ -434,7 +445,14 @@ impl Environment for SimEnv {
     }
 
     fn target_pose_to_action(&self, world_from_target: &Pose) -> [f64; 6] {
-        self.osc.scale().action_from_target(&self.eef_pose(), world_from_target)
+        match &self.state.scene.base {
+            None => self.osc.scale().action_from_target(&self.eef_pose(), world_from_target),
+            // On a mobile base the pose part is in the base's frame.
+            Some(base) => {
+                let base_from_world = base.world_from_base(&self.state.data).inverse();
+                self.osc.scale().action_from_target(&(base_from_world * self.eef_pose()), &(base_from_world * world_from_target))
+            }
+        }
     }
 
     fn action_to_target_pose(&self, action: &[f64]) -> Pose {
@@ -445,20 +463,48 @@ impl Environment for SimEnv {
         for (dst, src) in a.iter_mut().zip(action) {
             *dst = src.clamp(-1.0, 1.0);
         }
-        DeltaPoseScale::target_from_action(&self.osc.scale(), &self.eef_pose(), &a)
+        match &self.state.scene.base {
+            None => DeltaPoseScale::target_from_action(&self.osc.scale(), &self.eef_pose(), &a),
+            Some(base) => {
+                let world_from_base = base.world_from_base(&self.state.data);
+                world_from_base * DeltaPoseScale::target_from_action(&self.osc.scale(), &(world_from_base.inverse() * self.eef_pose()), &a)
+            }
+        }
     }
 
     fn action_dim(&self) -> usize {
-        7
+        if self.state.scene.base.is_some() { 7 + BASE_ACTION_DIM } else { 7 }
+    }
+
+    fn mobile_base(&self) -> Option<MobileBase> {
+        let dt = self.state.scene.model.opt().timestep * f64::from(u32::try_from(self.state.scene.substeps).unwrap_or(1));
+        self.state.scene.base.as_ref().map(|base| base.describe(&self.state.data, dt))
     }
 
     fn step(&mut self, action: &[f64]) -> Result<(), EnvError> {
-        if action.len() != 7 || action.iter().any(|a| !a.is_finite()) {
-            return Err(EnvError::Unstable { reason: format!("action {action:?} is not 7 finite numbers") });
+        let dim = self.action_dim();
+        if action.len() != dim || action.iter().any(|a| !a.is_finite()) {
+            return Err(EnvError::Unstable { reason: format!("action {action:?} is not {dim} finite numbers") });
         }
         self.state.data.forward();
-        self.osc.set_goal(&self.state.data, &self.state.scene.robot, action);
+        let base = self.state.scene.base.clone();
+        let Some(base) = base else {
+            self.osc.set_goal(&self.state.data, &self.state.scene.robot, action);
+            for _ in 0..self.state.scene.substeps {
+                self.physics_step(action[6])?;
+            }
+            self.state.data.forward();
+            self.task.record_history(&mut self.state);
+            return Ok(());
+        };
+        // The arm's goal is set in the base's frame and rides with the base as it drives.
+        let mut world_from_base = base.world_from_base(&self.state.data);
+        self.osc.set_goal_in(&self.state.data, &self.state.scene.robot, action, &world_from_base.rotation);
+        base.drive(&mut self.state.data, action.get(7..).unwrap_or_default());
         for _ in 0..self.state.scene.substeps {
+            let now = base.world_from_base(&self.state.data);
+            self.osc.move_goal(&(now * world_from_base.inverse()));
+            world_from_base = now;
             self.physics_step(action[6])?;
         }
         self.state.data.forward();

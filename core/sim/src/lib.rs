@@ -17,6 +17,7 @@ pub mod env;
 pub mod geometry;
 pub mod legacy_contacts;
 pub mod mjcf_edit;
+pub mod mobile_base;
 pub mod model_cache;
 mod offscreen;
 pub mod osc;

@@ -91,6 +91,24 @@ impl Osc {
         self.goal_rot = delta.to_rotation_matrix().into_inner() * rot;
     }
 
+    /// [`Osc::set_goal`] for an arm on a mobile base: the action's deltas are in the frame turned
+    /// by `world_from_base` from the world's (robosuite's mobile arms take them in the base's).
+    pub fn set_goal_in(&mut self, data: &MjData<Arc<MjModel>>, robot: &RobotIndices, action: &[f64], world_from_base: &Rot) {
+        let a: [f64; 6] = std::array::from_fn(|i| action.get(i).map_or(0.0, |v| v.clamp(-1.0, 1.0)));
+        let xpos = data.site_xpos()[robot.eef_site];
+        let rot = Matrix3::from_row_slice(&data.site_xmat()[robot.eef_site]);
+        let s = self.config.scale;
+        self.goal_pos = Vec3::new(xpos[0], xpos[1], xpos[2]) + world_from_base * (Vec3::new(a[0], a[1], a[2]) * s.max_dpos_m);
+        let delta: Rot = world_from_base * rot_from_axis_angle(&(Vec3::new(a[3], a[4], a[5]) * s.max_drot_rad)) * world_from_base.inverse();
+        self.goal_rot = delta.to_rotation_matrix().into_inner() * rot;
+    }
+
+    /// Moves the goal rigidly by `moved` (a world-frame motion: the base's since the goal was set).
+    pub fn move_goal(&mut self, moved: &mimicgen_engine::pose::Pose) {
+        self.goal_pos = (moved * nalgebra::Point3::from(self.goal_pos)).coords;
+        self.goal_rot = moved.rotation.to_rotation_matrix().into_inner() * self.goal_rot;
+    }
+
     /// Arm torques for the current state (before clipping to the actuators' ranges), one per arm
     /// joint. `data` must hold the current kinematics, mass matrix and bias forces (after
     /// `mj_forward` or `mj_step1`).

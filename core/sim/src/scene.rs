@@ -65,6 +65,8 @@ pub struct Scene {
     pub robot: RobotIndices,
     /// A two-arm scene's second arm (`robot1_`/`gripper1_`, the same model as the first).
     pub second_robot: Option<RobotIndices>,
+    /// The mobile base under the arm, if it stands on one ([`crate::mobile_base`]).
+    pub base: Option<crate::mobile_base::BaseIndices>,
     /// The task's objects, in the order the task lists them.
     pub objects: Vec<SceneObject>,
     /// Physics steps per control step (robosuite: 0.05 s / 0.002 s = 25).
@@ -270,10 +272,12 @@ impl Scene {
         let timestep = model.opt().timestep;
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let substeps = ((1.0 / control_freq_hz) / timestep).round().max(1.0) as usize;
+        let base = crate::mobile_base::BaseIndices::resolve(&model);
         Ok(Self {
             model: Arc::new(model),
             robot,
             second_robot,
+            base,
             objects: scene_objects,
             substeps,
             origin: origin.to_owned(),
@@ -353,6 +357,10 @@ impl Scene {
     ) -> Result<(Self, String), SimError> {
         let assets = crate::assets::robosuite_assets_dir()?;
         let xml = crate::compose::compose_scene_with(robot, &assets, models, task.table_top_z(), task.robot_offset_m());
+        let xml = match task.mobile_base() {
+            Some(base) => base.mount(&xml).map_err(|reason| SimError::Compile { file: origin.to_owned(), reason })?,
+            None => xml,
+        };
         let scene = Self::compile(&xml, origin, &task.objects(), 20.0)?;
         scene.check_joints_read(task, origin)?;
         Ok((scene, xml))

@@ -63,6 +63,10 @@ pub trait Task: Send + Sync {
     fn robot_offset_m(&self) -> [f64; 2] {
         [0.0; 2]
     }
+    /// The mobile base the arm stands on, if it stands on one.
+    fn mobile_base(&self) -> Option<crate::mobile_base::MobileBaseModel> {
+        None
+    }
     /// Indices of the objects that are obstacles (clutter the robot should not touch).
     fn obstacles(&self) -> Vec<usize> {
         Vec::new()

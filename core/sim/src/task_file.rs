@@ -55,6 +55,9 @@ pub struct TaskFile {
     /// 10 cm to the right of the table scene's.
     #[serde(default)]
     pub robot_offset_m: [f64; 2],
+    /// The arm stands on a mobile base that drives (Mobile Kitchen); absent: it stands still.
+    #[serde(default)]
+    pub mobile_base: Option<crate::mobile_base::MobileBaseModel>,
     /// The objects, in the order of the object observation and the datasets' `object_poses`.
     #[serde(rename = "object")]
     pub objects: Vec<ObjectDef>,
@@ -72,6 +75,9 @@ pub struct TaskFile {
     #[serde(default, rename = "script")]
     pub scripts: Vec<PickPlaceScript>,
 }
+
+/// The most scenes a variant's instances may make (every combination is compiled).
+const MAX_INSTANCE_SCENES: usize = 64;
 
 fn base_table_top_z() -> f64 {
     BASE_TABLE_TOP_Z
@@ -363,6 +369,9 @@ impl TaskFile {
                 Err(format!("field `{field}` names object {name:?}, which is not one of {objects}"))
             }
         };
+        if let Some(base) = &self.mobile_base {
+            base.check()?;
+        }
         if !self.robot_offset_m.iter().all(|v| v.is_finite() && v.abs() < 1.0) {
             return Err(format!("field `robot_offset_m` {:?} must be finite and within 1 m", self.robot_offset_m));
         }
@@ -445,11 +454,20 @@ impl TaskFile {
             }
         }
         for variant in &self.variants {
-            let with_instances: Vec<&str> =
-                self.objects.iter().filter(|o| o.instances.iter().any(|i| i.variants.contains(variant))).map(|o| o.name.as_str()).collect();
-            if with_instances.len() > 1 {
-                return Err(format!("variant {variant}: only one object may have instances, not {}", with_instances.join(" and ")));
+            // Each combination of instances is a scene compiled once per worker.
+            let combinations: usize =
+                self.objects.iter().map(|o| o.instances.iter().filter(|i| i.variants.contains(variant)).count().max(1)).product();
+            if combinations > MAX_INSTANCE_SCENES {
+                return Err(format!(
+                    "variant {variant}: its objects' instances make {combinations} scenes, more than {MAX_INSTANCE_SCENES}"
+                ));
             }
+        }
+        let labels: Vec<&str> = self.objects.iter().flat_map(|o| o.instances.iter().map(|i| i.label.as_str())).collect();
+        if let Some(label) = labels.iter().find(|l| l.contains('+') || labels.iter().filter(|m| m == l).count() > 1) {
+            return Err(format!(
+                "instance label {label:?} must be unique in the task and have no `+` (it joins the labels of a combination)"
+            ));
         }
         for name in &self.place_order {
             if !self.objects.iter().any(|o| &o.name == name) {

@@ -13,6 +13,7 @@ use super::attempt_rng;
 use super::records::{Attempt, Failure, FailureReason, SubtaskPlan, Trajectory};
 use crate::EngineError;
 use crate::action::POSE_ACTION_DIM;
+use crate::base::{BASE_ACTION_DIM, hold_on_base};
 use crate::demo::{SourceDataset, SubtaskMarks};
 use crate::env::{EnvError, Environment};
 use crate::pose::Pose;
@@ -164,10 +165,13 @@ impl Generator {
         env.place_objects(&overrides.object_poses).map_err(fatal)?;
         attempt.initial_object_poses = env.object_poses();
         attempt.initial_state = env.state();
-        attempt.trajectory = Trajectory::new(attempt.initial_state.len(), env.action_dim());
+        attempt.trajectory = Trajectory::for_env(&*env);
         let spans = self.segmentation.draw_spans(&mut rng);
         let mut selected: Option<usize> = None;
         let mut last_target: Option<Pose> = None;
+        // A mobile base's drive in progress: the hand's target on the base (it may run on into
+        // the next subtask).
+        let mut held_on_base = None;
         for (subtask_index, subtask) in self.spec.subtasks.iter().enumerate() {
             let here = PlanInput {
                 subtask: subtask_index,
@@ -203,6 +207,7 @@ impl Generator {
                 {
                     follow_object(env, subtask.object_ref.as_deref(), plan, &mut waypoints, i);
                 }
+                hold_on_base(&*env, &mut waypoints, i, &mut held_on_base, attempt.trajectory.target_poses.last().copied());
                 let Some((waypoint, kind)) = waypoints.get(i) else { break };
                 let signals = match execute_step(env, waypoint, StepLabels { kind: *kind, ..labels }, &mut attempt.trajectory, &mut rng) {
                     Ok(signals) => signals,
@@ -315,7 +320,7 @@ impl Generator {
             .iter()
             .copied()
             .chain(hold)
-            .map(|pose| (Waypoint { pose, gripper: goal.gripper.clone(), noise }, WaypointKind::Transit));
+            .map(|pose| (Waypoint { pose, gripper: goal.gripper.clone(), noise, base: Vec::new() }, WaypointKind::Transit));
         waypoints.splice(0..0, bridge);
         plan.waypoints = waypoints.iter().map(|(w, k)| (w.pose, *k)).collect();
         Ok(Ok(()))
@@ -400,10 +405,6 @@ impl Generator {
                 })
                 .transpose()?,
         };
-        let transformed = match (&world_from_obj_new, &world_from_obj_src) {
-            (Some(new), Some(src)) => transform_segment(new, src, &source_poses),
-            _ => source_poses.clone(),
-        };
         let interp_start = match here.last_target {
             Some(pose) if settings.interpolate_from_last_target_pose && !is_first => pose,
             _ => here.world_from_eef,
@@ -411,15 +412,39 @@ impl Generator {
         let interp_noise = subtask.bridge_noise();
         // A planned transit replaces the interpolation (it is planned when the attempt gets here).
         let num_interp = if subtask.transit == Transit::Plan { 0 } else { subtask.num_interpolation_steps };
-        let waypoints = subtask_waypoints(
+        let object = world_from_obj_new.as_ref().zip(world_from_obj_src.as_ref());
+        let (transformed, waypoints) = match crate::base::plan_segment(
+            demo,
+            (start, end),
             &interp_start,
-            &transformed,
-            &gripper,
+            object,
             num_interp,
             subtask.num_fixed_steps,
             subtask.action_noise,
             interp_noise,
-        );
+        ) {
+            // The source drove a mobile base here: its poses one per source step.
+            Some((planned, waypoints)) => {
+                source_poses = demo.target_poses[start..end].to_vec();
+                (planned, waypoints)
+            }
+            None => {
+                let transformed = match object {
+                    Some((new, src)) => transform_segment(new, src, &source_poses),
+                    None => source_poses.clone(),
+                };
+                let waypoints = subtask_waypoints(
+                    &interp_start,
+                    &transformed,
+                    &gripper,
+                    num_interp,
+                    subtask.num_fixed_steps,
+                    subtask.action_noise,
+                    interp_noise,
+                );
+                (transformed, waypoints)
+            }
+        };
         let plan = SubtaskPlan {
             src_demo: demo_index,
             src_span: (start, end),
@@ -538,17 +563,27 @@ pub fn execute_step<E: Environment + ?Sized, R: Rng + ?Sized>(
 ) -> Result<BTreeMap<String, i64>, EnvError> {
     let mut pose_action = env.target_pose_to_action(&waypoint.pose);
     add_noise(&mut pose_action, waypoint.noise, rng);
-    let mut action = Vec::with_capacity(POSE_ACTION_DIM + waypoint.gripper.len());
+    let base_dim = if env.mobile_base().is_some() { BASE_ACTION_DIM } else { 0 };
+    let mut action = Vec::with_capacity(POSE_ACTION_DIM + waypoint.gripper.len() + base_dim);
     action.extend_from_slice(&pose_action);
     action.extend_from_slice(&waypoint.gripper);
-    if action.len() != env.action_dim() {
+    if action.len() + base_dim != env.action_dim() {
         return Err(EnvError::Fatal {
             reason: format!(
                 "source gripper actions have {} values but the environment's actions have {} gripper values",
                 waypoint.gripper.len(),
-                env.action_dim() - POSE_ACTION_DIM.min(env.action_dim())
+                env.action_dim().saturating_sub(POSE_ACTION_DIM + base_dim)
             ),
         });
+    }
+    match (base_dim, waypoint.base.len()) {
+        (_, 0) => action.extend(std::iter::repeat_n(0.0, base_dim)),
+        (dim, given) if dim == given => action.extend_from_slice(&waypoint.base),
+        (dim, given) => {
+            return Err(EnvError::Fatal {
+                reason: format!("the source's actions move a mobile base with {given} values, but this robot's base takes {dim}"),
+            });
+        }
     }
     let state = env.state();
     let shape = |e: EngineError| EnvError::Fatal { reason: e.to_string() };

@@ -126,6 +126,17 @@ impl Trajectory {
         }
     }
 
+    /// An empty trajectory for `env`'s states and actions (its gripper's share of an action is
+    /// what the pose and a mobile base leave).
+    #[must_use]
+    pub fn for_env<E: crate::Environment + ?Sized>(env: &E) -> Self {
+        let base = if env.mobile_base().is_some() { crate::base::BASE_ACTION_DIM } else { 0 };
+        Self {
+            gripper_actions: Rows::new(env.action_dim().saturating_sub(POSE_ACTION_DIM + base)),
+            ..Self::new(env.state().len(), env.action_dim())
+        }
+    }
+
     /// The trajectory as a source demo (for re-use as a source, or for writing out).
     #[must_use]
     pub fn to_source_demo(&self, name: &str) -> SourceDemo {
