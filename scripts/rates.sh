@@ -42,6 +42,7 @@ coffee_preparation D0 53.2
 nut_bolt_assembly D0 66.0
 gear_assembly D0 46.9
 frame_assembly D0 45.3
+mobile_kitchen D0 20.7
 stack D1 90.0
 stack_three D1 68.9
 square D1 48.9

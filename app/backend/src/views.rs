@@ -71,6 +71,7 @@ pub(crate) fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<
             ranking.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.demo.cmp(&b.demo)));
             let bridge = s.waypoints.iter().take_while(|(_, k)| *k == WaypointKind::Interpolation).map(|(p, _)| point(p)).collect();
             let transit = s.waypoints.iter().take_while(|(_, k)| *k == WaypointKind::Transit).map(|(p, _)| point(p)).collect();
+            let drive = s.waypoints.iter().filter(|(_, k)| *k == WaypointKind::Base).map(|(p, _)| point(p)).collect();
             SubtaskPreview {
                 object: subtask.object_ref.clone(),
                 src_demo: s.src_demo,
@@ -81,6 +82,7 @@ pub(crate) fn preview_view(previewer: &Previewer, plan: &Plan, executed: Option<
                 source_object: s.world_from_obj_src.as_ref().map(point),
                 bridge,
                 transit,
+                drive,
                 transformed: s.transformed_poses.iter().map(point).collect(),
             }
         })

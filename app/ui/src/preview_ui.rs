@@ -35,6 +35,8 @@ const PICK_RADIUS_PX: f32 = 12.0;
 const EXECUTED: Color32 = Color32::from_rgb(235, 235, 235);
 /// Planned collision-free transit (the Rerun stream's colour for it too).
 const TRANSIT: Color32 = Color32::from_rgb(0, 206, 180);
+/// The hand riding a mobile base's drive (copied from the source).
+const BASE_DRIVE: Color32 = Color32::from_rgb(150, 110, 60);
 /// Executed path of a two-arm attempt's second arm (the first's is [`EXECUTED`]).
 const EXECUTED_SECOND: Color32 = Color32::from_rgb(250, 210, 120);
 
@@ -203,6 +205,14 @@ pub fn view_plot(
                 plot.line(Line::new(format!("bridge {k}"), xy(&s.bridge, axes)).color(color).style(LineStyle::dashed_dense()).width(1.5));
                 if !s.transit.is_empty() {
                     plot.line(Line::new(format!("planned transit {k}"), xy(&s.transit, axes)).color(TRANSIT).width(2.0));
+                }
+                if !s.drive.is_empty() {
+                    plot.line(
+                        Line::new(format!("base drive {k}"), xy(&s.drive, axes))
+                            .color(BASE_DRIVE)
+                            .width(2.0)
+                            .style(LineStyle::dashed_loose()),
+                    );
                 }
                 plot.line(Line::new(format!("transformed {k}"), xy(&s.transformed, axes)).color(color).width(2.5));
                 if let Some(o) = s.source_object {

@@ -474,6 +474,11 @@ pub struct SubtaskPreview {
     /// later subtask's is known once the attempt is tried (its start is where the robot got to).
     #[serde(default)]
     pub transit: Vec<Point>,
+    /// The hand's targets while a mobile base drives (its actions copied from the source, the
+    /// hand held still on it): the base's path, lifted to the hand. Empty for an arm fixed in the
+    /// world.
+    #[serde(default)]
+    pub drive: Vec<Point>,
     /// The transformed segment.
     pub transformed: Vec<Point>,
 }

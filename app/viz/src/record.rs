@@ -21,6 +21,8 @@ const TRANSFORMED_COLOR: [u8; 3] = [30, 144, 255];
 const INTERPOLATION_COLOR: [u8; 3] = [255, 215, 0];
 /// Planned collision-free transit (`--transit plan`).
 const TRANSIT_COLOR: [u8; 3] = [0, 206, 180];
+/// The hand riding a mobile base's drive, copied from the source.
+const BASE_DRIVE_COLOR: [u8; 3] = [150, 110, 60];
 /// Executed path of a successful attempt.
 const SUCCESS_COLOR: [u8; 3] = [50, 205, 50];
 /// Executed path of a failed attempt.
@@ -254,12 +256,16 @@ fn log_subtask_plans(
         for (kind, name, color, label) in [
             (WaypointKind::Interpolation, "interpolation_segment", INTERPOLATION_COLOR, "interpolation"),
             (WaypointKind::Transit, "transit_segment", TRANSIT_COLOR, "planned transit"),
+            (WaypointKind::Base, "base_drive_segment", BASE_DRIVE_COLOR, "base drive (the hand on the base)"),
         ] {
             let mut path: Vec<[f32; 3]> = plan.waypoints.iter().filter(|(_, k)| *k == kind).map(|(p, _)| point(p)).collect();
             if path.is_empty() {
                 continue;
             }
-            path.extend(first_transformed);
+            // A bridge ends where the transformed segment begins; a drive ends where it ends.
+            if kind != WaypointKind::Base {
+                path.extend(first_transformed);
+            }
             rec.log(
                 format!("{sub}/{name}"),
                 &rerun::LineStrips3D::new([path])

@@ -15,11 +15,14 @@ fn settle(task: &str, variant: &str) -> (f64, bool) {
     let mut env = SimEnv::new(scene, Arc::clone(&task));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let (mut moved, mut success) = (0.0_f64, false);
+    // Hold still, open (and a mobile base's part of the action at rest).
+    let mut hold = vec![0.0; env.action_dim()];
+    hold[6] = -1.0;
     for _ in 0..5 {
         env.reset(&mut rng).unwrap();
         let before = env.object_poses();
         for _ in 0..10 {
-            env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]).unwrap();
+            env.step(&hold).unwrap();
         }
         for (name, pose) in env.object_poses() {
             moved = moved.max((pose.translation.vector - before[&name].translation.vector).norm());
@@ -61,12 +64,17 @@ pub fn restore_in_order(env: &mut SimEnv, demo: &mimicgen_engine::demo::SourceDe
     }
 }
 
-/// The bundled demos of `task` end in success with `signals` turning on in this order, and
+/// The 10 bundled demos of `task` end in success with `signals` turning on in this order, and
 /// generated attempts in `variant` succeed: two within the first 16 (the run stops at the second).
 pub fn bundled_demos_succeed_and_generate(task_name: &str, signals: &[&str], variant: &str) {
+    bundled_demos_succeed_and_generate_n(task_name, signals, variant, 10);
+}
+
+/// [`bundled_demos_succeed_and_generate`] for a task with `demos` bundled demos.
+pub fn bundled_demos_succeed_and_generate_n(task_name: &str, signals: &[&str], variant: &str, demos: usize) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("data/{task_name}_D0_source.hdf5"));
     let sources = mimicgen_io::read_source_dataset(&path, &Default::default()).unwrap();
-    assert_eq!(sources.demos.len(), 10);
+    assert_eq!(sources.demos.len(), demos);
     let task = registry::task(task_name, "D0").unwrap();
     let scene = Arc::new(Scene::for_task(task.as_ref()).unwrap());
     let mut env = SimEnv::new(Arc::clone(&scene), Arc::clone(&task));
