@@ -34,6 +34,9 @@ use crate::transform::{Waypoint, WaypointKind, interpolate_poses, subtask_waypoi
 /// The base's share of an action: forward, sideways, turn.
 pub const BASE_ACTION_DIM: usize = 3;
 
+/// Waypoints to execute, each with its kind.
+pub type Waypoints = Vec<(Waypoint, WaypointKind)>;
+
 /// Where a mobile base stands and how fast its actions move it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MobileBase {
@@ -119,12 +122,12 @@ pub fn plan_segment(
     num_fixed: usize,
     noise: f64,
     interp_noise: f64,
-) -> Option<(Vec<Pose>, Vec<(Waypoint, WaypointKind)>)> {
+) -> Option<(Vec<Pose>, Waypoints)> {
     let runs = runs(demo, start, end);
     if !runs.iter().any(|r| r.base) {
         return None;
     }
-    let source = |t: usize| demo.target_poses.get(t).copied().unwrap_or_else(|| *last);
+    let source = |t: usize| demo.target_poses.get(t).copied().unwrap_or(*last);
     let gripper = |t: usize| demo.gripper_actions.get(t).map(<[f64]>::to_vec).unwrap_or_default();
     // The source's target just before a run stands for where the hand is when it starts.
     let before = |t: usize| if t > 0 { source(t - 1) } else { demo.eef_poses.get(t).copied().unwrap_or(*last) };
