@@ -51,15 +51,14 @@ pub struct MobileBase {
 /// A base command smaller than this in every part is no motion.
 const STILL: f64 = 1e-9;
 
-/// How many base values each of `demo`'s actions ends with: 0 for an arm fixed in the world (or a
-/// demo whose actions were not kept).
+/// How many base values each of `demo`'s actions ends with: [`BASE_ACTION_DIM`] when its actions
+/// are exactly the pose, the gripper and a base's three; else 0 (an arm fixed in the world, one
+/// arm's view of a two-arm demo whose actions hold both arms', a demo whose actions were not kept).
 #[must_use]
 pub fn base_dim(demo: &SourceDemo) -> usize {
     let actions = &demo.sim.actions;
-    if actions.len() != demo.len() {
-        return 0;
-    }
-    actions.width().saturating_sub(POSE_ACTION_DIM + demo.gripper_actions.width())
+    let with_base = POSE_ACTION_DIM + demo.gripper_actions.width() + BASE_ACTION_DIM;
+    if actions.len() == demo.len() && actions.width() == with_base { BASE_ACTION_DIM } else { 0 }
 }
 
 /// The base part of `demo`'s action `t` (empty without a base).
@@ -171,7 +170,9 @@ pub fn plan_segment(
 /// Before executing waypoint `i` of a segment on a mobile base, puts the waypoint where the base
 /// now is: a drive's waypoint holds the hand where it was on the base when the drive began
 /// (`held`, `base_from_target`), and the interpolation after a drive starts from where the drive
-/// left the hand. `last` is the target executed last. Does nothing without a base.
+/// left the hand. `last` is the target commanded last (a waypoint's pose, not the target an
+/// action clipped to its limit reached: a hand lifting fast is held where it was sent). Does
+/// nothing without a base.
 pub fn hold_on_base<E: Environment + ?Sized>(
     env: &E,
     waypoints: &mut [(Waypoint, WaypointKind)],
@@ -286,12 +287,15 @@ mod tests {
             runs(&d, 0, 30),
             vec![Run { start: 0, end: 10, base: false }, Run { start: 10, end: 20, base: true }, Run { start: 20, end: 30, base: false }]
         );
-        // A fixed arm's demo has no base: its actions are the pose and the gripper.
-        let mut fixed = d.clone();
-        fixed.sim.actions = Rows::from_vec(7, vec![0.0; 7 * 30], "actions").unwrap();
-        assert_eq!(base_dim(&fixed), 0);
-        assert_eq!(runs(&fixed, 0, 30).len(), 1);
-        assert!(plan_segment(&fixed, (0, 30), &at(0.0, 0.0), None, 5, 0, 0.05, 0.0).is_none());
+        // A fixed arm's demo has no base: its actions are the pose and the gripper. Nor has one
+        // arm's view of a two-arm demo, whose actions hold both arms' (14 wide, moving).
+        for width in [7, 14] {
+            let mut fixed = d.clone();
+            fixed.sim.actions = Rows::from_vec(width, vec![0.5; width * 30], "actions").unwrap();
+            assert_eq!(base_dim(&fixed), 0);
+            assert_eq!(runs(&fixed, 0, 30).len(), 1);
+            assert!(plan_segment(&fixed, (0, 30), &at(0.0, 0.0), None, 5, 0, 0.05, 0.0).is_none());
+        }
     }
 
     #[test]

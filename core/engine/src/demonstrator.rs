@@ -453,6 +453,16 @@ impl PickPlaceScript {
         for _ in 0..pause {
             execute_step(env, &hold(&base, Vec::new()), labels, traj, rng)?;
         }
+        // The arm gets where it was sent (a lift) before the base moves: the base and the arm do
+        // not move at once, and the source's hand then rides the drive still on the base.
+        for _ in 0..SETTLE_MAX_STEPS {
+            let base = env.mobile_base().ok_or_else(no_base)?;
+            let target = base.world_from_base * base_from_target;
+            if (env.eef_pose().translation.vector - target.translation.vector).norm() < SETTLE_TOLERANCE_M {
+                break;
+            }
+            execute_step(env, &hold(&base, Vec::new()), labels, traj, rng)?;
+        }
         for _ in 0..MAX_DRIVE_STEPS {
             let base = env.mobile_base().ok_or_else(no_base)?;
             if crate::base::at_goal(&base, goal, DRIVE_TOLERANCE_M, DRIVE_TOLERANCE_RAD) {

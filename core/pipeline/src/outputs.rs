@@ -265,3 +265,29 @@ pub fn attempt_log_path(out: &Path) -> PathBuf {
 }
 
 pub use mimicgen_run::{quality_path, sibling};
+
+#[cfg(test)]
+mod tests {
+    use super::InstanceTally;
+
+    /// An episode that drew one instance per object (`pan+carrot`) counts under each; one that
+    /// drew one instance counts under it; one that drew none is not counted.
+    #[test]
+    fn a_combined_instance_counts_under_each_part() {
+        let mut tally = InstanceTally::default();
+        tally.add(Some("steel_pan+baby_carrot"), true);
+        tally.add(Some("copper_pan+baby_carrot"), false);
+        tally.add(Some("tall_green"), true);
+        tally.add(None, true);
+        let rows: Vec<(String, usize, usize)> = tally.report().into_iter().map(|r| (r.instance, r.attempts, r.successes)).collect();
+        assert_eq!(
+            rows,
+            [
+                ("baby_carrot".to_owned(), 2, 1),
+                ("copper_pan".to_owned(), 1, 0),
+                ("steel_pan".to_owned(), 1, 1),
+                ("tall_green".to_owned(), 1, 1)
+            ]
+        );
+    }
+}

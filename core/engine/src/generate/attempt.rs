@@ -207,7 +207,10 @@ impl Generator {
                 {
                     follow_object(env, subtask.object_ref.as_deref(), plan, &mut waypoints, i);
                 }
-                hold_on_base(&*env, &mut waypoints, i, &mut held_on_base, attempt.trajectory.target_poses.last().copied());
+                // The target commanded last (not the one recorded, which the action's clipping may
+                // have cut short of it while the arm was lifting fast).
+                let commanded = i.checked_sub(1).and_then(|j| waypoints.get(j)).map(|(w, _)| w.pose).or(last_target);
+                hold_on_base(&*env, &mut waypoints, i, &mut held_on_base, commanded);
                 let Some((waypoint, kind)) = waypoints.get(i) else { break };
                 let signals = match execute_step(env, waypoint, StepLabels { kind: *kind, ..labels }, &mut attempt.trajectory, &mut rng) {
                     Ok(signals) => signals,
