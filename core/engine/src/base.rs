@@ -28,6 +28,7 @@
 use crate::action::POSE_ACTION_DIM;
 use crate::demo::SourceDemo;
 use crate::env::Environment;
+pub use crate::env::MobileBase;
 use crate::pose::{Pose, Vec3, pose_from_parts, yaw_of};
 use crate::transform::{Waypoint, WaypointKind, interpolate_poses, subtask_waypoints};
 
@@ -36,17 +37,6 @@ pub const BASE_ACTION_DIM: usize = 3;
 
 /// Waypoints to execute, each with its kind.
 pub type Waypoints = Vec<(Waypoint, WaypointKind)>;
-
-/// Where a mobile base stands and how fast its actions move it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MobileBase {
-    /// The base's frame (the arm's mount): x forward, z up.
-    pub world_from_base: Pose,
-    /// Metres the base moves in one control step at a full forward or sideways command.
-    pub max_step_m: f64,
-    /// Radians it turns in one control step at a full turning command.
-    pub max_turn_rad: f64,
-}
 
 /// A base command smaller than this in every part is no motion.
 const STILL: f64 = 1e-9;

@@ -26,6 +26,17 @@ pub enum EnvError {
     },
 }
 
+/// Where a mobile base stands and how fast its actions move it (see the engine's `base` module).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MobileBase {
+    /// The base's frame (the arm's mount): x forward, z up.
+    pub world_from_base: Pose,
+    /// Metres the base moves in one control step at a full forward or sideways command.
+    pub max_step_m: f64,
+    /// Radians it turns in one control step at a full turning command.
+    pub max_turn_rad: f64,
+}
+
 /// A simulated scene the engine can reset, observe and drive with delta-pose actions.
 ///
 /// Implementations own their simulator state; run several attempts in parallel by giving each
@@ -67,14 +78,14 @@ pub trait Environment {
     /// Controller target pose implied by the pose part of `action` in the current state.
     fn action_to_target_pose(&self, action: &[f64]) -> Pose;
 
-    /// Total action width: six pose dimensions, the gripper, then the mobile base's
-    /// [`crate::base::BASE_ACTION_DIM`] for a robot on one.
+    /// Total action width: six pose dimensions, the gripper, then a mobile base's three for a
+    /// robot on one.
     fn action_dim(&self) -> usize;
 
     /// The mobile base the arm stands on, `None` for an arm fixed in the world (the default).
     /// With a base, the pose part of an action is in the base's frame (the arm's target rides
     /// with the base) and the action ends with the base's velocity command.
-    fn mobile_base(&self) -> Option<crate::base::MobileBase> {
+    fn mobile_base(&self) -> Option<MobileBase> {
         None
     }
 
