@@ -76,6 +76,15 @@ step "robosuite renders what we render"
 # LeRobot export of that dataset (parquet + H.264 camera videos), loaded by LeRobot's own
 # LeRobotDataset: counts, episode boundaries, first/last actions, decoded frames.
 step "LeRobot export, loaded by LeRobot"
-bash scripts/setup_lerobot.sh
+bash scripts/setup_learners.sh
 "$CARGO_TARGET_DIR/debug/mimicgen" export "$replay_dir/cameras.hdf5" --lerobot "$replay_dir/lerobot"
-"$MIMICGEN_CACHE/venv-lerobot/bin/python" scripts/check_lerobot.py "$replay_dir/cameras.hdf5" "$replay_dir/lerobot"
+"$MIMICGEN_CACHE/venv-learners/bin/python" scripts/check_lerobot.py "$replay_dir/cameras.hdf5" "$replay_dir/lerobot"
+# The trainers' loop: robomimic 0.3.0's own train.py trains BC-RNN on our data and its
+# run_trained_agent.py rolls the policy out in our simulator (mimicgen_rs.robomimic registers it).
+# Tiny: 2 epochs of 5 steps, 2 rollouts of 30 steps; it must run, not succeed (BENCHMARKS.md has
+# the trained rates).
+step "robomimic trains on our data and rolls out in our simulator"
+"$MIMICGEN_CACHE/venv-learners/bin/pip" install -q --disable-pip-version-check --no-deps --force-reinstall "$CARGO_TARGET_DIR"/wheels/mimicgen_rs-*.whl
+"$CARGO_TARGET_DIR/debug/mimicgen" generate --task stack --variant D1 --num-demos 6 --seed 1 --workers 2 --out "$replay_dir/stack_d1.hdf5" >/dev/null
+"$MIMICGEN_CACHE/venv-learners/bin/python" scripts/train_policy.py "$replay_dir/stack_d1.hdf5" "$replay_dir/policy" \
+  --epochs 2 --steps-per-epoch 5 --rollouts 2 --horizon 30 | tail -1

@@ -30,6 +30,7 @@ fn synthetic_demo(d: usize, steps: usize) -> anyhow::Result<DemoData> {
     ]);
     Ok(DemoData {
         actions: Rows::from_vec(7, row(7, 0.0), "actions")?,
+        other_actions: std::collections::BTreeMap::new(),
         states: Rows::from_vec(45, row(45, 0.5), "states")?,
         rewards: Some(vec![0.0; steps]),
         dones: Some(vec![0; steps]),

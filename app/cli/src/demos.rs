@@ -153,6 +153,7 @@ pub fn demos(args: &DemosArgs) -> anyhow::Result<()> {
         #[allow(clippy::cast_precision_loss)]
         let data = DemoData {
             actions: demo.sim.actions.clone(),
+            other_actions: std::collections::BTreeMap::new(),
             states: demo.sim.states.clone(),
             rewards: Some(done.iter().map(|&d| d as f64).collect()),
             dones: Some(done),

@@ -104,6 +104,12 @@ pub struct GenerateArgs {
     /// the attempt log (OUT.attempts.jsonl) each run writes.
     #[arg(long, value_name = "PART/COUNT")]
     shard: Option<mimicgen_engine::Shard>,
+    /// Also write the actions in other forms beside robosuite's delta-pose `actions`: `abs`
+    /// writes `actions_abs` (the controller's absolute target: position, axis-angle rotation,
+    /// gripper; robomimic's convention, for Diffusion Policy and other absolute-action learners).
+    /// `mimicgen replay --mode actions-abs` replays them.
+    #[arg(long, value_enum, value_delimiter = ',', value_name = "FORM")]
+    actions: Vec<ActionFormArg>,
     /// Spec fields for this run over the spec's.
     #[command(flatten)]
     spec: SpecArgs,
@@ -286,8 +292,22 @@ impl GenerateArgs {
             shard: self.shard,
             cameras: self.cameras.config(),
             robot: self.robot.clone(),
+            actions: self
+                .actions
+                .iter()
+                .map(|a| match a {
+                    ActionFormArg::Abs => mimicgen_pipeline::ActionForm::Abs,
+                })
+                .collect(),
         }
     }
+}
+
+/// A form of the actions `--actions` adds.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ActionFormArg {
+    /// `actions_abs`: absolute target position, axis-angle rotation, gripper.
+    Abs,
 }
 
 /// Runs `mimicgen generate`: the pipeline, with a progress bar and (optionally) a Rerun recording
@@ -537,6 +557,7 @@ mod tests {
                 reflection: true,
             }),
             robot: Some("ur5e".into()),
+            actions: vec![mimicgen_pipeline::ActionForm::Abs],
         }
     }
 

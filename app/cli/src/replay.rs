@@ -14,6 +14,8 @@ pub enum ModeArg {
     Targets,
     /// The stored actions, open loop (robomimic's playback).
     Actions,
+    /// The stored absolute actions (`actions_abs`, from `generate --actions abs`), open loop.
+    ActionsAbs,
 }
 
 /// Arguments of `mimicgen replay`.
@@ -23,6 +25,7 @@ Examples:
   mimicgen replay out/stack_d0_failed.hdf5                      did each failed attempt fail again?
   mimicgen replay out/stack_d0.hdf5 --demos demo_3,demo_7 --trace trace.json
   mimicgen replay demos.hdf5 --mode actions                     robomimic's open-loop playback
+  mimicgen replay demos.hdf5 --mode actions-abs                 the same from `actions_abs`
 
 Every demo starts from its first stored state in its own scene (`model_file`). With --mode
 targets (the default) each step's action is recomputed from where the arm is towards the stored
@@ -61,6 +64,7 @@ pub fn run(args: &ReplayArgs) -> anyhow::Result<()> {
     let mode = match args.mode {
         ModeArg::Targets => ReplayMode::Targets,
         ModeArg::Actions => ReplayMode::Actions,
+        ModeArg::ActionsAbs => ReplayMode::ActionsAbs,
     };
     let bar = indicatif::ProgressBar::new(0).with_style(
         indicatif::ProgressStyle::with_template("replaying {bar:30} {pos}/{len} demos, {elapsed} ({eta} left) {msg}")
@@ -84,7 +88,11 @@ pub fn run(args: &ReplayArgs) -> anyhow::Result<()> {
     let successes = traces.iter().filter(|t| t.success).count();
     outln!(
         "replay ({}): {successes} of {} succeeded",
-        if matches!(mode, ReplayMode::Targets) { "targets" } else { "actions" },
+        match mode {
+            ReplayMode::Targets => "targets",
+            ReplayMode::Actions => "actions",
+            ReplayMode::ActionsAbs => "actions-abs",
+        },
         traces.len()
     );
     if let Some(path) = &args.trace {

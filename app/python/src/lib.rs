@@ -26,6 +26,7 @@ use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
+mod policy;
 mod pyenv;
 
 pyo3::create_exception!(_native, MimicgenError, PyException, "An error of mimicgen_rs: the message names the file and field at fault.");
@@ -312,6 +313,14 @@ fn tasks() -> PyResult<String> {
     json_of(&serde_json::json!({"tasks": tasks, "broken": broken, "robots": robots}))
 }
 
+/// The task and variant of a robosuite / MimicGen environment name (`Stack_D1` -> `stack`,
+/// `D1`), as datasets' `env_args` name them.
+#[pyfunction]
+fn task_from_env_name(env_name: &str) -> PyResult<(String, String)> {
+    let (task, variant) = mimicgen_sim::registry::task_from_env_name(env_name).map_err(error)?;
+    Ok((task.name().to_owned(), variant))
+}
+
 /// Joins the shards of a run into the whole run's dataset; returns the report.
 #[pyfunction]
 #[pyo3(signature = (shards, out, overwrite = false))]
@@ -564,10 +573,12 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Dataset>()?;
     m.add_class::<Spec>()?;
     m.add_class::<Run>()?;
+    m.add_class::<policy::Env>()?;
     m.add_function(wrap_pyfunction!(propose_subtask_ends, m)?)?;
     m.add_function(wrap_pyfunction!(write_subtask_ends, m)?)?;
     m.add_function(wrap_pyfunction!(coverage, m)?)?;
     m.add_function(wrap_pyfunction!(tasks, m)?)?;
+    m.add_function(wrap_pyfunction!(task_from_env_name, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(export_lerobot, m)?)?;
     m.add_function(wrap_pyfunction!(generate, m)?)?;

@@ -105,6 +105,8 @@ impl RunForm {
             valid_fraction: None,
             resume: self.resume,
             shard: None,
+            // Other action forms are a batch job's (`mimicgen generate --actions abs`).
+            actions: Vec::new(),
         }
     }
 

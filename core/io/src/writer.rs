@@ -55,6 +55,8 @@ pub struct ArmInfo {
 pub struct DemoData {
     /// Actions, `(T, action_dim)`.
     pub actions: Rows,
+    /// The same actions in other forms, by dataset key (`actions_abs`), `(T, width)` each.
+    pub other_actions: BTreeMap<String, Rows>,
     /// Flattened simulator states, `(T, state_dim)` (may be empty).
     pub states: Rows,
     /// Reward per step, if known.
@@ -107,6 +109,7 @@ impl DemoData {
         let to_i64 = |v: &[usize]| v.iter().map(|&x| i64::try_from(x).unwrap_or(i64::MAX)).collect::<Vec<i64>>();
         Self {
             actions: t.actions.clone(),
+            other_actions: BTreeMap::new(),
             states: t.states.clone(),
             #[allow(clippy::cast_precision_loss)]
             rewards: Some(last(attempt.success).iter().map(|&x| x as f64).collect()),
@@ -159,6 +162,7 @@ impl DemoData {
             .collect();
         Self {
             actions: attempt.actions.clone(),
+            other_actions: BTreeMap::new(),
             states: attempt.states.clone(),
             #[allow(clippy::cast_precision_loss)]
             rewards: Some(last(attempt.success).iter().map(|&x| x as f64).collect()),
@@ -198,6 +202,10 @@ impl DemoData {
         let mut g = Group::default();
         let put = |g: &mut Group, name: &str, array: Array| g.members.insert(name.to_owned(), Node::Dataset(Dataset::new(array)));
         put(&mut g, "actions", rows_array(&self.actions));
+        for (key, rows) in &self.other_actions {
+            check(key, rows.len())?;
+            put(&mut g, key, rows_array(rows));
+        }
         if !self.states.is_empty() {
             check("states", self.states.len())?;
             put(&mut g, "states", rows_array(&self.states));

@@ -38,6 +38,7 @@ pub mod lerobot;
 pub mod memory;
 pub mod merge;
 mod outputs;
+mod policy_env;
 pub mod prepare;
 pub mod preview;
 pub mod render;
@@ -48,10 +49,11 @@ pub mod two_arm;
 pub use error::PipelineError;
 pub use events::{AttemptEvent, Event};
 pub use mimicgen_run::{
-    CameraConfig, CauseReport, Choice, CoverageFigure, DatasetQuality, DemoReport, FailureReport, FrontEnd, InstanceReport,
+    ActionForm, CameraConfig, CauseReport, Choice, CoverageFigure, DatasetQuality, DemoReport, FailureReport, FrontEnd, InstanceReport,
     NEVER_SUCCEEDS_MIN_USES, OffsetRange, Outcome, ReplayCheck, Report, RunConfig, RunInfo, Scoped, SpecOverrides,
 };
 pub use outputs::{
     AttemptRecord, PROGRESS_ATTR, RUN_ATTR, attempt_log_path, clear_outputs, failed_path, quality_path, read_attempt_log, sibling,
 };
+pub use policy_env::PolicyEnv;
 pub use run::{Observed, Pipeline};

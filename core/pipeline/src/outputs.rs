@@ -35,6 +35,9 @@ pub(crate) struct RunDescription {
     /// The arm, when it is not the Panda.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub(crate) robot: Option<String>,
+    /// The action forms written beside `actions` (`actions_abs`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub(crate) actions: Vec<crate::ActionForm>,
 }
 
 /// How far a run has got, stored in the `.partial` file after every attempt.

@@ -88,6 +88,7 @@ pub fn prepare(input: &Path, out: &Path, task: Option<&str>, mut on_demo: impl F
         let (obs, images) = demo.group("obs").map(mimicgen_io::observations_from_group).unwrap_or_default();
         let data = DemoData {
             actions,
+            other_actions: BTreeMap::new(),
             states,
             rewards: demo.dataset("rewards").and_then(|d| d.array.values.to_f64()),
             dones: demo.dataset("dones").and_then(|d| d.array.values.to_i64()),

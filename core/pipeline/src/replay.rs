@@ -32,6 +32,9 @@ pub enum ReplayMode {
     /// effector towards the step's `datagen_info/target_pose`, plus the stored action's noise.
     #[default]
     Targets,
+    /// The stored absolute actions (`actions_abs`), open loop: each step's target, as an
+    /// absolute-pose controller takes it, sent as the delta from where the arm is now.
+    ActionsAbs,
 }
 
 /// What the simulation holds after one step (or at the start).
@@ -112,6 +115,15 @@ fn poses(demo: &mimicgen_io::tree::Group, field: &str, file: &str, name: &str) -
         .collect()
 }
 
+/// The pose an `actions_abs` row targets: position, then rotation as an axis-angle vector.
+fn absolute_target(row: &[f64]) -> Pose {
+    let at = |i: usize| row.get(i).copied().unwrap_or_default();
+    Pose::from_parts(
+        nalgebra::Translation3::new(at(0), at(1), at(2)),
+        nalgebra::UnitQuaternion::from_scaled_axis(nalgebra::Vector3::new(at(3), at(4), at(5))),
+    )
+}
+
 fn flat(pose: &Pose) -> [f64; 7] {
     let t = pose.translation.vector;
     let q = pose.rotation.quaternion();
@@ -172,8 +184,19 @@ pub fn replay(
         };
         let states = crate::prepare::rows(demo, "states", &file, name)?;
         let actions = crate::prepare::rows(demo, "actions", &file, name)?;
+        let absolute = match mode {
+            ReplayMode::ActionsAbs => Some(crate::prepare::rows(demo, "actions_abs", &file, name)?),
+            ReplayMode::Actions | ReplayMode::Targets => None,
+        };
+        if let Some(n) = absolute.as_ref().map(mimicgen_engine::Rows::len).filter(|&n| n != actions.len()) {
+            return Err(PipelineError::input(
+                file.clone(),
+                format!("{at}/actions_abs"),
+                format!("has {n} steps but actions has {}", actions.len()),
+            ));
+        }
         let targets = match mode {
-            ReplayMode::Actions => None,
+            ReplayMode::Actions | ReplayMode::ActionsAbs => None,
             ReplayMode::Targets => Some((poses(demo, "eef_pose", &file, name)?, poses(demo, "target_pose", &file, name)?)),
         };
         if let Some((field, n)) = targets.as_ref().and_then(|(eefs, targets)| {
@@ -219,6 +242,11 @@ pub fn replay(
                 for (((a, &s), now), then) in action.iter_mut().zip(stored).zip(clean_now).zip(clean_then) {
                     *a = now + (s - then);
                 }
+            }
+            if let Some(row) = absolute.as_ref().map(|rows| rows.row(t)) {
+                let target = absolute_target(row);
+                action = env.target_pose_to_action(&target).to_vec();
+                action.extend_from_slice(row.get(6..).unwrap_or_default());
             }
             if let Err(e) = env.step(&action) {
                 trace.stopped = Some(format!("step {t}: {e}"));

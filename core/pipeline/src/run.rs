@@ -15,7 +15,7 @@ use mimicgen_sim::camera::Cameras;
 use mimicgen_sim::{Scene, SimEnv, Task};
 
 use crate::config::{Resolved, output_env_args, resolve};
-use crate::{Outcome, PipelineError, Report, RunConfig, RunInfo};
+use crate::{ActionForm, Outcome, PipelineError, Report, RunConfig, RunInfo};
 
 use crate::events::{AttemptEvent, Event};
 
@@ -40,6 +40,8 @@ pub struct Observed {
     pub images: BTreeMap<String, ImageStream>,
     /// The episode's scene XML.
     pub model_xml: Option<String>,
+    /// The actions in the other forms the run asked for, by dataset key (`actions_abs`).
+    pub other_actions: BTreeMap<String, mimicgen_engine::Rows>,
 }
 
 /// A run ready to go: inputs read and checked, scene compiled, task resolved.
@@ -155,6 +157,7 @@ impl Pipeline {
             shard: config.shard,
             cameras: config.cameras.clone(),
             robot: (scene.robot.model.name != mimicgen_sim::robot::PANDA.name).then(|| scene.robot.model.name.to_owned()),
+            actions: config.actions.clone(),
         };
         let cameras = config.cameras.clone().map(|c| Cameras::new(&scene, c)).transpose()?;
         Ok(Self {
@@ -358,6 +361,13 @@ impl Pipeline {
             let initial = initial_object_poses(&attempt.trajectory.object_poses);
             env.place_fixed_objects(&initial);
             let env_error = |e| EngineError::Env { attempt: attempt.index, source: e };
+            let mut other_actions = BTreeMap::new();
+            for form in &self.config.actions {
+                let rows = match form {
+                    ActionForm::Abs => env.absolute_actions(&attempt.trajectory.states, &attempt.trajectory.actions),
+                };
+                other_actions.insert(form.key().to_owned(), rows.map_err(env_error)?);
+            }
             let obs = env.observations_for_states(&attempt.trajectory.states).map_err(env_error)?;
             let images = match cameras {
                 Some(cameras) => env.images_for_states(&attempt.trajectory.states, cameras).map_err(env_error)?,
@@ -370,7 +380,7 @@ impl Pipeline {
                 .scene()
                 .xml_with_fixed_objects(instance_xml.as_deref().unwrap_or(&self.scene_xml), &initial)
                 .map_err(|e| EngineError::Io { path: "model_file".to_owned(), reason: e.to_string() })?;
-            Ok(Observed { obs, images, model_xml: Some(xml) })
+            Ok(Observed { obs, images, model_xml: Some(xml), other_actions })
         };
         self.run_envs(&mut envs, observe, cancel, on_event, true)
     }
@@ -463,9 +473,14 @@ impl Pipeline {
                     None
                 };
                 let outcome = match (target, payload) {
-                    (Some((w, success)), Some(Observed { obs, images, model_xml })) => {
+                    (Some((w, success)), Some(Observed { obs, images, model_xml, other_actions })) => {
                         let object_instance = instance.clone();
-                        let demo = w.append(&DemoData { images, object_instance, ..DemoData::from_attempt(&attempt, obs, model_xml) })?;
+                        let demo = w.append(&DemoData {
+                            images,
+                            object_instance,
+                            other_actions,
+                            ..DemoData::from_attempt(&attempt, obs, model_xml)
+                        })?;
                         if success { Outcome::Written { demo } } else { Outcome::KeptFailed { demo } }
                     }
                     _ => Outcome::Discarded,

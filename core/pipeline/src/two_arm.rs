@@ -146,6 +146,7 @@ impl TwoArmRun {
             (config.shard.is_some(), "--shard"),
             (config.keep_failed, "--keep-failed"),
             (config.early_abort, "--early-abort"),
+            (!config.actions.is_empty(), "--actions"),
             (!config.spec.is_empty(), "spec fields (--action-noise, ...)"),
         ]
         .into_iter()

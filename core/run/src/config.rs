@@ -56,6 +56,37 @@ pub struct RunConfig {
     /// Panda. Another arm than the sources' runs in the task's scene composed with it.
     #[serde(default)]
     pub robot: Option<String>,
+    /// Other forms of the actions written beside `actions` in every demo (`actions_abs`).
+    #[serde(default)]
+    pub actions: Vec<ActionForm>,
+}
+
+/// A form of a demo's actions beside robosuite's delta pose `actions`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionForm {
+    /// `actions_abs`: the controller's absolute target at each step, as robomimic's
+    /// `robosuite_add_absolute_actions.py` writes it: position (3, world frame), rotation as an
+    /// axis-angle vector (3), then the rest of the action unchanged (gripper; a base's three).
+    Abs,
+}
+
+impl ActionForm {
+    /// The dataset key of this form (`actions_abs`).
+    #[must_use]
+    pub fn key(self) -> &'static str {
+        match self {
+            Self::Abs => "actions_abs",
+        }
+    }
+
+    /// The name a front end gives this form (`abs`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Abs => "abs",
+        }
+    }
 }
 
 impl Default for RunConfig {
@@ -80,6 +111,7 @@ impl Default for RunConfig {
             shard: None,
             cameras: None,
             robot: None,
+            actions: Vec::new(),
         }
     }
 }
@@ -110,6 +142,7 @@ impl RunConfig {
             shard,
             cameras,
             robot,
+            actions,
         } = self;
         let mut args: Vec<String> = Vec::new();
         let mut value = |flag: &str, v: Option<String>| {
@@ -129,6 +162,7 @@ impl RunConfig {
         value("--max-attempts", max_attempts.map(|n| n.to_string()));
         value("--valid-fraction", valid_fraction.map(|f| f.to_string()));
         value("--shard", shard.map(|s| s.to_string()));
+        value("--actions", (!actions.is_empty()).then(|| actions.iter().map(|a| a.name()).collect::<Vec<_>>().join(",")));
         if let Some(c) = cameras {
             value("--cameras", Some(c.names.join(",")));
             value("--camera-size", Some(if c.height == c.width { c.height.to_string() } else { format!("{}x{}", c.height, c.width) }));

@@ -25,7 +25,7 @@ mod report;
 mod wording;
 
 pub use camera::CameraConfig;
-pub use config::RunConfig;
+pub use config::{ActionForm, RunConfig};
 pub use overrides::{OffsetRange, Scoped, SpecOverrides};
 pub use report::{
     CauseReport, CoverageFigure, DatasetQuality, DemoReport, FailureReport, InstanceReport, NEVER_SUCCEEDS_MIN_USES, Outcome, ReplayCheck,

@@ -242,6 +242,35 @@ impl SimEnv {
         Ok(out)
     }
 
+    /// The absolute form of recorded delta-pose actions (`actions_abs`): per step, the target
+    /// the controller servoed to from that step's state (position, rotation as an axis-angle
+    /// vector, both in the world frame), then the rest of the action as it was (gripper; a base's
+    /// three), as robomimic's `robosuite_add_absolute_actions.py` computes it. Leaves the
+    /// environment in the last state.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] on a state of the wrong length or fewer states than actions.
+    pub fn absolute_actions(
+        &mut self,
+        states: &mimicgen_engine::Rows,
+        actions: &mimicgen_engine::Rows,
+    ) -> Result<mimicgen_engine::Rows, EnvError> {
+        if states.len() < actions.len() {
+            return Err(EnvError::Fatal { reason: format!("{} states for {} actions", states.len(), actions.len()) });
+        }
+        let mut out = mimicgen_engine::Rows::new(actions.width());
+        for (state, action) in states.iter().zip(actions.iter()) {
+            self.set_state(state)?;
+            let target = self.action_to_target_pose(action);
+            let mut row = Vec::with_capacity(action.len());
+            row.extend_from_slice(target.translation.vector.as_slice());
+            row.extend_from_slice(target.rotation.scaled_axis().as_slice());
+            row.extend_from_slice(action.get(6..).unwrap_or_default());
+            out.push(&row).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
+        }
+        Ok(out)
+    }
+
     /// Camera images for every recorded state (see [`crate::camera`]), keyed `<camera>_image`
     /// (and `<camera>_depth`). Leaves the environment in the last state.
     ///

@@ -32,9 +32,11 @@ import numpy as np
 
 from . import _native
 from ._native import Dataset, MimicgenError, Spec
+from .env import Env
 
 __all__ = [
     "Dataset",
+    "Env",
     "Environment",
     "MimicgenError",
     "Run",
@@ -208,6 +210,7 @@ def generate(
     camera_size: Union[int, Tuple[int, int]] = 84,
     camera_depth: bool = False,
     camera_fast: bool = False,
+    actions: Sequence[str] = (),
     env: Optional[Any] = None,
 ) -> Run:
     """Start a generation run in the background; the arguments are ``mimicgen generate``'s.
@@ -221,7 +224,8 @@ def generate(
     ``camera_size`` (``84`` or ``(height, width)``); ``camera_depth`` adds depth, ``camera_fast``
     renders without multisampling (faster, edges differ from robosuite's). ``env`` is a callable
     returning an :class:`Environment` (one per worker) to drive instead of the bundled MuJoCo
-    backend.
+    backend. ``actions=["abs"]`` also writes ``actions_abs`` in every demo (the controller's
+    absolute target: position, axis-angle rotation, gripper; robomimic's convention).
 
     Returns a :class:`Run`: iterate it for events, ``wait()`` for the report, ``cancel()``.
     """
@@ -245,6 +249,7 @@ def generate(
         "spec": _spec_overrides(spec),
         "shard": _shard(shard),
         "cameras": _cameras(cameras, camera_size, camera_depth, camera_fast),
+        "actions": [str(a) for a in ([actions] if isinstance(actions, str) else actions)],
     }
     if env is not None and not callable(env):
         raise MimicgenError("env: pass a callable that returns a new environment (one per worker), e.g. a class")
