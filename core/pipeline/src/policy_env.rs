@@ -83,7 +83,7 @@ impl PolicyEnv {
     /// [`PipelineError::Engine`] when no scene could be drawn (a task's placement gave up).
     pub fn reset(&mut self) -> Result<(), PipelineError> {
         let label = &self.label;
-        self.env.reset(&mut self.rng).map_err(|e| sim_error(label, e))
+        self.env.reset(&mut self.rng).map_err(|e| sim_error(label, &e))
     }
 
     /// Restores a flattened robosuite state (a dataset's `states` row), as robomimic's
@@ -108,10 +108,10 @@ impl PolicyEnv {
         if action.len() != want {
             return Err(PipelineError::input("", "action", format!("has {} values; {} takes {want}", action.len(), self.label)));
         }
-        if let Some(i) = action.iter().position(|a| !a.is_finite()) {
-            return Err(PipelineError::input("", format!("action[{i}]"), format!("is {}, not a number", action[i])));
+        if let Some((i, a)) = action.iter().enumerate().find(|(_, a)| !a.is_finite()) {
+            return Err(PipelineError::input("", format!("action[{i}]"), format!("is {a}, not a number")));
         }
-        self.env.step(action).map_err(|e| sim_error(&self.label, e))
+        self.env.step(action).map_err(|e| sim_error(&self.label, &e))
     }
 
     /// The low-dim observations, keyed and shaped as the run's datasets hold them
@@ -165,6 +165,6 @@ impl PolicyEnv {
 }
 
 /// A simulator's failure, naming the environment.
-fn sim_error(label: &str, e: mimicgen_engine::EnvError) -> PipelineError {
+fn sim_error(label: &str, e: &mimicgen_engine::EnvError) -> PipelineError {
     PipelineError::input("", label, e.to_string())
 }

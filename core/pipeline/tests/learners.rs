@@ -40,7 +40,7 @@ fn absolute_actions_are_the_controller_targets_and_replay_to_the_same_outcome() 
         for (t, (row, a)) in abs.chunks(7).zip(actions.chunks(7)).enumerate() {
             // The gripper is copied; the position is the end effector's plus the clipped delta
             // scaled by the controller's 5 cm (robosuite's OSC_POSE output_max).
-            assert_eq!(row[6], a[6], "{name} step {t}: gripper");
+            assert_eq!(row[6].to_bits(), a[6].to_bits(), "{name} step {t}: the gripper, copied");
             for k in 0..3 {
                 let want = eef[t * 16 + k * 4 + 3] + 0.05 * a[k].clamp(-1.0, 1.0);
                 assert!((row[k] - want).abs() < 1e-9, "{name} step {t} axis {k}: {} vs {want}", row[k]);
