@@ -4,15 +4,18 @@ against the robomimic dataset it came from.
 
 Usage: check_lerobot.py HDF5 LEROBOT_DIR [--json]
 
-Checks, with `LeRobotDataset` (the standalone `lerobot-dataset` package, module `ledataset`, or
-`lerobot` when that is what is installed): frame and episode counts; episode boundaries
-(`dataset_from_index`/`dataset_to_index` against each demo's length); that the first and last
-action of every episode equal the HDF5's (to float32); the task string; and, for each camera,
-that the decoded first and last frame of every episode match the HDF5's image (mean absolute
-error on the 0-255 scale; H.264 is lossy). pyarrow reads the parquet files directly too.
+Checks, with LeRobot's `LeRobotDataset` (the `lerobot` package, which reads subtasks; else the
+standalone `lerobot-dataset`, module `ledataset`, which does not): frame and episode counts;
+episode boundaries (`dataset_from_index`/`dataset_to_index` against each demo's length); that the
+first and last action of every episode equal the HDF5's (to float32); every checked frame's task
+(the instruction); with subtasks, every frame's `subtask` against the one MimicGen's segmentation
+gives from the HDF5's `datagen_info/subtask_term_signals` (a subtask "X until SIGNAL" ends one
+step after SIGNAL first turns on); and, for each camera, that the decoded first and last frame of
+every episode match the HDF5's image (mean absolute error on the 0-255 scale; H.264 is lossy).
+pyarrow reads the parquet files directly too.
 
 Exit status: 0 all checks pass, 1 a check fails, 2 bad input.
-Needs the environment made by scripts/setup_lerobot.sh.
+Needs the environment made by scripts/setup_learners.sh.
 """
 
 from __future__ import annotations
@@ -35,11 +38,12 @@ def main(argv=None):
     import pyarrow.parquet as pq
 
     try:
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+        import lerobot
+        loader = f"lerobot {lerobot.__version__}" if hasattr(lerobot, "__version__") else "lerobot"
+    except ImportError:
         from ledataset.datasets.lerobot_dataset import LeRobotDataset
         loader = "lerobot-dataset (ledataset)"
-    except ImportError:
-        from lerobot.datasets.lerobot_dataset import LeRobotDataset
-        loader = "lerobot"
 
     failures = []
 
@@ -57,6 +61,12 @@ def main(argv=None):
         episodes = ds.meta.episodes
         cameras = [k for k in ds.meta.video_keys]
         image_errors = {c: [] for c in cameras}
+        subtasks = getattr(ds.meta, "subtasks", None)
+        subtasks = [str(t) for t in subtasks.index] if subtasks is not None and "subtask_index" in ds.features else []
+        subtask_frames = 0
+        if subtasks:
+            data = pq.read_table(f"{args.root}/data/chunk-000/file-000.parquet", columns=["subtask_index"])
+            frame_subtasks = data.column("subtask_index").to_pylist()
         start = 0
         for i, (name, n) in enumerate(zip(names, lengths)):
             ep = episodes[i]
@@ -72,6 +82,17 @@ def main(argv=None):
                     ours = np.asarray(f["data"][name]["obs"][c.split(".")[-1] + "_image"][at], dtype=np.float64)
                     theirs = frame[c].numpy().transpose(1, 2, 0) * 255.0
                     image_errors[c].append(float(np.abs(ours - theirs).mean()))
+            if subtasks:
+                # Every frame's index from the parquet; LeRobot's own `subtask` at each boundary.
+                expected = expected_subtasks(f["data"][name], subtasks, n)
+                got = frame_subtasks[start:start + n]
+                wrong = [t for t in range(n) if got[t] != expected[t]]
+                check(not wrong, f"{name}: subtask_index {got[wrong[0]] if wrong else ''} at step "
+                                 f"{wrong[0] if wrong else ''}, expected {expected[wrong[0]] if wrong else ''}")
+                subtask_frames += n - len(wrong)
+                for t in [0] + [t for t in range(1, n) if expected[t] != expected[t - 1]] + [n - 1]:
+                    theirs = ds[start + t]["subtask"]
+                    check(theirs == subtasks[expected[t]], f"{name} step {t}: LeRobot's subtask {theirs!r}, expected {subtasks[expected[t]]!r}")
             start += n
     table = pq.read_table(f"{args.root}/data/chunk-000/file-000.parquet")
     check("observation.state" in table.column_names and "action" in table.column_names, f"parquet columns {table.column_names}")
@@ -82,6 +103,8 @@ def main(argv=None):
         "episodes": ds.num_episodes,
         "frames": ds.num_frames,
         "task": str(ds.meta.tasks.index[0]),
+        "subtasks": subtasks,
+        "subtask_frames": subtask_frames,
         "cameras": {c: {"max_mae": max(e), "mean_mae": sum(e) / len(e)} for c, e in image_errors.items()},
         "failures": failures,
     }
@@ -91,10 +114,32 @@ def main(argv=None):
     else:
         print(f"{loader}: {ds.num_episodes} episodes, {ds.num_frames} frames, task {summary['task']!r}; "
               f"first/last actions equal; episode boundaries match", file=out)
+        if subtasks:
+            print(f"  subtask of all {subtask_frames} frames as the HDF5's signals cut them: {subtasks}", file=out)
         for c, e in summary["cameras"].items():
             print(f"  {c}: decoded first/last frames differ from the HDF5 by {e['mean_mae']:.2f} / 255 on average "
                   f"(max {e['max_mae']:.2f})", file=out)
     return 1 if failures else 0
+
+
+def expected_subtasks(demo, subtasks, n):
+    """The subtask of each of the demo's n steps: "X until SIGNAL" ends one step after SIGNAL's
+    first 0 -> 1 step at or after the subtask's start (MimicGen's segmentation); the last runs on."""
+    import numpy as np
+
+    labels, start = [], 0
+    for i, text in enumerate(subtasks):
+        end = n
+        if i < len(subtasks) - 1 and " until " in text:
+            signal = np.asarray(demo["datagen_info"]["subtask_term_signals"][text.split(" until ", 1)[1]][()])
+            rising = [t for t in range(max(start, 1), n) if signal[t - 1] == 0 and signal[t] != 0]
+            end = rising[0] + 1 if rising else n
+        end = max(end, start)
+        labels += [i] * (end - start)
+        start = end
+        if start >= n:
+            break
+    return labels + [len(subtasks) - 1] * (n - len(labels))
 
 
 if __name__ == "__main__":

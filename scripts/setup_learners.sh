@@ -25,6 +25,6 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   # robomimic's one release on PyPI is a source archive: built here with the pinned setuptools.
   "$venv/bin/pip" install -q --disable-pip-version-check --no-cache-dir --no-deps --no-build-isolation \
     "$(grep '^robomimic==' "$here/requirements-learners.txt")"
-  "$venv/bin/python" -c 'import ledataset.datasets.lerobot_dataset, pyarrow, av, gymnasium, robomimic.scripts.train, robomimic.scripts.run_trained_agent; print("setup_learners: LeRobotDataset, robomimic and gymnasium import")'
+  "$venv/bin/python" -c 'import ledataset.datasets.lerobot_dataset, lerobot.datasets.lerobot_dataset, pyarrow, av, gymnasium, robomimic.scripts.train, robomimic.scripts.run_trained_agent; print("setup_learners: LeRobotDataset, robomimic and gymnasium import")'
   echo "$want" > "$stamp"
 fi

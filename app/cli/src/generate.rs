@@ -106,8 +106,9 @@ pub struct GenerateArgs {
     shard: Option<mimicgen_engine::Shard>,
     /// Also write the actions in other forms beside robosuite's delta-pose `actions`: `abs`
     /// writes `actions_abs` (the controller's absolute target: position, axis-angle rotation,
-    /// gripper; robomimic's convention, for Diffusion Policy and other absolute-action learners).
-    /// `mimicgen replay --mode actions-abs` replays them.
+    /// gripper; robomimic's convention, for Diffusion Policy and other absolute-action learners);
+    /// `joint` writes `actions_joint` (the arm's joint positions at the next step, then the
+    /// gripper). `mimicgen replay --mode actions-abs` and `--mode actions-joint` replay them.
     #[arg(long, value_enum, value_delimiter = ',', value_name = "FORM")]
     actions: Vec<ActionFormArg>,
     /// Spec fields for this run over the spec's.
@@ -297,6 +298,7 @@ impl GenerateArgs {
                 .iter()
                 .map(|a| match a {
                     ActionFormArg::Abs => mimicgen_pipeline::ActionForm::Abs,
+                    ActionFormArg::Joint => mimicgen_pipeline::ActionForm::Joint,
                 })
                 .collect(),
         }
@@ -308,6 +310,8 @@ impl GenerateArgs {
 pub enum ActionFormArg {
     /// `actions_abs`: absolute target position, axis-angle rotation, gripper.
     Abs,
+    /// `actions_joint`: the arm's joint positions at the next step, gripper.
+    Joint,
 }
 
 /// Runs `mimicgen generate`: the pipeline, with a progress bar and (optionally) a Rerun recording

@@ -16,6 +16,9 @@ pub enum ModeArg {
     Actions,
     /// The stored absolute actions (`actions_abs`, from `generate --actions abs`), open loop.
     ActionsAbs,
+    /// The stored joint-position actions (`actions_joint`, from `generate --actions joint`), open
+    /// loop under a joint-position controller.
+    ActionsJoint,
 }
 
 /// Arguments of `mimicgen replay`.
@@ -26,6 +29,7 @@ Examples:
   mimicgen replay out/stack_d0.hdf5 --demos demo_3,demo_7 --trace trace.json
   mimicgen replay demos.hdf5 --mode actions                     robomimic's open-loop playback
   mimicgen replay demos.hdf5 --mode actions-abs                 the same from `actions_abs`
+  mimicgen replay demos.hdf5 --mode actions-joint               the same from `actions_joint`
 
 Every demo starts from its first stored state in its own scene (`model_file`). With --mode
 targets (the default) each step's action is recomputed from where the arm is towards the stored
@@ -65,6 +69,7 @@ pub fn run(args: &ReplayArgs) -> anyhow::Result<()> {
         ModeArg::Targets => ReplayMode::Targets,
         ModeArg::Actions => ReplayMode::Actions,
         ModeArg::ActionsAbs => ReplayMode::ActionsAbs,
+        ModeArg::ActionsJoint => ReplayMode::ActionsJoint,
     };
     let bar = indicatif::ProgressBar::new(0).with_style(
         indicatif::ProgressStyle::with_template("replaying {bar:30} {pos}/{len} demos, {elapsed} ({eta} left) {msg}")
@@ -92,6 +97,7 @@ pub fn run(args: &ReplayArgs) -> anyhow::Result<()> {
             ReplayMode::Targets => "targets",
             ReplayMode::Actions => "actions",
             ReplayMode::ActionsAbs => "actions-abs",
+            ReplayMode::ActionsJoint => "actions-joint",
         },
         traces.len()
     );

@@ -71,3 +71,47 @@ fn bench_io_runs_small() {
     let text = stdout_ok(&mimicgen(&["bench-io", "--demos", "4", "--steps", "20", "--dir", dir.path().to_str().unwrap()]));
     assert!(text.contains("4 demos x 20 steps") && text.contains("peak RSS"), "{text}");
 }
+
+#[test]
+fn export_lerobot_labels_subtasks_writes_a_card_and_pushes_to_a_local_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lerobot");
+    let hub = dir.path().join("hub/stack_d0");
+    let text = stdout_ok(&mimicgen(&[
+        "export",
+        &fixture("generated_D0_first3.hdf5"),
+        "--lerobot",
+        out.to_str().unwrap(),
+        "--push",
+        &format!("file://{}", hub.display()),
+    ]));
+    // The reference's Stack D0 file: the bundled Stack spec's two subtasks, the first ending on grasp.
+    assert!(text.contains(r#"subtask_index 0: "cubeA until grasp""#), "{text}");
+    assert!(text.contains(r#"subtask_index 1: "cubeB until the task succeeds""#), "{text}");
+    let card = std::fs::read_to_string(out.join("README.md")).unwrap();
+    assert!(card.starts_with("---\ntask_categories:\n- robotics") && card.contains("stack D0: 3 demos"), "{card}");
+    assert!(card.contains("| 0 | cubeA until grasp | cubeA | nearest_neighbor_object | 0.05 | 5 |"), "{card}");
+    for file in ["README.md", "meta/info.json", "meta/subtasks.parquet", "meta/tasks.parquet", "data/chunk-000/file-000.parquet"] {
+        assert_eq!(std::fs::read(out.join(file)).unwrap(), std::fs::read(hub.join(file)).unwrap(), "{file} pushed");
+    }
+    // A second push into the same folder is refused, naming it; a repository must be user/name.
+    let again = mimicgen(&[
+        "export",
+        &fixture("generated_D0_first3.hdf5"),
+        "--lerobot",
+        dir.path().join("again").to_str().unwrap(),
+        "--push",
+        &format!("file://{}", hub.display()),
+    ]);
+    assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("is not empty"));
+    let bad = mimicgen(&[
+        "export",
+        &fixture("generated_D0_first3.hdf5"),
+        "--lerobot",
+        dir.path().join("bad").to_str().unwrap(),
+        "--push",
+        "just-a-name",
+    ]);
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("user/name"));
+    assert!(!dir.path().join("again").exists() && !dir.path().join("bad").exists(), "a refused push exports nothing");
+}

@@ -13,8 +13,8 @@ use arrow_array::cast::AsArray as _;
 use arrow_array::types::{Float32Type, Int64Type};
 use mimicgen_engine::Rows;
 use mimicgen_engine::image::{ImageStream, Pixels};
-use mimicgen_io::lerobot::{LeRobotOptions, export_lerobot};
-use mimicgen_io::{DatasetWriter, DemoData, DemoReader, ReadOptions, WriterOptions};
+use mimicgen_io::lerobot::{LeRobotOptions, SubtaskLabel, export_lerobot};
+use mimicgen_io::{DatagenInfo, DatasetWriter, DemoData, DemoReader, ReadOptions, WriterOptions};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
 const H: usize = 16;
@@ -68,6 +68,8 @@ fn options() -> LeRobotOptions {
         robot_type: "panda".into(),
         ffmpeg: LeRobotOptions::default_ffmpeg(),
         overwrite: false,
+        subtasks: Vec::new(),
+        card: None,
     }
 }
 
@@ -198,4 +200,53 @@ fn bad_input_names_the_demo_and_field() {
     let no_ffmpeg = LeRobotOptions { ffmpeg: dir.path().join("no-such-ffmpeg"), ..options() };
     let err = export_lerobot(&reader, &out, &no_ffmpeg, |_, _| ()).unwrap_err().to_string();
     assert!(err.contains("no-such-ffmpeg") && err.contains("setup.sh"), "{err}");
+}
+
+#[test]
+fn frames_carry_their_subtask_and_the_card_is_the_readme() {
+    let dir = tempfile::tempdir().unwrap();
+    let h5 = dir.path().join("demos.hdf5");
+    // Demo 0 grasps at step 3 (subtask 0 ends one step later), demo 1 never does.
+    let with_signal = |steps: usize, seed: usize, grasp: Option<usize>| DemoData {
+        datagen_info: Some(DatagenInfo {
+            subtask_term_signals: BTreeMap::from([(
+                "grasp".to_owned(),
+                (0..steps).map(|t| i64::from(grasp.is_some_and(|g| t >= g))).collect(),
+            )]),
+            eef_poses: vec![mimicgen_engine::pose::Pose::identity(); steps],
+            target_poses: vec![mimicgen_engine::pose::Pose::identity(); steps],
+            gripper_actions: Rows::from_vec(1, vec![0.0; steps], "gripper").unwrap(),
+            ..DatagenInfo::default()
+        }),
+        images: BTreeMap::new(),
+        ..demo(steps, seed)
+    };
+    write(&h5, &[with_signal(6, 0, Some(3)), with_signal(4, 1, None)]);
+    let reader = DemoReader::open_with(&h5, ReadOptions::default()).unwrap();
+    let out = dir.path().join("lerobot");
+    let subtasks = vec![
+        SubtaskLabel { name: "cubeA until grasp".into(), end_signal: Some("grasp".into()) },
+        SubtaskLabel { name: "cubeB until the task succeeds".into(), end_signal: None },
+    ];
+    let card = "---\ntags:\n- LeRobot\n---\n# A card\n".to_owned();
+    let options = LeRobotOptions { subtasks: subtasks.clone(), card: Some(card.clone()), ..options() };
+    let summary = export_lerobot(&reader, &out, &options, |_, _| ()).unwrap();
+    assert_eq!(summary.subtasks, ["cubeA until grasp", "cubeB until the task succeeds"]);
+
+    let frames = read_parquet(&out.join("data/chunk-000/file-000.parquet"));
+    assert_eq!(ints(&frames, "subtask_index"), [0, 0, 0, 0, 1, 1, 0, 0, 0, 0]);
+    let table = read_parquet(&out.join("meta/subtasks.parquet"));
+    assert_eq!(ints(&table, "subtask_index"), [0, 1]);
+    let names = table.column_by_name("__index_level_0__").unwrap().as_string::<i32>();
+    assert_eq!((names.value(0), names.value(1)), ("cubeA until grasp", "cubeB until the task succeeds"));
+    let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("meta/info.json")).unwrap()).unwrap();
+    assert_eq!(info["features"]["subtask_index"]["dtype"], "int64");
+    assert_eq!(std::fs::read_to_string(out.join("README.md")).unwrap(), card);
+
+    // A demo without the signal is named.
+    let bare = dir.path().join("bare.hdf5");
+    write(&bare, &[DemoData { images: BTreeMap::new(), ..demo(5, 0) }]);
+    let reader = DemoReader::open_with(&bare, ReadOptions::default()).unwrap();
+    let err = export_lerobot(&reader, &dir.path().join("bare"), &options, |_, _| ()).unwrap_err().to_string();
+    assert!(err.contains("data/demo_0") && err.contains("datagen_info/subtask_term_signals/grasp"), "{err}");
 }

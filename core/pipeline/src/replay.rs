@@ -35,6 +35,9 @@ pub enum ReplayMode {
     /// The stored absolute actions (`actions_abs`), open loop: each step's target, as an
     /// absolute-pose controller takes it, sent as the delta from where the arm is now.
     ActionsAbs,
+    /// The stored joint-position actions (`actions_joint`), open loop: each step's arm joint
+    /// targets under a joint-position controller ([`mimicgen_sim::joint_control`]).
+    ActionsJoint,
 }
 
 /// What the simulation holds after one step (or at the start).
@@ -184,19 +187,21 @@ pub fn replay(
         };
         let states = crate::prepare::rows(demo, "states", &file, name)?;
         let actions = crate::prepare::rows(demo, "actions", &file, name)?;
-        let absolute = match mode {
-            ReplayMode::ActionsAbs => Some(crate::prepare::rows(demo, "actions_abs", &file, name)?),
+        let other_key = match mode {
+            ReplayMode::ActionsAbs => Some("actions_abs"),
+            ReplayMode::ActionsJoint => Some("actions_joint"),
             ReplayMode::Actions | ReplayMode::Targets => None,
         };
-        if let Some(n) = absolute.as_ref().map(mimicgen_engine::Rows::len).filter(|&n| n != actions.len()) {
+        let other = other_key.map(|key| crate::prepare::rows(demo, key, &file, name)).transpose()?;
+        if let (Some(key), Some(n)) = (other_key, other.as_ref().map(mimicgen_engine::Rows::len).filter(|&n| n != actions.len())) {
             return Err(PipelineError::input(
                 file.clone(),
-                format!("{at}/actions_abs"),
+                format!("{at}/{key}"),
                 format!("has {n} steps but actions has {}", actions.len()),
             ));
         }
         let targets = match mode {
-            ReplayMode::Actions | ReplayMode::ActionsAbs => None,
+            ReplayMode::Actions | ReplayMode::ActionsAbs | ReplayMode::ActionsJoint => None,
             ReplayMode::Targets => Some((poses(demo, "eef_pose", &file, name)?, poses(demo, "target_pose", &file, name)?)),
         };
         if let Some((field, n)) = targets.as_ref().and_then(|(eefs, targets)| {
@@ -243,12 +248,17 @@ pub fn replay(
                     *a = now + (s - then);
                 }
             }
-            if let Some(row) = absolute.as_ref().map(|rows| rows.row(t)) {
+            let row = other.as_ref().map(|rows| rows.row(t));
+            if let (ReplayMode::ActionsAbs, Some(row)) = (mode, row) {
                 let target = absolute_target(row);
                 action = env.target_pose_to_action(&target).to_vec();
                 action.extend_from_slice(row.get(6..).unwrap_or_default());
             }
-            if let Err(e) = env.step(&action) {
+            let stepped = match (mode, row) {
+                (ReplayMode::ActionsJoint, Some(row)) => env.step_joint(row),
+                _ => env.step(&action),
+            };
+            if let Err(e) = stepped {
                 trace.stopped = Some(format!("step {t}: {e}"));
                 break;
             }

@@ -365,6 +365,7 @@ impl Pipeline {
             for form in &self.config.actions {
                 let rows = match form {
                     ActionForm::Abs => env.absolute_actions(&attempt.trajectory.states, &attempt.trajectory.actions),
+                    ActionForm::Joint => env.joint_actions(&attempt.trajectory.states, &attempt.trajectory.actions),
                 };
                 other_actions.insert(form.key().to_owned(), rows.map_err(env_error)?);
             }

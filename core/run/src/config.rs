@@ -69,6 +69,10 @@ pub enum ActionForm {
     /// `robosuite_add_absolute_actions.py` writes it: position (3, world frame), rotation as an
     /// axis-angle vector (3), then the rest of the action unchanged (gripper; a base's three).
     Abs,
+    /// `actions_joint`: the arm's joint positions at the next step (one per arm joint), then the
+    /// gripper action, for learners of joint-space policies; a joint-position controller replays
+    /// them.
+    Joint,
 }
 
 impl ActionForm {
@@ -77,6 +81,7 @@ impl ActionForm {
     pub fn key(self) -> &'static str {
         match self {
             Self::Abs => "actions_abs",
+            Self::Joint => "actions_joint",
         }
     }
 
@@ -85,6 +90,7 @@ impl ActionForm {
     pub fn name(self) -> &'static str {
         match self {
             Self::Abs => "abs",
+            Self::Joint => "joint",
         }
     }
 }

@@ -67,6 +67,8 @@ pub struct SimEnv {
     gripper_command: [f64; 2],
     warnings_seen: i64,
     control_log: Option<Vec<f64>>,
+    /// Scratch for the joint-position controller's mass matrix.
+    full_m: Vec<f64>,
     /// The object instances resets draw among (`(label, scene)`), and the one in use.
     instances: Vec<(String, Arc<Scene>)>,
     instance: usize,
@@ -98,6 +100,7 @@ impl SimEnv {
             gripper_command: [0.0; 2],
             warnings_seen: 0,
             control_log: None,
+            full_m: Vec::new(),
             instances: Vec::new(),
             instance: 0,
             planning: None,
@@ -271,6 +274,68 @@ impl SimEnv {
         Ok(out)
     }
 
+    /// Joint-position actions (`actions_joint`) for recorded states and delta-pose actions: per
+    /// step, the arm's joint positions at the next recorded state (the last step holds its own),
+    /// then the rest of the action as it was (gripper). [`SimEnv::step_joint`] replays them.
+    ///
+    /// # Errors
+    /// [`EnvError::Fatal`] on fewer states than actions or a state too short for the arm.
+    pub fn joint_actions(
+        &self,
+        states: &mimicgen_engine::Rows,
+        actions: &mimicgen_engine::Rows,
+    ) -> Result<mimicgen_engine::Rows, EnvError> {
+        if states.len() < actions.len() || actions.is_empty() {
+            return Err(EnvError::Fatal { reason: format!("{} states for {} actions", states.len(), actions.len()) });
+        }
+        let arm = &self.state.scene.robot.arm_qpos;
+        let width = arm.len() + actions.width().saturating_sub(6);
+        let mut out = mimicgen_engine::Rows::new(width);
+        for (t, action) in actions.iter().enumerate() {
+            let next = states.row((t + 1).min(actions.len() - 1));
+            // A state is the time, then qpos, then qvel.
+            let mut row: Vec<f64> = arm.iter().map(|&i| next.get(1 + i).copied()).collect::<Option<_>>().ok_or_else(|| {
+                EnvError::Fatal { reason: format!("state {} has {} values, too few for the arm's joints", t + 1, next.len()) }
+            })?;
+            row.extend_from_slice(action.get(6..).unwrap_or_default());
+            out.push(&row).map_err(|e| EnvError::Fatal { reason: e.to_string() })?;
+        }
+        Ok(out)
+    }
+
+    /// One control step from an `actions_joint` row: the arm's joint-position targets, then the
+    /// gripper action, under [`crate::joint_control`]'s controller.
+    ///
+    /// # Errors
+    /// [`EnvError::Unstable`] on a row of the wrong length or with a NaN, or when the simulation
+    /// fails; [`EnvError::Fatal`] for an arm on a mobile base.
+    pub fn step_joint(&mut self, action: &[f64]) -> Result<(), EnvError> {
+        if self.state.scene.base.is_some() {
+            return Err(EnvError::Fatal { reason: "joint-position actions drive a fixed arm; this arm rides a mobile base".into() });
+        }
+        let robot = &self.state.scene.robot;
+        let n = robot.arm_qpos.len();
+        if action.len() != n + 1 || action.iter().any(|a| !a.is_finite()) {
+            return Err(EnvError::Unstable { reason: format!("joint action {action:?} is not {} finite numbers", n + 1) });
+        }
+        self.state.data.forward();
+        let qpos = self.state.data.qpos();
+        let goal = crate::joint_control::JointGoal {
+            start: robot.arm_qpos.iter().map(|&i| qpos[i]).collect(),
+            target: action[..n].to_vec(),
+            substeps: self.state.scene.substeps,
+        };
+        #[allow(clippy::cast_precision_loss)] // a step count
+        let period = self.state.scene.model.opt().timestep * goal.substeps as f64;
+        for k in 1..=goal.substeps {
+            let (q, dq) = goal.at(k, period);
+            self.physics_step(action[n], Some((&q, &dq)))?;
+        }
+        self.state.data.forward();
+        self.task.record_history(&mut self.state);
+        Ok(())
+    }
+
     /// Camera images for every recorded state (see [`crate::camera`]), keyed `<camera>_image`
     /// (and `<camera>_depth`). Leaves the environment in the last state.
     ///
@@ -315,11 +380,18 @@ impl SimEnv {
         Ok(())
     }
 
-    fn physics_step(&mut self, gripper_action: f64) -> Result<(), EnvError> {
+    /// One physics step, the arm driven by the OSC, or towards `joint_goal` (position and
+    /// velocity per arm joint) when given.
+    fn physics_step(&mut self, gripper_action: f64, joint_goal: Option<(&[f64], &[f64])>) -> Result<(), EnvError> {
         // robosuite runs mj_forward, sets controls, then mj_step. With the Euler integrator,
         // mj_step1 + controls + mj_step2 computes the same thing without the second forward pass.
         self.state.data.step1();
-        drive_arm(&mut self.state.data, &mut self.osc, &self.state.scene.robot, &mut self.gripper_command, gripper_action);
+        let robot = &self.state.scene.robot;
+        let torques = match joint_goal {
+            None => self.osc.torques(&self.state.data, robot),
+            Some((q, dq)) => crate::joint_control::joint_torques(&self.state.data, robot, q, dq, &mut self.full_m),
+        };
+        drive_arm(&mut self.state.data, &torques, robot, &mut self.gripper_command, gripper_action);
         if let Some(log) = self.control_log.as_mut() {
             log.extend_from_slice(self.state.data.ctrl());
         }
@@ -333,12 +405,11 @@ impl SimEnv {
 /// sign, as robosuite's Panda gripper moves it.
 pub(crate) fn drive_arm(
     data: &mut MjData<Arc<MjModel>>,
-    osc: &mut Osc,
+    torques: &[f64],
     robot: &crate::scene::RobotIndices,
     gripper_command: &mut [f64; 2],
     gripper_action: f64,
 ) {
-    let torques = osc.torques(data, robot);
     let sign = if gripper_action > 0.0 {
         1.0
     } else if gripper_action < 0.0 {
@@ -350,7 +421,7 @@ pub(crate) fn drive_arm(
         *command = (*command + direction * GRIPPER_SPEED * sign).clamp(-1.0, 1.0);
     }
     let ctrl = data.ctrl_mut();
-    for ((a, [lo, hi]), tau) in robot.arm_actuators.iter().zip(torques) {
+    for ((a, [lo, hi]), tau) in robot.arm_actuators.iter().zip(torques.iter().copied()) {
         ctrl[*a] = tau.clamp(*lo, *hi);
     }
     for ((a, [lo, hi]), command) in robot.finger_actuators.iter().zip(gripper_command.iter()) {
@@ -520,7 +591,7 @@ impl Environment for SimEnv {
         let Some(base) = base else {
             self.osc.set_goal(&self.state.data, &self.state.scene.robot, action);
             for _ in 0..self.state.scene.substeps {
-                self.physics_step(action[6])?;
+                self.physics_step(action[6], None)?;
             }
             self.state.data.forward();
             self.task.record_history(&mut self.state);
@@ -534,7 +605,7 @@ impl Environment for SimEnv {
             let now = base.world_from_base(&self.state.data);
             self.osc.move_goal(&(now * world_from_base.inverse()));
             world_from_base = now;
-            self.physics_step(action[6])?;
+            self.physics_step(action[6], None)?;
         }
         self.state.data.forward();
         self.task.record_history(&mut self.state);

@@ -15,6 +15,7 @@ pub mod compose;
 pub mod data_task;
 pub mod env;
 pub mod geometry;
+pub mod joint_control;
 pub mod legacy_contacts;
 pub mod mjcf_edit;
 pub mod mobile_base;

@@ -225,7 +225,8 @@ def generate(
     renders without multisampling (faster, edges differ from robosuite's). ``env`` is a callable
     returning an :class:`Environment` (one per worker) to drive instead of the bundled MuJoCo
     backend. ``actions=["abs"]`` also writes ``actions_abs`` in every demo (the controller's
-    absolute target: position, axis-angle rotation, gripper; robomimic's convention).
+    absolute target: position, axis-angle rotation, gripper; robomimic's convention);
+    ``"joint"`` writes ``actions_joint`` (the arm's joint positions at the next step, gripper).
 
     Returns a :class:`Run`: iterate it for events, ``wait()`` for the report, ``cancel()``.
     """

@@ -360,13 +360,8 @@ impl TwoArmEnvironment for TwoArmSimEnv {
         for _ in 0..self.state.scene.substeps {
             self.state.data.step1();
             for arm in 0..2 {
-                drive_arm(
-                    &mut self.state.data,
-                    &mut self.oscs[arm],
-                    &self.robots[arm],
-                    &mut self.gripper_commands[arm],
-                    action[7 * arm + 6],
-                );
+                let torques = self.oscs[arm].torques(&self.state.data, &self.robots[arm]);
+                drive_arm(&mut self.state.data, &torques, &self.robots[arm], &mut self.gripper_commands[arm], action[7 * arm + 6]);
             }
             self.state.data.step2();
             check_stable(&self.state.data, &mut self.warnings_seen)?;

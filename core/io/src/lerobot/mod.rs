@@ -5,9 +5,12 @@
 //!
 //! Frames: `observation.state` (the chosen low-dim observations, concatenated, float32), `action`
 //! (float32), `next.reward`, `next.done`, `timestamp` (`frame_index / fps`), `frame_index`,
-//! `episode_index`, `index` (across the dataset) and `task_index`. Cameras: every `obs/<cam>_image`
+//! `episode_index`, `index` (across the dataset) and `task_index`, and with subtasks given,
+//! `subtask_index` (its text in `meta/subtasks.parquet`: [`subtasks`]). Cameras: every `obs/<cam>_image`
 //! (uint8 `(T, H, W, 3)`) becomes the video feature `observation.images.<cam>`, encoded by ffmpeg
 //! (`libx264`, `yuv420p`, a keyframe every 2 frames, as LeRobot's own encoder spaces them).
+//!
+//! A dataset card, when given, is the dataset's `README.md` (what the Hugging Face Hub shows).
 //!
 //! The export is written to `<out>.partial/` and renamed to `<out>` when complete.
 //!
@@ -22,7 +25,7 @@ use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::Arc;
 
 use arrow_array::builder::{FixedSizeListBuilder, Float32Builder};
-use arrow_array::{Array as _, ArrayRef, BooleanArray, Float32Array, Float64Array, Int64Array, ListArray, RecordBatch, StringArray};
+use arrow_array::{Array as _, ArrayRef, BooleanArray, Float32Array, Float64Array, Int64Array, ListArray, RecordBatch};
 use arrow_schema::{DataType, Field, Schema};
 use parquet::arrow::ArrowWriter;
 use parquet::basic::Compression;
@@ -33,6 +36,9 @@ use serde_json::{Value, json};
 use crate::dataset::DemoSource;
 use crate::error::{IoError, Result};
 use crate::tree::{Group, Values};
+
+mod subtasks;
+pub use subtasks::SubtaskLabel;
 
 /// LeRobot's format version written.
 pub const CODEBASE_VERSION: &str = "v3.0";
@@ -61,6 +67,10 @@ pub struct LeRobotOptions {
     pub ffmpeg: PathBuf,
     /// Replace an existing `out`.
     pub overwrite: bool,
+    /// The task's subtasks in order; empty for no `subtask_index` column.
+    pub subtasks: Vec<SubtaskLabel>,
+    /// The dataset card (Markdown), written as `README.md`.
+    pub card: Option<String>,
 }
 
 impl LeRobotOptions {
@@ -95,6 +105,8 @@ pub struct LeRobotSummary {
     pub videos: Vec<String>,
     /// The task of every frame.
     pub task: String,
+    /// The subtasks frames are labelled with (`subtask_index`), in order.
+    pub subtasks: Vec<String>,
     /// The dataset directory.
     pub out: String,
 }
@@ -179,17 +191,22 @@ pub fn export_lerobot(
             false,
         )
     };
-    let schema = Arc::new(Schema::new(vec![
-        list("observation.state", state_dim),
-        list("action", action_dim),
-        Field::new("next.reward", DataType::Float32, false),
-        Field::new("next.done", DataType::Boolean, false),
-        Field::new("timestamp", DataType::Float32, false),
-        Field::new("frame_index", DataType::Int64, false),
-        Field::new("episode_index", DataType::Int64, false),
-        Field::new("index", DataType::Int64, false),
-        Field::new("task_index", DataType::Int64, false),
-    ]));
+    let schema = Arc::new(Schema::new(
+        [
+            list("observation.state", state_dim),
+            list("action", action_dim),
+            Field::new("next.reward", DataType::Float32, false),
+            Field::new("next.done", DataType::Boolean, false),
+            Field::new("timestamp", DataType::Float32, false),
+            Field::new("frame_index", DataType::Int64, false),
+            Field::new("episode_index", DataType::Int64, false),
+            Field::new("index", DataType::Int64, false),
+            Field::new("task_index", DataType::Int64, false),
+        ]
+        .into_iter()
+        .chain((!options.subtasks.is_empty()).then(|| Field::new("subtask_index", DataType::Int64, false)))
+        .collect::<Vec<_>>(),
+    ));
     let partial = PathBuf::from(format!("{}.partial", out.display()));
     if partial.exists() {
         std::fs::remove_dir_all(&partial).map_err(|e| fs_error(&partial, "removing an earlier unfinished export", &e))?;
@@ -232,6 +249,7 @@ pub fn export_lerobot(
         state: exporter.state_layout(),
         videos: exporter.videos.iter().map(|v| v.feature.clone()).collect(),
         task: options.task.clone(),
+        subtasks: options.subtasks.iter().map(|s| s.name.clone()).collect(),
         out: out.display().to_string(),
     })
 }
@@ -438,6 +456,11 @@ impl Exporter<'_> {
         let dones = demo.dataset("dones").and_then(|d| d.array.values.to_i64()).filter(|r| r.len() == steps);
         let rewards = rewards.unwrap_or_else(|| vec![0.0; steps]);
         let dones: Vec<bool> = dones.map_or_else(|| (0..steps).map(|t| t + 1 == steps).collect(), |d| d.iter().map(|&x| x != 0).collect());
+        let subtask_labels = if self.options.subtasks.is_empty() {
+            None
+        } else {
+            Some(subtasks::subtask_of_each_step(demo, &self.options.subtasks, steps).map_err(|(field, reason)| err(&field, reason))?)
+        };
 
         // Frames.
         let episode_index = self.episodes.len();
@@ -470,6 +493,9 @@ impl Exporter<'_> {
             ] {
                 self.scalar_stats.entry(key).or_default().add(&[value]);
             }
+            if let Some(label) = subtask_labels.as_ref().and_then(|l| l.get(t)) {
+                self.scalar_stats.entry("subtask_index").or_default().add(&[*label as f64]);
+            }
         }
         #[allow(clippy::cast_possible_truncation)]
         let columns: Vec<ArrayRef> = vec![
@@ -483,6 +509,7 @@ impl Exporter<'_> {
             Arc::new(Int64Array::from(index(from))),
             Arc::new(Int64Array::from(vec![0i64; steps])),
         ];
+        let columns: Vec<ArrayRef> = columns.into_iter().chain(subtask_labels.map(|l| Arc::new(Int64Array::from(l)) as ArrayRef)).collect();
         let batch = RecordBatch::try_new(Arc::clone(&self.schema), columns).map_err(|e| err("actions", format!("arrow: {e}")))?;
         let approx_bytes = steps * (4 * (self.state_dim + self.action_dim) + 41);
         if self.data_writer.is_some() && self.data_bytes + approx_bytes > DATA_FILE_MB << 20 {
@@ -587,6 +614,9 @@ impl Exporter<'_> {
         {
             features.insert(key.into(), json!({"dtype": dtype, "shape": [1], "names": null}));
         }
+        if !self.options.subtasks.is_empty() {
+            features.insert("subtask_index".into(), json!({"dtype": "int64", "shape": [1], "names": null}));
+        }
         for video in &self.videos {
             let [h, w, c] = video.shape;
             features.insert(
@@ -631,35 +661,23 @@ impl Exporter<'_> {
             stats.insert(video.feature.clone(), video.stats.to_json(true));
         }
         write_json("stats.json", &Value::Object(stats))?;
-        self.write_tasks(&meta.join("tasks.parquet"))?;
+        let tasks = meta.join("tasks.parquet");
+        let table = subtasks::indexed_strings("task_index", std::slice::from_ref(&self.options.task));
+        write_parquet(&tasks, &table.map_err(|e| fs_error(&tasks, "arrow", &e))?)?;
+        if !self.options.subtasks.is_empty() {
+            let path = subtasks::table_path(&meta);
+            let names: Vec<String> = self.options.subtasks.iter().map(|s| s.name.clone()).collect();
+            write_parquet(&path, &subtasks::indexed_strings("subtask_index", &names).map_err(|e| fs_error(&path, "arrow", &e))?)?;
+        }
+        if let Some(card) = &self.options.card {
+            let path = self.root.join("README.md");
+            std::fs::write(&path, card).map_err(|e| fs_error(&path, "writing the dataset card", &e))?;
+        }
         self.write_episodes(&meta.join("episodes/chunk-000/file-000.parquet"))
     }
 
     fn state_layout(&self) -> Vec<(String, usize)> {
         self.options.state_keys.iter().cloned().zip(self.state_widths.iter().copied()).collect()
-    }
-
-    /// `meta/tasks.parquet` as pandas writes LeRobot's task table: the task string is the index.
-    fn write_tasks(&self, path: &Path) -> Result<()> {
-        let pandas = json!({
-            "index_columns": ["__index_level_0__"],
-            "column_indexes": [{"name": null, "field_name": null, "pandas_type": "unicode", "numpy_type": "object", "metadata": {"encoding": "UTF-8"}}],
-            "columns": [
-                {"name": "task_index", "field_name": "task_index", "pandas_type": "int64", "numpy_type": "int64", "metadata": null},
-                {"name": null, "field_name": "__index_level_0__", "pandas_type": "unicode", "numpy_type": "object", "metadata": null}
-            ],
-            "creator": {"library": "mimicgen-rs", "version": env!("CARGO_PKG_VERSION")},
-            "pandas_version": "2.2.3"
-        });
-        let schema =
-            Schema::new(vec![Field::new("task_index", DataType::Int64, false), Field::new("__index_level_0__", DataType::Utf8, false)])
-                .with_metadata(std::collections::HashMap::from([("pandas".to_owned(), pandas.to_string())]));
-        let batch = RecordBatch::try_new(
-            Arc::new(schema),
-            vec![Arc::new(Int64Array::from(vec![0i64])), Arc::new(StringArray::from(vec![self.options.task.clone()]))],
-        )
-        .map_err(|e| fs_error(path, "arrow", &e))?;
-        write_parquet(path, &batch)
     }
 
     /// `meta/episodes/chunk-000/file-000.parquet`: one row per episode.
