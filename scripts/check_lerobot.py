@@ -30,6 +30,8 @@ def main(argv=None):
     ap.add_argument("hdf5")
     ap.add_argument("root")
     ap.add_argument("--max-image-mae", type=float, default=6.0, help="largest mean abs error (0-255) of a decoded frame")
+    ap.add_argument("--require-subtasks", action="store_true",
+                    help="fail unless the loader returns a subtask for every frame (lerobot, an export of demos with signals)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
 
@@ -94,6 +96,7 @@ def main(argv=None):
                     theirs = ds[start + t]["subtask"]
                     check(theirs == subtasks[expected[t]], f"{name} step {t}: LeRobot's subtask {theirs!r}, expected {subtasks[expected[t]]!r}")
             start += n
+    check(subtasks or not args.require_subtasks, f"{loader}: no subtasks (subtask_index and meta/subtasks.parquet) to check")
     table = pq.read_table(f"{args.root}/data/chunk-000/file-000.parquet")
     check("observation.state" in table.column_names and "action" in table.column_names, f"parquet columns {table.column_names}")
     for c, errs in image_errors.items():

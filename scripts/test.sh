@@ -74,11 +74,12 @@ step "robosuite renders what we render"
 "$CARGO_TARGET_DIR/debug/mimicgen" generate --num-demos 3 --guarantee --seed 1 --workers 2 --cameras --out "$replay_dir/cameras.hdf5" >/dev/null
 "$MIMICGEN_CACHE/venv-robosuite/bin/python" scripts/robosuite_render.py "$replay_dir/cameras.hdf5" --frames 5 --min-psnr 22
 # LeRobot export of that dataset (parquet + H.264 camera videos), loaded by LeRobot's own
-# LeRobotDataset: counts, episode boundaries, first/last actions, decoded frames.
+# LeRobotDataset (lerobot 0.4.4): counts, episode boundaries, first/last actions, each frame's
+# task and subtask, decoded frames.
 step "LeRobot export, loaded by LeRobot"
 bash scripts/setup_learners.sh
 "$CARGO_TARGET_DIR/debug/mimicgen" export "$replay_dir/cameras.hdf5" --lerobot "$replay_dir/lerobot"
-"$MIMICGEN_CACHE/venv-learners/bin/python" scripts/check_lerobot.py "$replay_dir/cameras.hdf5" "$replay_dir/lerobot"
+"$MIMICGEN_CACHE/venv-learners/bin/python" scripts/check_lerobot.py "$replay_dir/cameras.hdf5" "$replay_dir/lerobot" --require-subtasks
 # The trainers' loop: robomimic 0.3.0's own train.py trains BC-RNN on our data and its
 # run_trained_agent.py rolls the policy out in our simulator (mimicgen_rs.robomimic registers it).
 # Tiny: 2 epochs of 5 steps, 2 rollouts of 30 steps; it must run, not succeed (BENCHMARKS.md has

@@ -6,7 +6,7 @@
 //! Frames: `observation.state` (the chosen low-dim observations, concatenated, float32), `action`
 //! (float32), `next.reward`, `next.done`, `timestamp` (`frame_index / fps`), `frame_index`,
 //! `episode_index`, `index` (across the dataset) and `task_index`, and with subtasks given,
-//! `subtask_index` (its text in `meta/subtasks.parquet`: [`subtasks`]). Cameras: every `obs/<cam>_image`
+//! `subtask_index` (its text in `meta/subtasks.parquet`, see [`SubtaskLabel`]). Cameras: every `obs/<cam>_image`
 //! (uint8 `(T, H, W, 3)`) becomes the video feature `observation.images.<cam>`, encoded by ffmpeg
 //! (`libx264`, `yuv420p`, a keyframe every 2 frames, as LeRobot's own encoder spaces them).
 //!
@@ -37,7 +37,9 @@ use crate::dataset::DemoSource;
 use crate::error::{IoError, Result};
 use crate::tree::{Group, Values};
 
+mod parts;
 mod subtasks;
+use parts::{FileSlot, Stats};
 pub use subtasks::SubtaskLabel;
 
 /// LeRobot's format version written.
@@ -252,62 +254,6 @@ pub fn export_lerobot(
         subtasks: options.subtasks.iter().map(|s| s.name.clone()).collect(),
         out: out.display().to_string(),
     })
-}
-
-/// Where an episode's frames live: `(chunk, file)` indices.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-struct FileSlot {
-    chunk: usize,
-    file: usize,
-}
-
-impl FileSlot {
-    fn next(self) -> Self {
-        if self.file + 1 >= CHUNK_SIZE { Self { chunk: self.chunk + 1, file: 0 } } else { Self { chunk: self.chunk, file: self.file + 1 } }
-    }
-
-    fn path(self, dir: &str, ext: &str) -> String {
-        format!("{dir}/chunk-{:03}/file-{:03}.{ext}", self.chunk, self.file)
-    }
-}
-
-/// Running per-dimension statistics (LeRobot's `min`, `max`, `mean`, `std`, `count`).
-#[derive(Debug, Clone, Default)]
-struct Stats {
-    min: Vec<f64>,
-    max: Vec<f64>,
-    sum: Vec<f64>,
-    sum_sq: Vec<f64>,
-    count: u64,
-}
-
-impl Stats {
-    fn add(&mut self, row: &[f64]) {
-        if self.min.is_empty() {
-            self.min = vec![f64::INFINITY; row.len()];
-            self.max = vec![f64::NEG_INFINITY; row.len()];
-            self.sum = vec![0.0; row.len()];
-            self.sum_sq = vec![0.0; row.len()];
-        }
-        let columns = self.min.iter_mut().zip(self.max.iter_mut()).zip(self.sum.iter_mut().zip(self.sum_sq.iter_mut()));
-        for (((min, max), (sum, sum_sq)), &v) in columns.zip(row) {
-            *min = min.min(v);
-            *max = max.max(v);
-            *sum += v;
-            *sum_sq += v * v;
-        }
-        self.count += 1;
-    }
-
-    /// As LeRobot's `stats.json` has it; `image` nests each value as `[[v]]` (per channel, `(3, 1, 1)`).
-    #[allow(clippy::cast_precision_loss)]
-    fn to_json(&self, image: bool) -> Value {
-        let n = self.count.max(1) as f64;
-        let mean: Vec<f64> = self.sum.iter().map(|s| s / n).collect();
-        let std: Vec<f64> = self.sum_sq.iter().zip(&mean).map(|(sq, m)| (sq / n - m * m).max(0.0).sqrt()).collect();
-        let shape = |v: &[f64]| if image { json!(v.iter().map(|x| json!([[x]])).collect::<Vec<_>>()) } else { json!(v) };
-        json!({"min": shape(&self.min), "max": shape(&self.max), "mean": shape(&mean), "std": shape(&std), "count": [self.count]})
-    }
 }
 
 /// One camera's video files: the ffmpeg process encoding the current one.
