@@ -68,9 +68,9 @@ fn check_push_target(repo: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Uploads the LeRobot dataset `dir` to `repo` (see [`ExportArgs::push`]); returns where it went.
+/// Uploads the LeRobot dataset `dir` to `repo` (see [`ExportArgs::push`], checked by
+/// [`check_push_target`] before the export); returns where it went.
 fn push(dir: &Path, repo: &str) -> anyhow::Result<String> {
-    check_push_target(repo)?;
     if let Some(local) = repo.strip_prefix("file://") {
         let local = Path::new(local);
         copy_tree(dir, local).map_err(|e| anyhow::anyhow!("--push {repo}: copying {} there: {e}", dir.display()))?;

@@ -193,13 +193,11 @@ fn card(facts: &CardFacts<'_>) -> String {
         );
         for (i, st) in spec.subtasks.iter().enumerate() {
             let text = facts.subtasks.get(i).map_or("(not labelled)", |l| l.name.as_str());
-            let selection =
-                serde_json::to_value(&st.selection).ok().and_then(|v| v.get("strategy").and_then(|s| s.as_str().map(str::to_owned)));
             let _ = writeln!(
                 s,
                 "| {i} | {text} | {} | {} | {} | {} |",
                 st.object_ref.as_deref().unwrap_or("world"),
-                selection.as_deref().unwrap_or("-"),
+                st.selection.name(),
                 st.action_noise,
                 st.num_interpolation_steps
             );

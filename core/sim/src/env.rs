@@ -293,8 +293,7 @@ impl SimEnv {
         let mut out = mimicgen_engine::Rows::new(width);
         for (t, action) in actions.iter().enumerate() {
             let next = states.row((t + 1).min(actions.len() - 1));
-            // A state is the time, then qpos, then qvel.
-            let mut row: Vec<f64> = arm.iter().map(|&i| next.get(1 + i).copied()).collect::<Option<_>>().ok_or_else(|| {
+            let mut row: Vec<f64> = arm.iter().map(|&i| SimState::qpos_in_flat(next, i)).collect::<Option<_>>().ok_or_else(|| {
                 EnvError::Fatal { reason: format!("state {} has {} values, too few for the arm's joints", t + 1, next.len()) }
             })?;
             row.extend_from_slice(action.get(6..).unwrap_or_default());
@@ -634,8 +633,7 @@ impl Environment for SimEnv {
             .iter()
             .zip(&scene.robot.arm_qpos)
             .filter_map(|(name, &qpos)| {
-                // A state is the time, then qpos, then qvel.
-                let q = *state.get(1 + qpos)?;
+                let q = SimState::qpos_in_flat(state, qpos)?;
                 let joint = model.name_to_id(MjtObjBase::mjOBJ_JOINT, name)?;
                 let [low, high] = *model.jnt_range().get(joint)?;
                 let limited = model.jnt_limited().get(joint).copied().unwrap_or(false);

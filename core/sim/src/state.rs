@@ -128,6 +128,12 @@ impl SimState {
         s
     }
 
+    /// `qpos[index]` of a flattened robosuite state (`[time, qpos, qvel]`); `None` past its end.
+    #[must_use]
+    pub fn qpos_in_flat(state: &[f64], index: usize) -> Option<f64> {
+        state.get(1 + index).copied()
+    }
+
     /// Restores a flattened robosuite state (`[time, qpos, qvel]`) and forwards the kinematics.
     ///
     /// # Errors
